@@ -1,0 +1,3 @@
+from imubounds.cli import main
+
+raise SystemExit(main())

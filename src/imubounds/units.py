@@ -1,0 +1,83 @@
+"""Unit constants and conversions between SI and the units of IEEE Std 952.
+
+Inside the library everything is SI: rad, rad/s, m/s, m/s^2, s. Degrees, hours
+and g appear only at the edges (parsing, reports). This module is the one place
+those edge conversions live.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+DEG = math.pi / 180.0  #: one degree in rad
+G0 = 9.80665  #: standard gravity, m/s^2
+HOUR = 3600.0  #: s
+SQRT_HOUR = 60.0  #: sqrt(s) per sqrt(h)
+
+SensorKind = Literal["gyro", "accel"]
+Term = Literal["Q", "N", "B", "K", "R"]
+
+# SI unit of each noise term, for rate gyros (rad/s) and accelerometers (m/s^2).
+SI_UNITS: dict[SensorKind, dict[Term, str]] = {
+    "gyro": {"Q": "rad", "N": "rad/s^0.5", "B": "rad/s", "K": "rad/s^1.5", "R": "rad/s^2"},
+    "accel": {"Q": "m/s", "N": "m/s^1.5", "B": "m/s^2", "K": "m/s^2.5", "R": "m/s^3"},
+}
+
+# IEEE 952-style units and the factor that converts an SI value into them.
+IEEE_UNITS: dict[SensorKind, dict[Term, tuple[str, float]]] = {
+    "gyro": {
+        "Q": ("deg", 1.0 / DEG),
+        "N": ("deg/h^0.5", SQRT_HOUR / DEG),
+        "B": ("deg/h", HOUR / DEG),
+        "K": ("deg/h/h^0.5", HOUR * SQRT_HOUR / DEG),
+        "R": ("deg/h^2", HOUR * HOUR / DEG),
+    },
+    "accel": {
+        "Q": ("m/s", 1.0),
+        "N": ("m/s/h^0.5", SQRT_HOUR),
+        "B": ("ug", 1.0e6 / G0),
+        "K": ("m/s/h/h^0.5", HOUR * SQRT_HOUR),
+        "R": ("m/s/h^2", HOUR * HOUR),
+    },
+}
+
+# Measured-quantity units accepted on input, with the factor to SI.
+GYRO_UNITS: dict[str, float] = {
+    "rad/s": 1.0,
+    "rads": 1.0,
+    "rps": 1.0,
+    "deg/s": DEG,
+    "dps": DEG,
+    "deg/h": DEG / HOUR,
+    "mrad/s": 1e-3,
+}
+ACCEL_UNITS: dict[str, float] = {
+    "m/s^2": 1.0,
+    "m/s2": 1.0,
+    "mps2": 1.0,
+    "g": G0,
+    "mg": 1e-3 * G0,
+    "ug": 1e-6 * G0,
+}
+TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+def sensor_kind(channel: str) -> SensorKind:
+    """``'gyro'`` for gyro channels, ``'accel'`` for accelerometer channels."""
+    if channel.startswith("gyro"):
+        return "gyro"
+    if channel.startswith("accel"):
+        return "accel"
+    raise ValueError(f"not an IMU channel name: {channel!r}")
+
+
+def si_unit_of_signal(kind: SensorKind) -> str:
+    """SI unit of the measured signal itself."""
+    return "rad/s" if kind == "gyro" else "m/s^2"
+
+
+def to_ieee(kind: SensorKind, term: Term, value_si: float) -> tuple[float, str]:
+    """Convert a noise term from SI into IEEE 952 units; returns (value, unit)."""
+    unit, factor = IEEE_UNITS[kind][term]
+    return value_si * factor, unit

@@ -1,0 +1,30 @@
+"""Shared fixtures: where the real recorded logs live."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+# h5py must be imported before codac: in this environment importing codac first
+# and h5py afterwards segfaults (both bundle native libraries).
+try:
+    import h5py  # noqa: F401
+except ImportError:  # pragma: no cover
+    pass
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """``../shared/data`` beside the repository (always present in CI)."""
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"real data folder {SHARED_DATA} is not beside the repository")
+    return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def adis_log_path(shared_data: Path) -> Path:
+    return shared_data / "static" / "adis16405_imu1.csv.gz"
