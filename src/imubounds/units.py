@@ -46,7 +46,6 @@ IEEE_UNITS: dict[SensorKind, dict[Term, tuple[str, float]]] = {
 GYRO_UNITS: dict[str, float] = {
     "rad/s": 1.0,
     "rads": 1.0,
-    "rps": 1.0,
     "deg/s": DEG,
     "dps": DEG,
     "deg/h": DEG / HOUR,
