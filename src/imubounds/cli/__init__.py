@@ -17,7 +17,7 @@ from imubounds import __version__
 from imubounds.errors import ImuboundsError
 
 # Command modules, in the order they appear in ``--help``.
-COMMAND_MODULES: tuple[str, ...] = ("static",)
+COMMAND_MODULES: tuple[str, ...] = ("static", "report", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,7 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
+    args.argv = argv
     try:
         code = args.func(args)
     except ImuboundsError as err:

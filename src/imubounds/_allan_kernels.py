@@ -1,0 +1,485 @@
+"""Numba kernels (and plain-numpy references) for the Allan-variance family.
+
+Everything here works on the *phase* array ``x`` (length ``N + 1``) of a rate
+signal ``y`` (length ``N``) sampled every ``t0`` seconds::
+
+    x[0] = 0,   x[k] = t0 * sum_{i<k} (y[i] - mean(y))
+
+The units of ``x`` are those of ``y`` times seconds (rad for a gyro in rad/s,
+m/s for an accelerometer in m/s^2). Removing the mean keeps ``|x|`` small; it
+changes none of the statistics (they are built from second or third
+differences of ``x``, which annihilate a linear phase trend).
+
+Exactness
+---------
+* :func:`phase_from_rate` is a compensated running sum (Knuth's branch-free
+  TwoSum, i.e. Kahan-Babuska/Neumaier summation): every ``x[k]`` is the
+  correctly rounded value of the exact partial sum up to a few ulp,
+  independent of ``N``. A naive running sum would
+  instead accumulate ``O(k * eps * max|x|)`` error; for ``N = 1e9`` samples
+  that is the difference between 1e-16 and ~1e-7 relative on ``x``.
+* The sum-of-squares kernels accumulate over *chunks* of at most
+  :data:`CHUNK` terms with four interleaved accumulators (partial sums of
+  <= CHUNK/4 terms each); the per-chunk partial sums are added with
+  ``math.fsum`` in :func:`reduce_partials`. The rounding error of the sum is
+  thus bounded by about ``(CHUNK/4) * eps`` relative instead of ``N * eps``.
+* Kernels are compiled without fast-math, except that the three
+  sum-of-squares loops allow *reassociation* only (``_REDUCE_FLAGS``) so that
+  LLVM vectorises the reduction; results do not depend on the number of
+  threads, because every chunk is a fixed task whose partial sum is stored
+  separately and reduced in a fixed order.
+
+Out-of-core use
+---------------
+Every ``*_sumsq`` kernel takes the phase array (a ``numpy.memmap`` works) and a
+half-open range ``[k0, k1)`` of *term indices* and returns the partial sum of
+squares over that range. A chunked driver can call them on successive ranges
+(reading the needed ``x`` window, which extends ``2m``, ``3m`` or ``m`` samples
+beyond the range) and add the partial sums; the term counts and normalisations
+are given by :func:`n_terms` and the ``allan`` module.
+
+Term index conventions (``Np = N + 1`` phase points):
+
+========================  ===========================================  =================
+estimator                 term ``k``                                    valid ``k``
+========================  ===========================================  =================
+overlapping ADEV          ``x[k+2m] - 2x[k+m] + x[k]``                  ``0 .. N-2m``
+non-overlapping ADEV      same, with ``k = j*m``; the *range* is in j   ``j = 0 .. N//m-2``
+overlapping HDEV          ``x[k+3m] - 3x[k+2m] + 3x[k+m] - x[k]``       ``0 .. N-3m``
+modified ADEV             ``sum_{i=k}^{k+m-1} (x[i+2m]-2x[i+m]+x[i])``  ``0 .. N-3m+1``
+total deviation           ``x*[k-m] - 2x[k] + x*[k+m]`` (x* reflected)  ``1 .. N-1``
+========================  ===========================================  =================
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+__all__ = [
+    "CHUNK",
+    "ESTIMATOR_CODES",
+    "adev_sumsq",
+    "hdev_sumsq",
+    "mdev_sumsq",
+    "n_terms",
+    "phase_from_rate",
+    "phase_from_rate_ref",
+    "reduce_partials",
+    "sumsq_ref",
+    "sumsq_tasks",
+    "term_range",
+    "totdev_sumsq",
+]
+
+#: Maximum number of terms summed by one kernel call inside :func:`sumsq_tasks`.
+CHUNK: int = 1 << 16
+
+#: LLVM fast-math flags of the sum-of-squares kernels: *only* reassociation, so
+#: that the compiler may split the sum into SIMD lanes (4x faster on AVX2).
+#: No ``nnan``/``ninf``/``arcp``/``afn``: every term is an IEEE double; the
+#: order of additions (lanes, then chunks, then ``fsum``) is fixed for a given
+#: build and independent of the thread count.
+_REDUCE_FLAGS: set[str] = {"reassoc"}
+
+#: Integer codes of the estimators, as used by :func:`sumsq_tasks`.
+ESTIMATOR_CODES: dict[str, int] = {
+    "overlapping": 0,
+    "non-overlapping": 1,
+    "hadamard": 2,
+    "modified": 3,
+    "total": 4,
+}
+
+
+# --------------------------------------------------------------------------
+# phase (integrated signal)
+# --------------------------------------------------------------------------
+@njit(cache=True, fastmath=False)
+def _phase_kernel(y: np.ndarray, mean: float, t0: float, out: np.ndarray) -> None:
+    s = 0.0
+    c = 0.0
+    out[0] = 0.0
+    for i in range(y.shape[0]):
+        v = y[i] - mean
+        t = s + v
+        bp = t - s
+        c += (s - (t - bp)) + (v - bp)  # Knuth TwoSum: exact error of s + v
+        s = t
+        out[i + 1] = (s + c) * t0
+
+
+def phase_from_rate(y: np.ndarray, t0: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Compensated integral of the mean-removed rate signal.
+
+    Parameters
+    ----------
+    y : ndarray, shape (N,)
+        Rate samples (any unit U, e.g. rad/s), float64, finite.
+    t0 : float
+        Sample period in s.
+    out : ndarray, shape (N + 1,), optional
+        Where to write the result (may be a writable ``np.memmap``).
+
+    Returns
+    -------
+    ndarray, shape (N + 1,)
+        ``x[0] = 0``, ``x[k] = t0 * sum_{i<k} (y[i] - mean(y))`` in U*s, each
+        value within a few ulp of the exact partial sum (compensated summation).
+    """
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    if out is None:
+        out = np.empty(y.shape[0] + 1, dtype=np.float64)
+    mean = float(np.mean(y)) if y.shape[0] else 0.0
+    _phase_kernel(y, mean, float(t0), out)
+    return out
+
+
+def phase_from_rate_ref(y: np.ndarray, t0: float) -> np.ndarray:
+    """Plain-numpy reference of :func:`phase_from_rate` (``np.cumsum``)."""
+    y = np.asarray(y, dtype=np.float64)
+    return np.concatenate(([0.0], np.cumsum(y - np.mean(y)) * t0))
+
+
+# --------------------------------------------------------------------------
+# term counts and ranges
+# --------------------------------------------------------------------------
+def term_range(estimator: str, n_samples: int, m: int) -> tuple[int, int]:
+    """Half-open range ``[k_start, k_stop)`` of term indices for one ``m``.
+
+    For ``non-overlapping`` the index is the cluster-pair index ``j``.
+    The range is empty (``k_stop <= k_start``) when ``m`` is too large.
+    """
+    n = int(n_samples)
+    if estimator == "overlapping":
+        return 0, n - 2 * m + 1
+    if estimator == "non-overlapping":
+        return 0, n // m - 1
+    if estimator == "hadamard":
+        return 0, n - 3 * m + 1
+    if estimator == "modified":
+        return 0, n - 3 * m + 2
+    if estimator == "total":
+        return 1, n
+    raise ValueError(f"unknown estimator {estimator!r}")
+
+
+def n_terms(estimator: str, n_samples: int, m: int) -> int:
+    """Number of squared terms averaged for cluster size ``m`` (may be <= 0)."""
+    a, b = term_range(estimator, n_samples, m)
+    return b - a
+
+
+# --------------------------------------------------------------------------
+# sum-of-squares kernels over a range of term indices
+# --------------------------------------------------------------------------
+@njit(cache=True, fastmath=_REDUCE_FLAGS, boundscheck=False)
+def adev_sumsq(x: np.ndarray, m: int, k0: int, k1: int, stride: int) -> float:
+    """Sum of ``(x[k+2m] - 2x[k+m] + x[k])**2`` for ``k = k0, k0+stride, ... < k1``.
+
+    ``stride=1``, ``k`` in ``[0, N-2m+1)`` gives the overlapping Allan variance
+    numerator; ``stride=m`` with ``k = j*m`` the non-overlapping one. The caller
+    guarantees ``k1 - 1 + 2m < len(x)``. Units: (U*s)^2.
+    """
+    s0 = 0.0
+    m2 = 2 * m
+    if stride == 1:
+        if k1 <= k0:
+            return 0.0
+        a = x[k0:k1]
+        b = x[k0 + m : k1 + m]
+        c = x[k0 + m2 : k1 + m2]
+        for i in range(a.shape[0]):
+            d0 = c[i] - 2.0 * b[i] + a[i]
+            s0 += d0 * d0
+    else:
+        for k in range(k0, k1, stride):
+            d0 = x[k + m2] - 2.0 * x[k + m] + x[k]
+            s0 += d0 * d0
+    return s0
+
+
+@njit(cache=True, fastmath=_REDUCE_FLAGS, boundscheck=False)
+def hdev_sumsq(x: np.ndarray, m: int, k0: int, k1: int, stride: int) -> float:
+    """Sum of ``(x[k+3m] - 3x[k+2m] + 3x[k+m] - x[k])**2`` over ``k = k0, ... < k1``.
+
+    Overlapping Hadamard variance numerator for ``stride=1``. The caller
+    guarantees ``k1 - 1 + 3m < len(x)``. Units: (U*s)^2.
+    """
+    s0 = 0.0
+    m2 = 2 * m
+    m3 = 3 * m
+    if stride == 1:
+        if k1 <= k0:
+            return 0.0
+        a = x[k0:k1]
+        b = x[k0 + m : k1 + m]
+        c = x[k0 + m2 : k1 + m2]
+        e = x[k0 + m3 : k1 + m3]
+        for i in range(a.shape[0]):
+            d0 = e[i] - 3.0 * c[i] + 3.0 * b[i] - a[i]
+            s0 += d0 * d0
+    else:
+        for k in range(k0, k1, stride):
+            d0 = x[k + m3] - 3.0 * x[k + m2] + 3.0 * x[k + m] - x[k]
+            s0 += d0 * d0
+    return s0
+
+
+@njit(cache=True, fastmath=False, boundscheck=False)
+def mdev_sumsq(x: np.ndarray, m: int, k0: int, k1: int) -> float:
+    """Modified Allan variance numerator over outer indices ``k0 <= j < k1``.
+
+    Sum over ``j`` of ``S_j**2`` with
+    ``S_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i])``. ``S_{k0}`` is
+    summed directly (m terms); later ``S_j`` are updated by the sliding-window
+    increment ``S_j - S_{j-1} = x[j-1+3m] - 3x[j-1+2m] + 3x[j-1+m] - x[j-1]``
+    (computed in vectorised blocks), the rounding error of the running sum is
+    carried in a TwoSum compensation term, and the window is re-summed
+    directly every ``max(16m, 4096)`` steps. The caller
+    guarantees ``k1 - 2 + 3m < len(x)``. Units: (U*s)^2.
+    """
+    if k1 <= k0:
+        return 0.0
+    m2 = 2 * m
+    resync = max(16 * m, 4096)
+    nbuf = 2048
+    buf = np.empty(nbuf, dtype=np.float64)
+    total = 0.0
+    j = k0
+    while j < k1:
+        # direct window sum at j
+        s = 0.0
+        c = 0.0
+        for i in range(j, j + m):
+            v = x[i + m2] - 2.0 * x[i + m] + x[i]
+            t = s + v
+            bp = t - s
+            c += (s - (t - bp)) + (v - bp)
+            s = t
+        w = s + c
+        total += w * w
+        jstop = min(k1, j + resync)
+        j += 1
+        while j < jstop:
+            nb = min(nbuf, jstop - j)
+            # window increments S_j - S_{j-1} = d_{j+m-1} - d_{j-1}
+            #   = x[j-1+3m] - 3x[j-1+2m] + 3x[j-1+m] - x[j-1]  (vectorisable loop)
+            p0 = x[j - 1 : j - 1 + nb]
+            p1 = x[j - 1 + m : j - 1 + m + nb]
+            p2 = x[j - 1 + m2 : j - 1 + m2 + nb]
+            p3 = x[j - 1 + m2 + m : j - 1 + m2 + m + nb]
+            for q in range(nb):
+                buf[q] = p3[q] - 3.0 * p2[q] + 3.0 * p1[q] - p0[q]
+            for q in range(nb):
+                v = buf[q]
+                t = s + v
+                bp = t - s
+                c += (s - (t - bp)) + (v - bp)
+                s = t
+                w = s + c
+                total += w * w
+            j += nb
+    return total
+
+
+@njit(cache=True, fastmath=False, boundscheck=False)
+def _refl(x: np.ndarray, idx: int) -> float:
+    last = x.shape[0] - 1
+    if idx < 0:
+        return 2.0 * x[0] - x[-idx]
+    if idx > last:
+        return 2.0 * x[last] - x[2 * last - idx]
+    return x[idx]
+
+
+@njit(cache=True, fastmath=_REDUCE_FLAGS, boundscheck=False)
+def totdev_sumsq(x: np.ndarray, m: int, k0: int, k1: int) -> float:
+    """Total-variance numerator over centres ``k0 <= k < k1`` (valid 1 .. N-1).
+
+    Sum of ``(x*[k-m] - 2x[k] + x*[k+m])**2`` where ``x*`` is ``x`` extended by
+    odd reflection at both ends (NIST SP 1065 eq. 25):
+    ``x*[-j] = 2x[0] - x[j]``, ``x*[N+j] = 2x[N] - x[N-j]``. Needs ``m <= N``.
+    Units: (U*s)^2.
+    """
+    last = x.shape[0] - 1
+    s0 = 0.0
+    s1 = 0.0
+    # interior where no reflection is needed: m <= k <= last - m
+    a = max(k0, m)
+    b = min(k1, last - m + 1)
+    if 2 * m > last:  # reflections on both sides possible: generic scalar path
+        for k in range(k0, k1):
+            d = _refl(x, k - m) - 2.0 * x[k] + _refl(x, k + m)
+            s0 += d * d
+        return s0
+    # left edge k0 <= k < min(k1, a): x*[k-m] = 2x[0] - x[m-k]
+    lo = k0
+    hi = min(k1, a)
+    if hi > lo:
+        x0 = x[0]
+        xr = x[m - hi + 1 : m - lo + 1][::-1]  # xr[q] = x[m - (lo + q)]
+        xc = x[lo:hi]
+        xp = x[lo + m : hi + m]
+        for q in range(hi - lo):
+            d = (2.0 * x0 - xr[q]) - 2.0 * xc[q] + xp[q]
+            s0 += d * d
+    if a < b:
+        # interior terms are overlapping-ADEV terms shifted by m (vectorised)
+        s0 += adev_sumsq(x, m, a - m, b - m, 1)
+    # right edge max(k0, b, a) <= k < k1: x*[k+m] = 2x[last] - x[2 last - k - m]
+    lo = max(k0, b, a)
+    hi = k1
+    if hi > lo:
+        xl = x[last]
+        xr = x[2 * last - m - hi + 1 : 2 * last - m - lo + 1][::-1]
+        xm = x[lo - m : hi - m]
+        xc = x[lo:hi]
+        for q in range(hi - lo):
+            d = xm[q] - 2.0 * xc[q] + (2.0 * xl - xr[q])
+            s1 += d * d
+    return s0 + s1
+
+
+# --------------------------------------------------------------------------
+# parallel task driver
+# --------------------------------------------------------------------------
+@njit(cache=True, fastmath=False, parallel=True)
+def _run_tasks(
+    x: np.ndarray, code: int, ms: np.ndarray, k0: np.ndarray, k1: np.ndarray
+) -> np.ndarray:
+    out = np.empty(k0.shape[0], dtype=np.float64)
+    for t in prange(k0.shape[0]):
+        m = ms[t]
+        if code == 0:
+            out[t] = adev_sumsq(x, m, k0[t], k1[t], 1)
+        elif code == 1:
+            out[t] = adev_sumsq(x, m, k0[t] * m, k1[t] * m, m)
+        elif code == 2:
+            out[t] = hdev_sumsq(x, m, k0[t], k1[t], 1)
+        elif code == 3:
+            out[t] = mdev_sumsq(x, m, k0[t], k1[t])
+        else:
+            out[t] = totdev_sumsq(x, m, k0[t], k1[t])
+    return out
+
+
+def _make_tasks(
+    estimator: str, n_samples: int, ms: np.ndarray, chunk: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Split every ``m`` into chunks of term indices, chunk-major order.
+
+    Chunk-major order (all ``m`` for chunk 0, then chunk 1, ...) makes
+    consecutive tasks read the same region of ``x`` (cache blocking) and the
+    static ``prange`` schedule gives each thread a contiguous region.
+    """
+    ranges = [term_range(estimator, n_samples, int(m)) for m in ms]
+    lens = [max(0, b - a) for a, b in ranges]
+    if estimator == "modified":
+        # each chunk re-sums an m-long window first: keep that overhead small
+        csize = [max(chunk, 16 * int(m)) for m in ms]
+    else:
+        csize = [chunk] * len(ms)
+    nch = [max(1, -(-n // c)) for n, c in zip(lens, csize, strict=True)]
+    idx, m_t, a_t, b_t = [], [], [], []
+    for c in range(max(nch) if nch else 0):
+        for i, m in enumerate(ms):
+            if c >= nch[i]:
+                continue
+            a = ranges[i][0] + c * csize[i]
+            b = min(ranges[i][0] + lens[i], a + csize[i])
+            idx.append(i)
+            m_t.append(int(m))
+            a_t.append(a)
+            b_t.append(max(a, b))
+    return (
+        np.asarray(idx, dtype=np.int64),
+        np.asarray(m_t, dtype=np.int64),
+        np.asarray(a_t, dtype=np.int64),
+        np.asarray(b_t, dtype=np.int64),
+    )
+
+
+def reduce_partials(idx: np.ndarray, partial: np.ndarray, n_out: int) -> np.ndarray:
+    """Add per-task partial sums into one sum per ``m`` with ``math.fsum``."""
+    out = np.zeros(n_out, dtype=np.float64)
+    order = np.argsort(idx, kind="stable")
+    idx_s = idx[order]
+    part_s = partial[order]
+    bounds = np.searchsorted(idx_s, np.arange(n_out + 1))
+    for i in range(n_out):
+        out[i] = math.fsum(part_s[bounds[i] : bounds[i + 1]].tolist())
+    return out
+
+
+def sumsq_tasks(x: np.ndarray, estimator: str, ms: np.ndarray, chunk: int = CHUNK) -> np.ndarray:
+    """Sums of squared terms for every cluster size in ``ms`` (parallel, numba).
+
+    Parameters
+    ----------
+    x : ndarray, shape (N + 1,)
+        Phase array from :func:`phase_from_rate` (U*s).
+    estimator : str
+        One of :data:`ESTIMATOR_CODES`.
+    ms : ndarray of int
+        Cluster sizes, each within the estimator's limit.
+    chunk : int
+        Maximum number of terms per task.
+
+    Returns
+    -------
+    ndarray, shape (len(ms),)
+        Sum of squared terms for each ``m`` in (U*s)^2; divide by the
+        normalisation of the estimator to get the variance.
+    """
+    ms = np.asarray(ms, dtype=np.int64)
+    n_samples = x.shape[0] - 1
+    idx, m_t, a_t, b_t = _make_tasks(estimator, n_samples, ms, int(chunk))
+    if idx.size == 0:
+        return np.zeros(ms.shape[0])
+    partial = _run_tasks(x, ESTIMATOR_CODES[estimator], m_t, a_t, b_t)
+    return reduce_partials(idx, partial, ms.shape[0])
+
+
+def num_threads() -> int:
+    """Number of threads numba uses for :func:`sumsq_tasks`."""
+    return int(numba.get_num_threads())
+
+
+# --------------------------------------------------------------------------
+# plain-numpy references (tests compare the kernels against these)
+# --------------------------------------------------------------------------
+def sumsq_ref(x: np.ndarray, estimator: str, m: int) -> float:
+    """Plain-numpy sum of squared terms for one ``m`` (reference, uses temporaries)."""
+    x = np.asarray(x, dtype=np.float64)
+    n = x.shape[0] - 1
+    m = int(m)
+    if estimator == "overlapping":
+        d = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
+    elif estimator == "non-overlapping":
+        k = n // m
+        xs = x[: k * m + 1 : m]
+        d = xs[2:] - 2.0 * xs[1:-1] + xs[:-2]
+    elif estimator == "hadamard":
+        d = (
+            x[3 * m :]
+            - 3.0 * x[2 * m : n + 1 - m]
+            + 3.0 * x[m : n + 1 - 2 * m]
+            - x[: n + 1 - 3 * m]
+        )
+    elif estimator == "modified":
+        d2 = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
+        d = np.lib.stride_tricks.sliding_window_view(d2, m).sum(axis=1)
+    elif estimator == "total":
+        left = 2.0 * x[0] - x[n - 1 : 0 : -1]  # x*[-(n-1)] .. x*[-1]
+        right = 2.0 * x[n] - x[n - 1 : 0 : -1]  # x*[n+1] .. x*[2n-1]
+        ext = np.concatenate((left, x, right))
+        off = n - 1  # ext[off + k] = x*[k]
+        k = np.arange(1, n)
+        d = ext[off + k - m] - 2.0 * ext[off + k] + ext[off + k + m]
+    else:
+        raise ValueError(f"unknown estimator {estimator!r}")
+    return float(np.sum(d * d))

@@ -1,0 +1,129 @@
+"""Options and helpers shared by several commands (reading logs, progress, output)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from imubounds.errors import OptionError
+
+
+def add_log_options(p: argparse.ArgumentParser) -> None:
+    """Options that say how to read an IMU log (shared by static, fleet, ...)."""
+    g = p.add_argument_group("reading the log")
+    g.add_argument(
+        "--rate", type=float, metavar="HZ", help="sample rate when the log has no time column"
+    )
+    g.add_argument(
+        "--columns",
+        metavar="MAP",
+        help="map columns to channels, e.g. 'time=stamp,gyro_x=wx,accel_x=ax'",
+    )
+    g.add_argument(
+        "--gyro-unit",
+        metavar="UNIT",
+        help="gyro unit if not in the column name: rad/s, deg/s, deg/h",
+    )
+    g.add_argument("--accel-unit", metavar="UNIT", help="accelerometer unit: m/s^2, g, mg")
+    g.add_argument("--time-unit", metavar="UNIT", help="time column unit: s, ms, us, ns")
+    g.add_argument(
+        "--on-gap",
+        choices=("refuse", "split", "ignore"),
+        default="refuse",
+        help="what to do with gaps in the time stamps (default: refuse and report them)",
+    )
+    g.add_argument(
+        "--gap-tolerance",
+        type=float,
+        metavar="FACTOR",
+        help="a gap is a time step longer than FACTOR x the nominal period",
+    )
+
+
+def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
+    from imubounds.readers import parse_column_map, read_imu
+
+    kwargs: dict[str, Any] = {
+        "rate_hz": args.rate,
+        "columns": parse_column_map(args.columns) if args.columns else None,
+        "gyro_unit": args.gyro_unit,
+        "accel_unit": args.accel_unit,
+        "time_unit": args.time_unit,
+        "on_gap": args.on_gap,
+    }
+    if args.gap_tolerance is not None:
+        kwargs["gap_tolerance"] = args.gap_tolerance
+    return read_imu(path, **kwargs)
+
+
+def parse_taus(text: str) -> str | int | list[float]:
+    """``octave`` | ``decade`` | ``N`` (log-spaced count) | ``0.1,1,10`` (seconds)."""
+    t = text.strip().lower()
+    if t in ("octave", "decade", "all"):
+        return t
+    if t.isdigit():
+        n = int(t)
+        if n < 2:
+            raise OptionError("--tau N needs N >= 2 log-spaced points")
+        return n
+    try:
+        values = [float(v) for v in t.split(",") if v.strip()]
+    except ValueError as err:
+        raise OptionError(
+            f"--tau {text!r}: use octave, decade, a count like 50, or seconds like 0.1,1,10"
+        ) from err
+    if not values or any(v <= 0 for v in values):
+        raise OptionError(f"--tau {text!r}: every tau must be a positive number of seconds")
+    return values
+
+
+def parse_list(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:
+    items = tuple(s.strip().lower() for s in text.split(",") if s.strip())
+    bad = [s for s in items if s not in allowed]
+    if bad:
+        raise OptionError(f"{option}: unknown {', '.join(bad)}; choose from {', '.join(allowed)}")
+    return items
+
+
+class Reporter:
+    """Progress bars and messages on stderr; silent with ``--quiet``."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self._bars: dict[str, Any] = {}
+
+    def info(self, msg: str) -> None:
+        if not self.quiet:
+            print(msg, file=sys.stderr)
+
+    def warn(self, msg: str) -> None:
+        print(f"imubounds: warning: {msg}", file=sys.stderr)
+
+    def progress(self, stage: str, done: int, total: int) -> None:
+        if self.quiet:
+            return
+        from tqdm import tqdm
+
+        bar = self._bars.get(stage)
+        if bar is None:
+            bar = tqdm(total=total, desc=stage, unit="step", file=sys.stderr, leave=False)
+            self._bars[stage] = bar
+        bar.n = done
+        bar.refresh()
+        if done >= total:
+            bar.close()
+
+    def close(self) -> None:
+        for bar in self._bars.values():
+            bar.close()
+        self._bars.clear()
+
+    @contextmanager
+    def session(self) -> Iterator[Callable[[str, int, int], None]]:
+        try:
+            yield self.progress
+        finally:
+            self.close()

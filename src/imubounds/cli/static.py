@@ -1,0 +1,178 @@
+"""``imubounds static LOG``: stationary noise characterisation of a static IMU log."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+from imubounds.cli._common import (
+    Reporter,
+    add_log_options,
+    parse_list,
+    parse_taus,
+    read_log_from_args,
+)
+
+ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
+MODELS = ("gm", "ar")
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "static",
+        help="Allan variance, noise terms and stationary bounds of a static log",
+        description="Characterise a static IMU log: Allan deviation with confidence intervals, "
+        "IEEE 952 noise terms (Q, N, B, K, R) by slope read-off and by weighted fit, "
+        "stationary per-sample bounds and 95 %% levels. Writes noise.json, imu.yaml, "
+        "allan.png/.svg into the output directory.",
+    )
+    p.add_argument("log", help="static IMU log (CSV, CSV.gz, Parquet, ...)")
+    p.add_argument(
+        "-o", "--out", default="out", metavar="DIR", help="output directory (default: out)"
+    )
+    p.add_argument(
+        "--tau",
+        default="octave",
+        help="tau grid: octave, decade, N log-spaced, or seconds '0.1,1,10'",
+    )
+    p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping", help="Allan estimator")
+    p.add_argument(
+        "--confidence",
+        type=float,
+        default=0.683,
+        help="confidence level of the CIs (default 0.683)",
+    )
+    p.add_argument(
+        "--k-sigma", type=float, default=3.0, help="factor k of the per-sample bound k*sigma_c"
+    )
+    p.add_argument(
+        "--avg-time",
+        type=float,
+        metavar="S",
+        help="averaging time t of sigma_c (default: log length)",
+    )
+    p.add_argument(
+        "--run-hours",
+        type=float,
+        metavar="H",
+        help="run length T of the 95%% level (default: log length)",
+    )
+    p.add_argument(
+        "--terms-from",
+        choices=("fit", "slope"),
+        default="fit",
+        help="which estimate feeds bounds and imu.yaml",
+    )
+    p.add_argument("--models", default="", help="stochastic models to fit: gm,ar (or 'none')")
+    p.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
+    p.add_argument("--no-plot", action="store_true", help="skip the figures")
+    p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages on stderr")
+    add_log_options(p)
+    p.set_defaults(func=run)
+
+
+def summary(result: Any) -> dict[str, Any]:
+    """A compact summary: per channel the terms used, in SI and IEEE units, and the bounds."""
+    out: dict[str, Any] = {}
+    for name, ch in result.channels.items():
+        js = ch.to_json(result.settings.k_sigma)
+        terms = js["noise"][result.settings.terms_from]
+        out[name] = {
+            "unit": js["unit"],
+            **{
+                t: {"value": terms[t]["value"], "unit": terms[t]["unit"], "ieee": terms[t]["ieee"]}
+                for t in ("Q", "N", "B", "K", "R")
+            },
+            "sigma_c": ch.sigma_c,
+            "bound_3sigma": ch.bound,
+            "level_95": ch.level_95,
+        }
+    return out
+
+
+def _fmt(v: float | None) -> str:
+    return "—" if v is None or not math.isfinite(v) else f"{v:.4g}"
+
+
+def print_table(result: Any) -> None:
+    terms_from = result.settings.terms_from
+    print(f"noise terms ({terms_from}), IEEE 952 units; bounds in SI")
+    header = (
+        f"{'channel':<9}"
+        + "".join(f"{t:>22}" for t in ("N", "B", "K"))
+        + f"{'k*sigma_c':>14}{'95% level':>12}"
+    )
+    print(header)
+    for name, ch in result.channels.items():
+        js = ch.to_json(result.settings.k_sigma)["noise"][terms_from]
+        cells = "".join(
+            f"{_fmt(js[t]['ieee']['value']) + ' ' + js[t]['ieee']['unit']:>22}"
+            for t in ("N", "B", "K")
+        )
+        unit = "rad/s" if name.startswith("gyro") else "m/s^2"
+        print(f"{name:<9}{cells}{_fmt(ch.bound):>9} {unit:<5}{_fmt(ch.level_95):>11}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from imubounds.outputs import ensure_dir, write_json, write_run_record, write_text
+    from imubounds.static import StaticSettings, analyse_static
+
+    rep = Reporter(args.quiet)
+    models = (
+        ()
+        if args.models.strip().lower() in ("", "none")
+        else parse_list(args.models, MODELS, "--models")
+    )
+    settings = StaticSettings(
+        taus=parse_taus(args.tau),
+        estimator=args.estimator,
+        confidence=args.confidence,
+        k_sigma=args.k_sigma,
+        averaging_time_s=args.avg_time,
+        run_hours=args.run_hours,
+        terms_from=args.terms_from,
+        models=models,
+    )
+    log = read_log_from_args(args.log, args)
+    for w in log.warnings:
+        rep.warn(w)
+    rep.info(
+        f"read {log.source}: {log.n_samples} samples at {log.rate_hz:g} Hz "
+        f"({log.duration_s / 3600:.3g} h), channels {', '.join(log.channel_names())}"
+    )
+    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
+    with rep.session() as progress:
+        result = analyse_static(log, settings, channels=channels, progress=progress)
+    outdir = ensure_dir(args.out)
+    write_json(outdir / "noise.json", result.to_json())
+    write_text(outdir / "imu.yaml", result.kalibr_yaml())
+    write_run_record(outdir, getattr(args, "argv", None), command_name="static")
+    written = ["noise.json", "imu.yaml", "run.json"]
+    if not args.no_plot:
+        from imubounds.plots import allan_figure, save_figure
+
+        save_figure(allan_figure(result), outdir / "allan")
+        written += ["allan.png", "allan.svg"]
+    for name, ch in result.channels.items():
+        for note in ch.notes + ch.slope.notes + ch.fit.notes:
+            rep.info(f"{name}: {note}")
+        if ch.models is not None:
+            for note in getattr(ch.models, "notes", []):
+                rep.info(f"{name}: {note}")
+    if args.json:
+        json.dump(summary(result), sys.stdout, indent=2, default=float)
+        print()
+    elif not args.quiet:
+        print_table(result)
+    if not args.no_report:
+        from imubounds.report import write_report
+
+        write_report(outdir)
+        written.append("report.html")
+    rep.info(f"wrote {', '.join(written)} to {outdir}")
+    return 0
