@@ -1,0 +1,318 @@
+"""One self-contained HTML report of a run directory.
+
+:func:`build_report` collects what the commands wrote into a directory (or
+its ``static/``, ``dynamic/`` and ``sim/`` sub-directories): ``noise.json``,
+``dynamic.json``, ``run.json`` and the PNG figures, and returns one HTML page
+with every figure embedded (base64), the noise table in SI and IEEE units,
+the stochastic models, the dynamic intervals and verdict, the warnings and
+the exact commands that reproduce the run. No external resource is loaded,
+so the file can be mailed or archived as it is.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from imubounds import __version__
+from imubounds.errors import InputError
+
+CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2433;
+background:#f6f7f9}
+header{background:#1f3a5f;color:#fff;padding:18px 32px}
+header h1{margin:0;font-size:1.5em} header p{margin:4px 0 0;opacity:.85}
+main{max-width:1200px;margin:0 auto;padding:16px 32px 48px}
+section{background:#fff;border:1px solid #dde2ea;border-radius:8px;padding:16px 20px;margin:18px 0}
+h2{margin-top:0;font-size:1.2em;color:#1f3a5f} h3{font-size:1em;margin:14px 0 6px}
+table{border-collapse:collapse;font-size:.86em;margin:6px 0 10px}
+th,td{border:1px solid #dde2ea;padding:4px 8px;text-align:right}
+th{background:#eef1f6} td.l,th.l{text-align:left}
+figure{margin:10px 0} figure img{max-width:100%;border:1px solid #eee}
+figcaption{font-size:.85em;color:#555}
+.warn{background:#fff6e0;border-left:4px solid #e0a800;padding:6px 10px;margin:4px 0;font-size:.9em}
+.ok{color:#1a7f37;font-weight:600} .bad{color:#b42318;font-weight:600}
+code,pre{background:#f0f2f5;border-radius:4px;padding:2px 5px;font-size:.88em}
+pre{padding:8px 10px;overflow-x:auto}
+.muted{color:#666;font-size:.85em}
+"""
+
+TERM_ORDER = ("Q", "N", "B", "K", "R")
+
+
+def _e(text: Any) -> str:
+    return html.escape(str(text))
+
+
+def _num(v: Any, digits: int = 4) -> str:
+    if v is None:
+        return "—"
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return _e(v)
+    if not math.isfinite(f):
+        return "—"
+    return f"{f:.{digits}g}"
+
+
+def _load_json(path: Path) -> dict[str, Any] | None:
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise InputError(
+            f"{path}: not readable JSON ({err}); rerun the command that wrote it"
+        ) from err
+    return data if isinstance(data, dict) else None
+
+
+def _img(path: Path, caption: str) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (
+        f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
+        f"<figcaption>{_e(caption)}</figcaption></figure>"
+    )
+
+
+def _find(root: Path, name: str, subdirs: tuple[str, ...]) -> Path | None:
+    for d in (root, *(root / s for s in subdirs)):
+        if (d / name).is_file():
+            return d
+    return None
+
+
+def _run_block(d: Path) -> str:
+    run = _load_json(d / "run.json")
+    if not run:
+        return ""
+    return (
+        f"<p class='muted'>Reproduce with <code>{_e(run.get('command', ''))}</code> "
+        f"(imubounds {_e(run.get('imubounds_version', '?'))}, Python {_e(run.get('python', '?'))},"
+        f" finished {_e(run.get('finished_utc', '?'))})</p>"
+    )
+
+
+def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], list[str]]:
+    inp = noise.get("input", {})
+    settings = noise.get("settings", {})
+    channels: dict[str, Any] = noise.get("channels", {})
+    warnings = [str(w) for w in inp.get("warnings", [])]
+    commands = []
+    run = _load_json(d / "run.json")
+    if run and run.get("command"):
+        commands.append(str(run["command"]))
+    parts = ["<section id='static'><h2>Stationary characterisation</h2>"]
+    parts.append(
+        "<table><tr><th class='l'>input</th><td class='l'>"
+        f"{_e(inp.get('path', '?'))}</td></tr>"
+        "<tr><th class='l'>sample rate</th>"
+        f"<td class='l'>{_num(inp.get('sample_rate_hz'))} Hz</td></tr>"
+        f"<tr><th class='l'>duration</th><td class='l'>{_num(inp.get('duration_s'))} s "
+        f"({_num((inp.get('duration_s') or 0) / 3600, 3)} h), {inp.get('n_samples', '?')} samples"
+        "</td></tr>"
+        f"<tr><th class='l'>estimator</th><td class='l'>{_e(settings.get('estimator', '?'))}, "
+        f"τ grid {_e(settings.get('taus', '?'))}, "
+        f"CI level {_num(settings.get('confidence'))}</td></tr>"
+        f"<tr><th class='l'>terms feeding the bounds</th><td class='l'>"
+        f"{_e(settings.get('terms_from', '?'))}</td></tr></table>"
+    )
+    for method, title in (
+        ("fit", "weighted least-squares fit"),
+        ("slope", "IEEE 952 slope read-off"),
+    ):
+        parts.append(f"<h3>Noise terms — {title}</h3><table><tr><th class='l'>channel</th>")
+        for t in TERM_ORDER:
+            parts.append(f"<th>{t} (IEEE)</th><th>{t} (SI)</th>")
+        parts.append("</tr>")
+        for name, ch in channels.items():
+            terms = ch.get("noise", {}).get(method, {})
+            parts.append(f"<tr><td class='l'>{_e(name)}</td>")
+            for t in TERM_ORDER:
+                e = terms.get(t, {})
+                ieee = e.get("ieee", {})
+                ci = ieee.get("ci")
+                ci_txt = (
+                    f" <span class='muted'>[{_num(ci[0], 3)}, {_num(ci[1], 3)}]</span>"
+                    if ci
+                    else ""
+                )
+                parts.append(
+                    f"<td>{_num(ieee.get('value'))} {_e(ieee.get('unit', ''))}{ci_txt}</td>"
+                    f"<td>{_num(e.get('value'))} {_e(e.get('unit', ''))}</td>"
+                )
+            parts.append("</tr>")
+        parts.append("</table>")
+    parts.append(
+        "<h3>Stationary bounds</h3><table><tr><th class='l'>channel</th><th>σ_c</th>"
+        "<th>k·σ_c (per-sample half-width)</th><th>95 % level</th><th>T (h)</th></tr>"
+    )
+    for name, ch in channels.items():
+        lvl = ch.get("level_95", {})
+        unit = _e(ch.get("unit", ""))
+        parts.append(
+            f"<tr><td class='l'>{_e(name)}</td><td>{_num(ch.get('sigma_c'))} {unit}</td>"
+            f"<td>{_num(ch.get('bound_3sigma'))} {unit}</td>"
+            f"<td>{_num(lvl.get('value'))} {unit}</td><td>{_num(lvl.get('T_hours'), 3)}</td></tr>"
+        )
+        for note in ch.get("notes", []):
+            warnings.append(f"{name}: {note}")
+    parts.append(
+        "</table><p class='muted'>σ_c = N/√δt + √(δt/t)·B; interval [y − kσ_c, y + kσ_c]; "
+        "95 % level 1.96·RW·√T with RW per √h (paper, section IV; METHOD.md 1.4).</p>"
+    )
+    models_rows = []
+    for name, ch in channels.items():
+        m = ch.get("models")
+        if not m:
+            continue
+        gm = m.get("gauss_markov") or {}
+        ar = m.get("ar") or {}
+        models_rows.append(
+            f"<tr><td class='l'>{_e(name)}</td><td>{_num(gm.get('correlation_time_s'))} s</td>"
+            f"<td>{_num(gm.get('sigma'))}</td><td>{_num(gm.get('white_sigma'))}</td>"
+            f"<td>{_e(ar.get('order', '—'))}</td><td>{_e(ar.get('criterion', '—'))}</td>"
+            f"<td>{_num(ar.get('effective_rate_hz'))} Hz</td></tr>"
+        )
+        for note in m.get("notes", []):
+            warnings.append(f"{name} models: {note}")
+    if models_rows:
+        parts.append(
+            "<h3>Stochastic models</h3><table><tr><th class='l'>channel</th><th>GM correlation time"
+            "</th><th>GM σ (SI)</th><th>white σ (SI)</th><th>AR order</th><th>criterion</th>"
+            "<th>AR fit rate</th></tr>" + "".join(models_rows) + "</table>"
+        )
+    if (d / "allan.png").is_file():
+        parts.append(
+            _img(
+                d / "allan.png",
+                "Allan deviation per channel with confidence intervals, the noise-term lines and "
+                "the fitted curve (and fitted stochastic models where asked).",
+            )
+        )
+    parts.append(_run_block(d))
+    parts.append("</section>")
+    return "".join(parts), warnings, commands
+
+
+def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list[str]]:
+    warnings = [str(w) for w in dyn.get("warnings", [])]
+    commands = []
+    run = _load_json(d / "run.json")
+    if run and run.get("command"):
+        commands.append(str(run["command"]))
+    parts = ["<section id='dynamic'><h2>Dynamic error margins</h2>"]
+    settings = dyn.get("settings", {})
+    if settings:
+        parts.append(
+            "<table>"
+            + "".join(
+                f"<tr><th class='l'>{_e(k)}</th><td class='l'>{_e(v)}</td></tr>"
+                for k, v in settings.items()
+                if not isinstance(v, dict | list)
+            )
+            + "</table>"
+        )
+    summary = dyn.get("summary") or dyn.get("channels") or {}
+    if isinstance(summary, dict) and summary:
+        keys: list[str] = []
+        for v in summary.values():
+            if isinstance(v, dict):
+                for k, val in v.items():
+                    if k not in keys and not isinstance(val, dict | list):
+                        keys.append(k)
+        parts.append("<table><tr><th class='l'>quantity</th>")
+        parts.extend(f"<th>{_e(k)}</th>" for k in keys)
+        parts.append("</tr>")
+        for name, v in summary.items():
+            if not isinstance(v, dict):
+                continue
+            parts.append(f"<tr><td class='l'>{_e(name)}</td>")
+            parts.extend(
+                f"<td>{_num(v.get(k)) if not isinstance(v.get(k), str) else _e(v.get(k))}</td>"
+                for k in keys
+            )
+            parts.append("</tr>")
+        parts.append("</table>")
+    verdict = dyn.get("verdict")
+    if verdict:
+        if isinstance(verdict, dict):
+            parts.append("<h3>Dynamic vs stationary</h3><ul>")
+            parts.extend(f"<li><b>{_e(k)}</b>: {_e(v)}</li>" for k, v in verdict.items())
+            parts.append("</ul>")
+        else:
+            parts.append(f"<h3>Dynamic vs stationary</h3><p>{_e(verdict)}</p>")
+    explanation = dyn.get("mode_explanation")
+    if explanation:
+        parts.append(f"<h3>paper vs full kinematics</h3><p>{_e(explanation)}</p>")
+    for png in sorted(d.glob("*.png")):
+        parts.append(_img(png, png.stem.replace("_", " ")))
+    parts.append(_run_block(d))
+    parts.append("</section>")
+    return "".join(parts), warnings, commands
+
+
+def build_report(directory: str | Path) -> str:
+    """Return the HTML text of the report for ``directory``."""
+    root = Path(directory)
+    if not root.is_dir():
+        raise InputError(f"{root}: not a directory; give the -o directory of a previous run")
+    sections: list[str] = []
+    warnings: list[str] = []
+    commands: list[str] = []
+    static_dir = _find(root, "noise.json", ("static",))
+    dyn_dir = _find(root, "dynamic.json", ("dynamic",))
+    if static_dir is None and dyn_dir is None:
+        raise InputError(
+            f"{root}: no noise.json or dynamic.json found (also looked in static/ and dynamic/); "
+            "run 'imubounds static' or 'imubounds dynamic' with -o there first"
+        )
+    if static_dir is not None:
+        noise = _load_json(static_dir / "noise.json") or {}
+        html_s, w, c = _static_section(static_dir, noise)
+        sections.append(html_s)
+        warnings += w
+        commands += c
+    if dyn_dir is not None:
+        dyn = _load_json(dyn_dir / "dynamic.json") or {}
+        html_d, w, c = _dynamic_section(dyn_dir, dyn)
+        sections.append(html_d)
+        warnings += w
+        commands += c
+    warn_html = (
+        "".join(f"<div class='warn'>{_e(w)}</div>" for w in warnings)
+        if warnings
+        else "<p class='ok'>No warnings.</p>"
+    )
+    cmd_html = (
+        "<pre>" + "\n".join(_e(c) for c in commands) + "</pre>"
+        if commands
+        else "<p class='muted'>No run.json found; commands unknown.</p>"
+    )
+    now = datetime.now(UTC).isoformat(timespec="seconds")
+    return (
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+        f"<title>imubounds report — {_e(root.name)}</title><style>{CSS}</style></head><body>"
+        f"<header><h1>imubounds report</h1><p>{_e(root.resolve())} · imubounds {__version__} · "
+        f"generated {now}</p></header><main>"
+        + "".join(sections)
+        + f"<section id='warnings'><h2>Warnings</h2>{warn_html}</section>"
+        + f"<section id='reproduce'><h2>How to reproduce</h2>{cmd_html}"
+        f"<p class='muted'>pip install imubounds=={__version__}</p></section>"
+        "</main></body></html>\n"
+    )
+
+
+def write_report(directory: str | Path) -> Path:
+    """Write ``directory/report.html`` atomically and return its path."""
+    from imubounds.outputs import write_text
+
+    root = Path(directory)
+    return write_text(root / "report.html", build_report(root))
