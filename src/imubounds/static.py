@@ -328,7 +328,13 @@ def _fit_models(
     for i, name in enumerate(names):
         if progress is not None:
             progress("models", i, len(names))
-        out[name] = fit_models(np.asarray(log.channels[name]), log.rate_hz, settings.models)
+        out[name] = fit_models(
+            np.asarray(log.channels[name]),
+            log.rate_hz,
+            settings.models,
+            name=name,
+            unit=si_unit_of_signal(sensor_kind(name)),
+        )
     if progress is not None:
         progress("models", len(names), len(names))
     return out

@@ -66,7 +66,7 @@ def register(sub: Any) -> None:
         default="fit",
         help="which estimate feeds bounds and imu.yaml",
     )
-    p.add_argument("--models", default="", help="stochastic models to fit: gm,ar (or 'none')")
+    p.add_argument("--models", default="gm,ar", help="stochastic models to fit: gm,ar (or 'none')")
     p.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
