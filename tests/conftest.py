@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 # h5py must be imported before codac: in this environment importing codac first
 # and h5py afterwards segfaults (both bundle native libraries).
@@ -12,6 +14,12 @@ try:
     import h5py  # noqa: F401
 except ImportError:  # pragma: no cover
     pass
+
+# Tests never assert timings: no hypothesis deadlines. In CI the examples are
+# derandomized so that a run is reproducible from its commit alone.
+settings.register_profile("default", deadline=None)
+settings.register_profile("ci", deadline=None, derandomize=True)
+settings.load_profile("ci" if os.environ.get("CI") else "default")
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"

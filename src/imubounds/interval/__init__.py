@@ -1,0 +1,141 @@
+"""Guaranteed interval arithmetic and forward-backward contractors.
+
+* :class:`IntervalArray` -- vectorised closed intervals (``lo``/``hi`` float64
+  arrays, empty = ``(+inf, -inf)``) with outward-rounded arithmetic and the
+  functions below;
+* :mod:`imubounds.interval._core` -- the same rules as scalar ``@njit``
+  functions on floats returning ``(lo, hi)`` tuples, for numba loops
+  (``from imubounds.interval import scalar`` gives that module);
+* :mod:`.contractors` -- HC4-revise of primitive constraints, vectorised
+  (:func:`hc4`) and scalar (:mod:`._ctc`);
+* :class:`Network` -- constraint networks contracted by one forward-backward
+  pass or by Waltz propagation, with inconsistency returned as data;
+* :mod:`.angles` -- angle intervals modulo 2 pi;
+* :func:`qinter` -- q-relaxed intersection of boxes;
+* :mod:`.rounding` -- the rules need the default round-to-nearest mode
+  (importing ``codac`` switches the process to round-upward!); the
+  vectorised entry points check it.
+
+Units: whatever the caller uses; angles in rad.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+
+def _refresh_numba_cache() -> None:
+    """Drop this package's numba cache files when any of its sources changed.
+
+    numba's on-disk cache is validated only against the file of the cached
+    function itself, not against the modules it calls: after an edit of
+    ``_core.py`` the compiled contractors in ``_ctc.py`` would silently keep
+    the old rules. A fingerprint of all sources of this package guards that.
+    """
+    here = Path(__file__).resolve().parent
+    cache = here / "__pycache__"
+    try:
+        digest = hashlib.sha1(
+            b"".join(p.read_bytes() for p in sorted(here.glob("*.py")))
+        ).hexdigest()
+        stamp = cache / "numba_sources.sha1"
+        if stamp.is_file() and stamp.read_text() == digest:
+            return
+        cache.mkdir(exist_ok=True)
+        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+        stamp.write_text(digest)
+    except OSError:  # read-only install: numba then caches elsewhere
+        return
+
+
+_refresh_numba_cache()
+
+from imubounds.interval import _core as scalar  # noqa: E402
+from imubounds.interval import _ctc as scalar_contractors  # noqa: E402
+from imubounds.interval import angles, rounding  # noqa: E402
+from imubounds.interval.array import (  # noqa: E402
+    I,
+    IntervalArray,
+    absolute,
+    acos,
+    asin,
+    atan2,
+    cos,
+    exp,
+    from_decimal,
+    half_pi,
+    hull,
+    intersection,
+    log,
+    maximum,
+    minimum,
+    pi,
+    sin,
+    sqr,
+    sqrt,
+    tan,
+    two_pi,
+)
+from imubounds.interval.contractors import (  # noqa: E402
+    HC4Result,
+    hc4,
+    hc4_add,
+    hc4_atan2,
+    hc4_cos,
+    hc4_div,
+    hc4_inplace,
+    hc4_mul,
+    hc4_sin,
+    hc4_sqr,
+    hc4_sqrt,
+    hc4_sub,
+)
+from imubounds.interval.network import ContractResult, Network, Primitive  # noqa: E402
+from imubounds.interval.qinter import qinter, qinter_inliers  # noqa: E402
+
+__all__ = [
+    "ContractResult",
+    "HC4Result",
+    "I",
+    "IntervalArray",
+    "Network",
+    "Primitive",
+    "absolute",
+    "acos",
+    "angles",
+    "asin",
+    "atan2",
+    "cos",
+    "exp",
+    "from_decimal",
+    "half_pi",
+    "hc4",
+    "hc4_add",
+    "hc4_atan2",
+    "hc4_cos",
+    "hc4_div",
+    "hc4_inplace",
+    "hc4_mul",
+    "hc4_sin",
+    "hc4_sqr",
+    "hc4_sqrt",
+    "hc4_sub",
+    "hull",
+    "intersection",
+    "log",
+    "maximum",
+    "minimum",
+    "pi",
+    "qinter",
+    "qinter_inliers",
+    "rounding",
+    "scalar",
+    "scalar_contractors",
+    "sin",
+    "sqr",
+    "sqrt",
+    "tan",
+    "two_pi",
+]

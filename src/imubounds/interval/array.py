@@ -1,0 +1,440 @@
+"""Vectorised interval arrays over the compiled scalar rules.
+
+:class:`IntervalArray` holds two float64 arrays ``lo`` and ``hi`` of the same
+shape. All arithmetic broadcasts like numpy and runs the scalar rules of
+:mod:`imubounds.interval._core` in compiled loops, so an element of an array
+result is bit-for-bit the scalar result. The empty interval is stored as
+``lo = +inf, hi = -inf`` and propagates through every operation.
+
+Plain floats and ints mixed into the arithmetic are taken as exact binary
+values (``0.1`` means the double nearest to 0.1). To mean a decimal number,
+use :func:`from_decimal` (or :func:`I` with a string), which widens to an
+interval containing the real number.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from decimal import Decimal
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from imubounds.errors import OptionError
+from imubounds.interval import _core as c
+from imubounds.interval import _vec as v
+from imubounds.interval.rounding import check_rounding
+
+
+def _flat(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
+
+
+class IntervalArray:
+    """An array of closed real intervals ``[lo, hi]`` (empty = ``(+inf, -inf)``).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Lower and upper endpoints (any common unit; the library uses SI).
+        ``hi`` defaults to ``lo`` (degenerate intervals). Pairs with
+        ``lo = +inf, hi = -inf`` are empty intervals.
+
+    Raises
+    ------
+    OptionError
+        If an endpoint is NaN, if ``lo > hi`` (other than the empty pair), or
+        if an interval is ``[+inf, +inf]`` or ``[-inf, -inf]``.
+    """
+
+    __slots__ = ("lo", "hi")
+    __array_priority__ = 1000  # numpy scalars/arrays defer to our operators
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __init__(self, lo: ArrayLike, hi: ArrayLike | None = None) -> None:
+        lo_a = np.asarray(lo, dtype=np.float64)
+        hi_a = lo_a if hi is None else np.asarray(hi, dtype=np.float64)
+        lo_a, hi_a = np.broadcast_arrays(lo_a, hi_a)
+        lo_a = np.array(lo_a, dtype=np.float64)
+        hi_a = np.array(hi_a, dtype=np.float64)
+        if np.isnan(lo_a).any() or np.isnan(hi_a).any():
+            raise OptionError("interval endpoints must not be NaN; use IntervalArray.empty()")
+        is_e = (lo_a == np.inf) & (hi_a == -np.inf)
+        bad = ~is_e & ((lo_a > hi_a) | (lo_a == np.inf) | (hi_a == -np.inf))
+        if bad.any():
+            i = int(np.flatnonzero(bad.reshape(-1))[0])
+            raise OptionError(
+                f"interval {i} has lo={lo_a.reshape(-1)[i]!r} > hi={hi_a.reshape(-1)[i]!r} "
+                "or an infinite degenerate bound; give lo <= hi (empty: lo=+inf, hi=-inf)"
+            )
+        self.lo = lo_a
+        self.hi = hi_a
+
+    # -- construction -----------------------------------------------------
+    @classmethod
+    def _raw(cls, lo: np.ndarray, hi: np.ndarray) -> IntervalArray:
+        obj = cls.__new__(cls)
+        obj.lo = lo
+        obj.hi = hi
+        return obj
+
+    @classmethod
+    def empty(cls, shape: int | tuple[int, ...] = ()) -> IntervalArray:
+        """Array of empty intervals."""
+        return cls._raw(np.full(shape, np.inf), np.full(shape, -np.inf))
+
+    @classmethod
+    def entire(cls, shape: int | tuple[int, ...] = ()) -> IntervalArray:
+        """Array of ``(-inf, +inf)``."""
+        return cls._raw(np.full(shape, -np.inf), np.full(shape, np.inf))
+
+    @classmethod
+    def from_midrad(cls, mid: ArrayLike, rad: ArrayLike) -> IntervalArray:
+        """``[mid - rad, mid + rad]`` rounded outward (``rad >= 0``)."""
+        m, r = np.broadcast_arrays(np.asarray(mid, float), np.asarray(rad, float))
+        if np.isnan(m).any() or np.isnan(r).any() or (r < 0).any():
+            raise OptionError("from_midrad needs finite mid and rad >= 0 (no NaN)")
+        lo, _ = v.v_sub(_flat(m), _flat(m), _flat(r), _flat(r))
+        _, hi = v.v_add(_flat(m), _flat(m), _flat(r), _flat(r))
+        return cls._raw(lo.reshape(m.shape), hi.reshape(m.shape))
+
+    @classmethod
+    def coerce(cls, x: Any) -> IntervalArray:
+        """An :class:`IntervalArray` as is; numbers/arrays as degenerate intervals."""
+        if isinstance(x, IntervalArray):
+            return x
+        return cls(x)
+
+    # -- container protocol ------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.lo.shape
+
+    @property
+    def size(self) -> int:
+        return int(self.lo.size)
+
+    @property
+    def ndim(self) -> int:
+        return self.lo.ndim
+
+    def __len__(self) -> int:
+        return len(self.lo)
+
+    def __getitem__(self, idx: Any) -> IntervalArray:
+        return IntervalArray._raw(np.asarray(self.lo[idx]), np.asarray(self.hi[idx]))
+
+    def __setitem__(self, idx: Any, value: Any) -> None:
+        o = IntervalArray.coerce(value)
+        self.lo[idx] = o.lo
+        self.hi[idx] = o.hi
+
+    def reshape(self, *shape: Any) -> IntervalArray:
+        return IntervalArray._raw(self.lo.reshape(*shape), self.hi.reshape(*shape))
+
+    def copy(self) -> IntervalArray:
+        return IntervalArray._raw(self.lo.copy(), self.hi.copy())
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        for i in range(len(self)):
+            yield self[i]
+
+    def __repr__(self) -> str:
+        if self.ndim == 0:
+            if self.is_empty():
+                return "IntervalArray(empty)"
+            return f"IntervalArray([{float(self.lo)!r}, {float(self.hi)!r}])"
+        return f"IntervalArray(lo={self.lo!r}, hi={self.hi!r})"
+
+    def __eq__(self, other: object) -> bool:  # type: ignore[override]
+        """True if all intervals are identical sets (all empties compare equal)."""
+        if not isinstance(other, IntervalArray) or other.shape != self.shape:
+            return False
+        e1 = self.is_empty()
+        e2 = other.is_empty()
+        same = (self.lo == other.lo) & (self.hi == other.hi)
+        return bool(np.all((e1 & e2) | (~e1 & ~e2 & same)))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def to_tuples(self) -> list[tuple[float, float]]:
+        """List of ``(lo, hi)`` pairs in C order."""
+        return list(zip(self.lo.reshape(-1).tolist(), self.hi.reshape(-1).tolist(), strict=True))
+
+    # -- element-wise machinery ------------------------------------------
+    def _unary(self, f: Callable[..., tuple[np.ndarray, np.ndarray]]) -> IntervalArray:
+        check_rounding()
+        lo, hi = f(_flat(self.lo), _flat(self.hi))
+        return IntervalArray._raw(lo.reshape(self.shape), hi.reshape(self.shape))
+
+    def _binary(
+        self, other: Any, f: Callable[..., tuple[np.ndarray, np.ndarray]], swap: bool = False
+    ) -> IntervalArray:
+        check_rounding()
+        o = IntervalArray.coerce(other)
+        a, b = (o, self) if swap else (self, o)
+        alo, ahi, blo, bhi = np.broadcast_arrays(a.lo, a.hi, b.lo, b.hi)
+        lo, hi = f(_flat(alo), _flat(ahi), _flat(blo), _flat(bhi))
+        return IntervalArray._raw(lo.reshape(alo.shape), hi.reshape(alo.shape))
+
+    # -- arithmetic ---------------------------------------------------------
+    def __add__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_add)
+
+    def __radd__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_add, swap=True)
+
+    def __sub__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_sub)
+
+    def __rsub__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_sub, swap=True)
+
+    def __mul__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_mul)
+
+    def __rmul__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_mul, swap=True)
+
+    def __truediv__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_div)
+
+    def __rtruediv__(self, o: Any) -> IntervalArray:
+        return self._binary(o, v.v_div, swap=True)
+
+    def __neg__(self) -> IntervalArray:
+        return self._unary(v.v_neg)
+
+    def __pos__(self) -> IntervalArray:
+        return self
+
+    def __abs__(self) -> IntervalArray:
+        return self._unary(v.v_absval)
+
+    def __pow__(self, p: int) -> IntervalArray:
+        """Only ``**2`` (tight square) and ``**0.5`` (square root) are supported."""
+        if p == 2:
+            return self._unary(v.v_sqr)
+        if p == 0.5:
+            return self._unary(v.v_sqrt)
+        raise OptionError(f"interval power {p!r} is not supported; use **2 or **0.5")
+
+    def __and__(self, o: Any) -> IntervalArray:
+        """Intersection."""
+        return self._binary(o, v.v_inter)
+
+    __rand__ = __and__
+
+    def __or__(self, o: Any) -> IntervalArray:
+        """Hull (smallest interval containing both)."""
+        return self._binary(o, v.v_hull)
+
+    __ror__ = __or__
+
+    # -- set functions ------------------------------------------------------
+    def intersection(self, o: Any) -> IntervalArray:
+        """Intersection with ``o``."""
+        return self & o
+
+    def hull(self, o: Any) -> IntervalArray:
+        """Hull with ``o``."""
+        return self | o
+
+    def is_empty(self) -> np.ndarray:
+        """Boolean array: True where the interval is empty."""
+        return ~(self.lo <= self.hi)
+
+    def width(self) -> np.ndarray:
+        """``hi - lo`` rounded up; NaN where empty."""
+        return v.v_width(_flat(self.lo), _flat(self.hi)).reshape(self.shape)
+
+    def mid(self) -> np.ndarray:
+        """A midpoint inside each interval; NaN where empty."""
+        return v.v_mid(_flat(self.lo), _flat(self.hi)).reshape(self.shape)
+
+    def radius(self) -> np.ndarray:
+        """Radius about :meth:`mid`, rounded up; NaN where empty."""
+        return v.v_radius(_flat(self.lo), _flat(self.hi)).reshape(self.shape)
+
+    def contains(self, x: ArrayLike) -> np.ndarray:
+        """Boolean array: True where the number ``x`` lies in the interval."""
+        xa = np.asarray(x, dtype=np.float64)
+        return (self.lo <= xa) & (xa <= self.hi)
+
+    def subset(self, o: Any) -> np.ndarray:
+        """Boolean array: True where ``self`` is a subset of ``o`` (empty is a subset)."""
+        other = IntervalArray.coerce(o)
+        e = self.is_empty()
+        return e | ((other.lo <= self.lo) & (self.hi <= other.hi))
+
+
+# -- module-level functions ---------------------------------------------------
+
+
+def _u(x: Any, f: Callable[..., tuple[np.ndarray, np.ndarray]]) -> IntervalArray:
+    return IntervalArray.coerce(x)._unary(f)
+
+
+def sqr(x: Any) -> IntervalArray:
+    """``x**2`` (tight on intervals containing 0)."""
+    return _u(x, v.v_sqr)
+
+
+def sqrt(x: Any) -> IntervalArray:
+    """``sqrt(x & [0, inf))``; empty where ``x < 0``."""
+    return _u(x, v.v_sqrt)
+
+
+def exp(x: Any) -> IntervalArray:
+    """``exp(x)``."""
+    return _u(x, v.v_exp)
+
+
+def log(x: Any) -> IntervalArray:
+    """Natural log of ``x & (0, inf)``; empty where ``x <= 0``."""
+    return _u(x, v.v_log)
+
+
+def sin(x: Any) -> IntervalArray:
+    """``sin(x)`` of an angle in rad; exactly +-1 at interior extrema."""
+    return _u(x, v.v_sin)
+
+
+def cos(x: Any) -> IntervalArray:
+    """``cos(x)`` of an angle in rad; exactly +-1 at interior extrema."""
+    return _u(x, v.v_cos)
+
+
+def tan(x: Any) -> IntervalArray:
+    """``tan(x)``; the whole line where ``x`` may contain a pole."""
+    return _u(x, v.v_tan)
+
+
+def asin(x: Any) -> IntervalArray:
+    """``asin(x & [-1, 1])`` in rad."""
+    return _u(x, v.v_asin)
+
+
+def acos(x: Any) -> IntervalArray:
+    """``acos(x & [-1, 1])`` in rad."""
+    return _u(x, v.v_acos)
+
+
+def absolute(x: Any) -> IntervalArray:
+    """``|x|``."""
+    return _u(x, v.v_absval)
+
+
+def atan2(y: Any, x: Any) -> IntervalArray:
+    """``atan2(y, x)`` in rad, within ``[-pi, pi]`` (origin excluded)."""
+    return IntervalArray.coerce(y)._binary(x, v.v_atan2)
+
+
+def minimum(a: Any, b: Any) -> IntervalArray:
+    """Element-wise ``{min(a, b)}``."""
+    return IntervalArray.coerce(a)._binary(b, v.v_imin)
+
+
+def maximum(a: Any, b: Any) -> IntervalArray:
+    """Element-wise ``{max(a, b)}``."""
+    return IntervalArray.coerce(a)._binary(b, v.v_imax)
+
+
+def intersection(a: Any, b: Any) -> IntervalArray:
+    """Element-wise intersection."""
+    return IntervalArray.coerce(a) & b
+
+
+def hull(a: Any, b: Any) -> IntervalArray:
+    """Element-wise hull."""
+    return IntervalArray.coerce(a) | b
+
+
+# -- decimal constructors -------------------------------------------------------
+
+
+def _enclose_fraction(q: Fraction) -> tuple[float, float]:
+    try:
+        d = float(q)  # correctly rounded
+    except OverflowError:
+        return (c.MAXF, math.inf) if q > 0 else (-math.inf, -c.MAXF)
+    fd = Fraction(d) if math.isfinite(d) else None
+    if fd is None:
+        return (c.MAXF, math.inf) if q > 0 else (-math.inf, -c.MAXF)
+    if fd == q:
+        return d, d
+    if fd < q:
+        return d, math.nextafter(d, math.inf)
+    return math.nextafter(d, -math.inf), d
+
+
+def from_decimal(text: str | Decimal | Fraction | int | float) -> IntervalArray:
+    """The tightest interval containing the real number meant.
+
+    Parameters
+    ----------
+    text : str, Decimal, Fraction, int or float
+        ``"0.1"``, ``"1e-3"``, ``"1/3"``, ``Decimal("2.5")`` ... are taken as
+        exact decimal/rational numbers; an ``int`` is exact; a ``float`` is
+        taken as its exact binary value (degenerate interval).
+
+    Returns
+    -------
+    IntervalArray
+        0-d interval ``[lo, hi]`` with ``lo <= value <= hi`` and
+        ``hi <= next_up(lo)``.
+    """
+    if isinstance(text, float):
+        if math.isnan(text) or math.isinf(text):
+            raise OptionError(f"cannot make an interval from {text!r}")
+        return IntervalArray(text)
+    if isinstance(text, str):
+        s = text.strip().replace("_", "")
+        try:
+            q = Fraction(s)
+        except (ValueError, ZeroDivisionError):
+            raise OptionError(
+                f"cannot read {text!r} as a decimal or rational number (e.g. '0.1', '1/3')"
+            ) from None
+    else:
+        try:
+            q = Fraction(text)
+        except (ValueError, TypeError, OverflowError):
+            raise OptionError(f"cannot make an interval from {text!r}") from None
+    lo, hi = _enclose_fraction(q)
+    return IntervalArray._raw(np.asarray(lo), np.asarray(hi))
+
+
+def I(lo: Any, hi: Any = None) -> IntervalArray:  # noqa: E743 - conventional name
+    """Convenience constructor: ``I("0.1")``, ``I(1, 2)``, ``I("0.1", "0.3")``.
+
+    Strings, Decimals and Fractions are enclosed (see :func:`from_decimal`);
+    floats and ints are exact. ``I(lo, hi)`` is the hull of both ends.
+    """
+    a = from_decimal(lo) if not isinstance(lo, IntervalArray) else lo
+    if hi is None:
+        return a
+    b = from_decimal(hi) if not isinstance(hi, IntervalArray) else hi
+    if float(b.hi) < float(a.lo):
+        raise OptionError(f"I({lo!r}, {hi!r}): lower end is above the upper end")
+    return IntervalArray._raw(np.asarray(a.lo), np.asarray(b.hi))
+
+
+def pi() -> IntervalArray:
+    """``[pi]``: the two doubles around pi."""
+    return IntervalArray._raw(np.asarray(c.PI_LO), np.asarray(c.PI_HI))
+
+
+def two_pi() -> IntervalArray:
+    """``[2 pi]``."""
+    return IntervalArray._raw(np.asarray(c.TWO_PI_LO), np.asarray(c.TWO_PI_HI))
+
+
+def half_pi() -> IntervalArray:
+    """``[pi / 2]``."""
+    return IntervalArray._raw(np.asarray(c.HALF_PI_LO), np.asarray(c.HALF_PI_HI))
