@@ -105,9 +105,17 @@ def register(sub: Any) -> None:
     )
     e.add_argument(
         "--on-empty",
-        choices=("keep", "reset"),
-        help="rule for an empty intersection: keep the prediction or reset to the "
-        "aiding interval (default reset)",
+        choices=("keep", "reset", "qrelax"),
+        help="rule for an empty intersection: keep the prediction, reset to the "
+        "aiding interval (default), or the q-relaxed intersection of the prediction "
+        "and the aiding intervals of the last --window steps",
+    )
+    e.add_argument(
+        "--q",
+        type=int,
+        dest="q_outliers",
+        metavar="Q",
+        help="outliers tolerated by --on-empty qrelax (1)",
     )
     e.add_argument(
         "--initial-speed",
@@ -134,6 +142,7 @@ def register(sub: Any) -> None:
         help="use the model-error bounds recorded by the simulator (sim dirs)",
     )
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
+    p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
     p.add_argument("--json", action="store_true", help="print dynamic.json on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
     p.set_defaults(func=run)
@@ -234,6 +243,7 @@ def _steps_table(res: Any) -> Any:
             [c for c in df.columns if c.endswith(("_aided_lo", "_aided_hi", "_err_lo", "_err_hi"))]
         ),
     ] = np.nan
+    df["t"] = df["t"].map("{:.6f}".format)  # keep Unix-time resolution in the CSV
     return df
 
 
@@ -277,6 +287,7 @@ def run(args: argparse.Namespace) -> int:
         window=args.window,
         veldiff=args.velocity_difference,
         fallback=args.on_empty,
+        q_outliers=args.q_outliers,
         initial_speed_bound=args.initial_speed,
         max_speed=args.max_speed,
         nav_accel_bound=args.nav_accel_bound
@@ -347,6 +358,13 @@ def run(args: argparse.Namespace) -> int:
         pd_.plot_intervals(primary, out, title=title)
         pd_.plot_trajectory(primary, out, title=title)
         pd_.plot_comparison(summaries, out)
+    from imubounds.outputs import write_run_record
+
+    write_run_record(out, getattr(args, "argv", None), command_name="dynamic")
+    if not args.no_report:
+        from imubounds.report import write_report
+
+        write_report(out)
     if args.json:
         from imubounds.outputs import to_jsonable
 
