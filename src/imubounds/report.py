@@ -99,6 +99,16 @@ def _run_block(d: Path) -> str:
     )
 
 
+def _units_text(inp: dict[str, Any]) -> str:
+    units = inp.get("input_units") or {}
+    if not units:
+        return "?"
+    groups: dict[str, list[str]] = {}
+    for ch, u in units.items():
+        groups.setdefault(str(u), []).append(str(ch))
+    return "; ".join(f"{', '.join(chs)} in {u}" for u, chs in groups.items()) + " (SI inside)"
+
+
 def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], list[str]]:
     inp = noise.get("input", {})
     settings = noise.get("settings", {})
@@ -117,12 +127,20 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
         f"<tr><th class='l'>duration</th><td class='l'>{_num(inp.get('duration_s'))} s "
         f"({_num((inp.get('duration_s') or 0) / 3600, 3)} h), {inp.get('n_samples', '?')} samples"
         "</td></tr>"
+        f"<tr><th class='l'>input units</th><td class='l'>{_e(_units_text(inp))}</td></tr>"
+        f"<tr><th class='l'>body frame</th><td class='l'>{_e(inp.get('frame', '?'))}</td></tr>"
         f"<tr><th class='l'>estimator</th><td class='l'>{_e(settings.get('estimator', '?'))}, "
         f"τ grid {_e(settings.get('taus', '?'))}, "
         f"CI level {_num(settings.get('confidence'))}</td></tr>"
         f"<tr><th class='l'>terms feeding the bounds</th><td class='l'>"
-        f"{_e(settings.get('terms_from', '?'))}</td></tr></table>"
+        f"{_e(settings.get('terms_from', '?'))}; k = {_num(settings.get('k_sigma'))}; "
+        f"averaging time {_e(settings.get('averaging_time_s') or 'log length')}; "
+        f"run length T {_e(settings.get('run_hours') or 'log length')}</td></tr>"
+        f"<tr><th class='l'>stochastic models</th><td class='l'>"
+        f"{_e(', '.join(settings.get('models') or []) or 'none')}</td></tr></table>"
     )
+    for note in noise.get("notes", []):
+        warnings.append(str(note))
     for method, title in (
         ("fit", "weighted least-squares fit"),
         ("slope", "IEEE 952 slope read-off"),
@@ -178,7 +196,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             f"<tr><td class='l'>{_e(name)}</td><td>{_num(gm.get('correlation_time_s'))} s</td>"
             f"<td>{_num(gm.get('sigma'))}</td><td>{_num(gm.get('white_sigma'))}</td>"
             f"<td>{_e(ar.get('order', '—'))}</td><td>{_e(ar.get('criterion', '—'))}</td>"
-            f"<td>{_num(ar.get('effective_rate_hz'))} Hz</td></tr>"
+            f"<td>{_num(ar.get('rate_hz', m.get('effective_rate_hz')))} Hz</td></tr>"
         )
         for note in m.get("notes", []):
             warnings.append(f"{name} models: {note}")
@@ -201,58 +219,141 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
     return "".join(parts), warnings, commands
 
 
+DYN_FIGURES = (
+    ("intervals", "Dynamic error intervals per step: the aided interval of each quantity "
+     "minus the measured value, with the stationary 95 % level for comparison."),
+    ("trajectory", "Trajectory in the local ENU frame: GPS boxes and contracted position boxes."),
+    ("comparison", "Mean dynamic error intervals of the paper and full kinematic modes against "
+     "the stationary 95 % levels."),
+)
+
+
+def _kv_table(items: dict[str, Any], per_row: int = 1) -> str:
+    """Key/value table, ``per_row`` pairs per row (compact settings)."""
+    cells = []
+    for k, v in items.items():
+        if isinstance(v, dict | list):
+            v = json.dumps(v, default=str)
+            if len(v) > 160:
+                v = v[:157] + "..."
+        cells.append(f"<th class='l'>{_e(k)}</th><td class='l'>{_e(v)}</td>")
+    rows = ["".join(cells[i: i + per_row]) for i in range(0, len(cells), per_row)]
+    return "<table>" + "".join(f"<tr>{r}</tr>" for r in rows) + "</table>"
+
+
+def _interval(iv: Any, factor: float = 1.0, digits: int = 4) -> str:
+    if not isinstance(iv, list | tuple) or len(iv) != 2 or None in iv:
+        return "—"
+    return f"[{_num(iv[0] * factor, digits)}, {_num(iv[1] * factor, digits)}]"
+
+
+def _mode_table(mode: str, summ: dict[str, Any]) -> str:
+    chans = summ.get("channels") or {}
+    parts = [
+        f"<h3>Dynamic error margins — {_e(mode)} kinematics "
+        f"({_e(summ.get('n_steps', '?'))} steps of {_num(summ.get('step_s'))} s)</h3>"
+        "<table><tr><th class='l'>channel</th><th>mean error interval (SI)</th>"
+        "<th>mean error interval (°/s)</th><th>mean midpoint</th><th>aided mean width</th>"
+        "<th>stationary 95 % level</th><th>ratio</th><th>measurement inside aided</th>"
+        "<th class='l'>verdict</th></tr>"
+    ]
+    for ch, c in chans.items():
+        if not isinstance(c, dict):
+            continue
+        unit = str(c.get("unit", ""))
+        deg = _interval(c.get("dynamic_error_mean_interval"), 180.0 / math.pi) if unit == (
+            "rad/s") else "—"
+        inside = c.get("measurement_inside_aided")
+        verdict = str(c.get("verdict", "—"))
+        cls = "bad" if "superset" in verdict else "ok"
+        parts.append(
+            f"<tr><td class='l'>{_e(ch)}</td>"
+            f"<td>{_interval(c.get('dynamic_error_mean_interval'))} {_e(unit)}</td>"
+            f"<td>{deg}</td><td>{_num(c.get('dynamic_error_mean_midpoint'))}</td>"
+            f"<td>{_num(c.get('aided_mean_width'))}</td>"
+            f"<td>{_num(c.get('stationary_level_95'))} {_e(unit)}</td>"
+            f"<td>{_num(c.get('ratio_to_stationary_95'), 3)}</td>"
+            f"<td>{_num(100 * inside, 3) + ' %' if isinstance(inside, int | float) else '—'}</td>"
+            f"<td class='l {cls}'>{_e(verdict)}</td></tr>"
+        )
+    parts.append("</table>")
+    extra = {k: v for k, v in summ.items() if k in (
+        "empty_rule", "position_box_mean_width_m", "gps_box_mean_width_m", "enclosure", "counts")}
+    if extra:
+        parts.append(_kv_table(extra))
+    return "".join(parts)
+
+
 def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list[str]]:
-    warnings = [str(w) for w in dyn.get("warnings", [])]
+    inp = dyn.get("input") or {}
+    warnings = [str(w) for w in (inp.get("warnings") or dyn.get("warnings") or [])]
     commands = []
     run = _load_json(d / "run.json")
     if run and run.get("command"):
         commands.append(str(run["command"]))
     parts = ["<section id='dynamic'><h2>Dynamic error margins</h2>"]
-    settings = dyn.get("settings", {})
-    if settings:
+    modes = dyn.get("modes") or {}
+    primary = str(dyn.get("primary_mode") or next(iter(modes), ""))
+    if primary in modes:
+        chans = (modes[primary] or {}).get("channels") or {}
+        items = []
+        for ch, c in chans.items():
+            if isinstance(c, dict) and "verdict" in c:
+                cls = "bad" if "superset" in str(c["verdict"]) else "ok"
+                items.append(
+                    f"<li><b>{_e(ch)}</b>: mean dynamic error "
+                    f"{_interval(c.get('dynamic_error_mean_interval'))} {_e(c.get('unit', ''))} "
+                    f"vs stationary 95 % level ±{_num(c.get('stationary_level_95'))}: "
+                    f"<span class='{cls}'>{_e(c['verdict'])}</span></li>"
+                )
         parts.append(
-            "<table>"
-            + "".join(
-                f"<tr><th class='l'>{_e(k)}</th><td class='l'>{_e(v)}</td></tr>"
-                for k, v in settings.items()
-                if not isinstance(v, dict | list)
-            )
+            f"<h3 id='verdict'>Verdict: dynamic vs stationary ({_e(primary)} mode)</h3>"
+            f"<ul>{''.join(items)}</ul>"
+        )
+    for mode, summ in modes.items():
+        if isinstance(summ, dict):
+            parts.append(_mode_table(str(mode), summ))
+            for flag, v in (summ.get("flags") or {}).items():
+                if isinstance(v, dict) and v.get("count"):
+                    first = v.get("first_times_s") or []
+                    warnings.append(
+                        f"{mode} mode: {flag.replace('_', ' ')} at {v['count']} step(s)"
+                        + (f" (first at t = {_num(first[0])} s)" if first else "")
+                        + f"; rule: {summ.get('empty_rule', '?')}"
+                    )
+    # Older or other layouts: a flat summary and verdict.
+    if not modes and isinstance(dyn.get("summary"), dict):
+        parts.append(_kv_table(dyn["summary"]))
+    if dyn.get("verdict") and not modes:
+        parts.append(f"<h3>Dynamic vs stationary</h3><p>{_e(dyn['verdict'])}</p>")
+    if dyn.get("with_model_error"):
+        parts.append("<h3>With the scenario's model-error bounds</h3>"
+                     + _kv_table(dyn["with_model_error"].get("bounds") or {}))
+    shown = set()
+    for stem, caption in DYN_FIGURES:
+        if (d / f"{stem}.png").is_file():
+            parts.append(_img(d / f"{stem}.png", caption))
+            shown.add(stem)
+    for png in sorted(d.glob("*.png")):
+        if png.stem not in shown and png.stem != "allan":
+            parts.append(_img(png, png.stem.replace("_", " ")))
+    if inp:
+        parts.append("<h3>Inputs</h3>" + _kv_table({k: v for k, v in inp.items()
+                                                   if k != "warnings"}))
+    settings = dyn.get("settings") or {}
+    if settings:
+        parts.append("<h3>Settings</h3>" + _kv_table(settings, per_row=3))
+    bounds = dyn.get("imu_bounds") or {}
+    half = bounds.get("halfwidth_per_step") or {}
+    if half:
+        units = bounds.get("unit") or {}
+        parts.append(
+            f"<h3>Stationary IMU bounds used (source: {_e(bounds.get('source', '?'))})</h3>"
+            "<table><tr><th class='l'>channel</th><th>half-width per step</th></tr>"
+            + "".join(f"<tr><td class='l'>{_e(k)}</td><td>{_num(v)} {_e(units.get(k, ''))}</td>"
+                      "</tr>" for k, v in half.items())
             + "</table>"
         )
-    summary = dyn.get("summary") or dyn.get("channels") or {}
-    if isinstance(summary, dict) and summary:
-        keys: list[str] = []
-        for v in summary.values():
-            if isinstance(v, dict):
-                for k, val in v.items():
-                    if k not in keys and not isinstance(val, dict | list):
-                        keys.append(k)
-        parts.append("<table><tr><th class='l'>quantity</th>")
-        parts.extend(f"<th>{_e(k)}</th>" for k in keys)
-        parts.append("</tr>")
-        for name, v in summary.items():
-            if not isinstance(v, dict):
-                continue
-            parts.append(f"<tr><td class='l'>{_e(name)}</td>")
-            parts.extend(
-                f"<td>{_num(v.get(k)) if not isinstance(v.get(k), str) else _e(v.get(k))}</td>"
-                for k in keys
-            )
-            parts.append("</tr>")
-        parts.append("</table>")
-    verdict = dyn.get("verdict")
-    if verdict:
-        if isinstance(verdict, dict):
-            parts.append("<h3>Dynamic vs stationary</h3><ul>")
-            parts.extend(f"<li><b>{_e(k)}</b>: {_e(v)}</li>" for k, v in verdict.items())
-            parts.append("</ul>")
-        else:
-            parts.append(f"<h3>Dynamic vs stationary</h3><p>{_e(verdict)}</p>")
-    explanation = dyn.get("mode_explanation")
-    if explanation:
-        parts.append(f"<h3>paper vs full kinematics</h3><p>{_e(explanation)}</p>")
-    for png in sorted(d.glob("*.png")):
-        parts.append(_img(png, png.stem.replace("_", " ")))
     parts.append(_run_block(d))
     parts.append("</section>")
     return "".join(parts), warnings, commands

@@ -41,6 +41,12 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
         metavar="FACTOR",
         help="a gap is a time step longer than FACTOR x the nominal period",
     )
+    g.add_argument(
+        "--topic",
+        metavar="NAME",
+        help="ROS bag topic (sensor_msgs/Imu) or ULog topic (sensor_combined, vehicle_imu)",
+    )
+    g.add_argument("--dataset", metavar="PATH", help="HDF5 path of the IMU table, e.g. /imu")
 
 
 def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
@@ -56,6 +62,8 @@ def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
     }
     if args.gap_tolerance is not None:
         kwargs["gap_tolerance"] = args.gap_tolerance
+    fmt = {k: getattr(args, k, None) for k in ("topic", "dataset")}
+    kwargs["format_options"] = {k: v for k, v in fmt.items() if v is not None}
     return read_imu(path, **kwargs)
 
 

@@ -45,6 +45,7 @@ __all__ = [
 
 ReaderFunc = Callable[[Path, ReadOptions], list[ImuLog]]
 SniffFunc = Callable[[bytes], bool]
+SniffDirFunc = Callable[[Path], bool]
 
 #: File name of the bundled 45-minute extract of the ADIS16405 static log.
 BUNDLED_STATIC_LOG = "adis16405_imu1_extract.csv.gz"
@@ -64,12 +65,16 @@ class ReaderEntry:
         The reader, or ``"module:function"`` to import on first use.
     sniff:
         Optional test on the first 64 bytes, used when no suffix matches.
+    sniff_dir:
+        Optional test of a directory (formats stored as a folder, such as a
+        ROS 2 bag); without it directories are refused.
     """
 
     name: str
     suffixes: tuple[str, ...]
     read: ReaderFunc | str
     sniff: SniffFunc | None = None
+    sniff_dir: SniffDirFunc | None = None
 
     def load(self) -> ReaderFunc:
         """The reader function (importing it if registered by name)."""
@@ -88,6 +93,7 @@ def register_reader(
     *,
     suffixes: Iterable[str] = (),
     sniff: SniffFunc | None = None,
+    sniff_dir: SniffDirFunc | None = None,
     replace: bool = False,
 ) -> ReaderEntry:
     """Register a file format for :func:`read_imu`.
@@ -103,12 +109,14 @@ def register_reader(
         longest first.
     sniff:
         ``sniff(first_64_bytes) -> bool`` for files whose suffix is unknown.
+    sniff_dir:
+        ``sniff_dir(directory) -> bool`` for formats stored as a directory.
     replace:
         Allow replacing an existing registration.
     """
     if name in _REGISTRY and not replace:
         raise ValueError(f"reader {name!r} is already registered")
-    entry = ReaderEntry(name, tuple(s.lower() for s in suffixes), read, sniff)
+    entry = ReaderEntry(name, tuple(s.lower() for s in suffixes), read, sniff, sniff_dir)
     _REGISTRY[name] = entry
     return entry
 
@@ -144,6 +152,30 @@ register_reader(
     sniff=lambda head: head[:4] == b"PAR1",
 )
 register_reader(
+    "rosbag",
+    "imubounds.readers.rosbag:read_rosbag",
+    suffixes=(".bag", ".db3", ".mcap"),
+    sniff=lambda head: head.startswith((b"#ROSBAG V2.0", b"\x89MCAP", b"SQLite format 3\x00")),
+    sniff_dir=lambda d: (d / "metadata.yaml").is_file(),
+)
+register_reader(
+    "ulog",
+    "imubounds.readers.ulog:read_ulog",
+    suffixes=(".ulg", ".ulog"),
+    sniff=lambda head: head.startswith(b"ULog\x01\x12\x35"),
+)
+register_reader(
+    "hdf5",
+    "imubounds.readers.hdf5:read_hdf5",
+    suffixes=(".h5", ".hdf5", ".hdf", ".he5"),
+    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"),
+)
+register_reader(
+    "nmea",
+    "imubounds.readers.nmea:read_nmea_imu",
+    suffixes=(".nmea", ".nmea.txt"),
+)
+register_reader(
     "table",
     "imubounds.readers.table:read_text_table",
     suffixes=(".csv", ".csv.gz", ".tsv", ".tsv.gz", ".txt", ".txt.gz", ".dat", ".dat.gz"),
@@ -163,7 +195,10 @@ def find_reader(path: str | Path) -> ReaderEntry:
     if not p.exists():
         raise InputError(f"no such file: {p}; check the path")
     if p.is_dir():
-        raise InputError(f"{p} is a directory; give an IMU log file")
+        for entry in _REGISTRY.values():
+            if entry.sniff_dir is not None and entry.sniff_dir(p):
+                return entry
+        raise InputError(f"{p} is a directory; give an IMU log file (or a ROS 2 bag directory)")
     lower = p.name.lower()
     best: tuple[int, ReaderEntry] | None = None
     for entry in _REGISTRY.values():
@@ -198,6 +233,7 @@ def read_imu_segments(
     gap_tolerance: float | None = None,
     on_gap: OnGap = "split",
     channels: Iterable[str] | None = None,
+    format_options: Mapping[str, object] | None = None,
 ) -> list[ImuLog]:
     """Read an IMU log and return its contiguous segments (split at gaps).
 
@@ -213,10 +249,11 @@ def read_imu_segments(
         gap_tolerance=gap_tolerance,
         on_gap=on_gap,
         channels=None if channels is None else tuple(channels),
+        extra=dict(format_options or {}),
     ).validated()
     entry = find_reader(path)
     p = Path(path)
-    if p.stat().st_size == 0:
+    if p.is_file() and p.stat().st_size == 0:
         raise InputError(f"{p} is empty; give a file with a header line and data rows")
     return entry.load()(p, opts)
 
@@ -232,14 +269,16 @@ def read_imu(
     gap_tolerance: float | None = None,
     on_gap: OnGap = "refuse",
     channels: Iterable[str] | None = None,
+    format_options: Mapping[str, object] | None = None,
 ) -> ImuLog:
     """Read an IMU log file into an :class:`ImuLog` in SI units.
 
     Parameters
     ----------
     path:
-        CSV/TSV/TXT (optionally ``.gz``) or Parquet file; other formats once
-        registered.
+        CSV/TSV/TXT (optionally ``.gz``), Parquet, HDF5, ROS 1 bag, ROS 2 bag
+        (directory or ``.db3``), MCAP, PX4 ULog or NMEA (``$VNYMR``) file;
+        other formats once registered.
     rate_hz:
         Sample rate in Hz. Required when the file has no time column; when it
         has one, the median time step must agree within 1 %.
@@ -266,6 +305,11 @@ def read_imu(
         samples, warning in ``ImuLog.warnings``).
     channels:
         Only these canonical channels (all recognised ones by default).
+    format_options:
+        Options of one format: ``topic`` (ROS bag topic, ULog topic
+        ``sensor_combined``/``vehicle_imu``), ``dataset`` (HDF5 path of the
+        table), ``on_bad_checksum`` (NMEA: ``error``/``skip``). Unused keys
+        are ignored.
 
     Returns
     -------
@@ -289,6 +333,7 @@ def read_imu(
         gap_tolerance=gap_tolerance,
         on_gap=on_gap,
         channels=channels,
+        format_options=format_options,
     )
     if len(segments) == 1:
         return segments[0]

@@ -1,0 +1,208 @@
+"""The HTML report: content of ``imubounds report DIR`` on a real static + dynamic run,
+and the page in a real headless browser (Debian chromium).
+
+The run: ``imubounds static`` on the ROS 2 bag sample (600 real ADIS16405
+samples) and the dynamic estimator on the real VN-100/BU-353N drive.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imubounds import __version__
+from imubounds.cli import main as cli_main
+from imubounds.report import build_report
+
+FORMATS = Path(__file__).parent / "data" / "formats"
+VN100 = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dynamic" / (
+    "vn100_bu353_circle")
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+CHROMIUM_FLAGS = (
+    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--enable-logging=stderr", "--v=0",
+)
+
+
+def _run_dynamic(out: Path) -> None:
+    from imubounds.cli import dynamic
+
+    p = argparse.ArgumentParser()
+    dynamic.register(p.add_subparsers())
+    argv = ["dynamic", str(VN100), "-o", str(out), "-q"]
+    args = p.parse_args(argv)
+    args.argv = argv
+    assert args.func(args) == 0
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("run")
+    code = cli_main(["static", str(FORMATS / "adis_ros2"), "-o", str(root / "static"), "-q",
+                     "--tau", "20", "--no-report"])
+    assert code == 0
+    if VN100.is_dir():
+        _run_dynamic(root / "dynamic")
+    code = cli_main(["report", str(root), "-q"])
+    assert code == 0
+    return root
+
+
+@pytest.fixture(scope="module")
+def page(run_dir: Path) -> str:
+    return (run_dir / "report.html").read_text(encoding="utf-8")
+
+
+def test_static_content(run_dir: Path, page: str) -> None:
+    noise = json.loads((run_dir / "static" / "noise.json").read_text())
+    assert "<section id='static'>" in page
+    assert "adis_ros2:/imu/data" in page  # the input (a ROS 2 bag topic)
+    assert "FLU" in page and "in rad/s" in page  # frame and input units
+    assert "overlapping" in page and "weighted least-squares fit" in page
+    # the noise table in IEEE and SI units, with the numbers of noise.json
+    assert "deg/h^0.5" in page and "rad/s^0.5" in page and "m/s/h^0.5" in page
+    n_ieee = noise["channels"]["gyro_z"]["noise"]["fit"]["N"]["ieee"]["value"]
+    assert f"{n_ieee:.4g} deg/h^0.5" in page
+    n_si = noise["channels"]["accel_x"]["noise"]["fit"]["N"]["value"]
+    assert f"{n_si:.4g} m/s^1.5" in page
+    assert "Stochastic models" in page and "GM correlation time" in page
+    assert "Stationary bounds" in page and "95 % level" in page
+
+
+@pytest.mark.skipif(not VN100.is_dir(), reason="real VN-100 drive not beside the repository")
+def test_dynamic_content(run_dir: Path, page: str) -> None:
+    dyn = json.loads((run_dir / "dynamic" / "dynamic.json").read_text())
+    assert "<section id='dynamic'>" in page
+    assert "Verdict: dynamic vs stationary (full mode)" in page
+    for mode in ("paper", "full"):
+        assert f"Dynamic error margins — {mode} kinematics" in page
+    c = dyn["modes"]["full"]["channels"]["accel_x"]
+    lo, hi = c["dynamic_error_mean_interval"]
+    assert f"[{lo:.4g}, {hi:.4g}] m/s^2" in page
+    assert c["verdict"] in page
+    assert "mounted backwards" in page  # reader warnings reach the warnings section
+
+
+def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
+    imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    expected = [run_dir / "static" / "allan.png"]
+    if VN100.is_dir():
+        expected += [run_dir / "dynamic" / f"{s}.png" for s in
+                     ("intervals", "trajectory", "comparison")]
+    assert len(imgs) == len(expected)
+    for data, path in zip(imgs, expected, strict=True):
+        assert base64.b64decode(data) == path.read_bytes()
+    # nothing is fetched from elsewhere
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//|file:)""", page)
+    assert "<link" not in page and "@import" not in page
+
+
+def test_warnings_and_reproduce(run_dir: Path, page: str) -> None:
+    assert "<section id='warnings'>" in page and "<section id='reproduce'>" in page
+    run = json.loads((run_dir / "static" / "run.json").read_text())
+    assert run["command"].startswith("imubounds static ")
+    assert run["command"].replace("/", "&#x2F;") in page or run["command"] in page
+    assert f"imubounds=={__version__}" in page
+
+
+def test_report_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no noise.json or dynamic.json found" in err[0]
+    (tmp_path / "noise.json").write_text("{not json")
+    assert cli_main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "noise.json: not readable JSON" in err[0]
+
+
+def test_report_only_dynamic(run_dir: Path, tmp_path: Path) -> None:
+    if not VN100.is_dir():
+        pytest.skip("real VN-100 drive not beside the repository")
+    shutil.copytree(run_dir / "dynamic", tmp_path / "d")
+    html = build_report(tmp_path / "d")
+    assert "<section id='dynamic'>" in html and "<section id='static'>" not in html
+
+
+# ----------------------------------------------------------------------------- browser
+def _chromium() -> str:
+    for name in CHROMIUM_NAMES:
+        path = shutil.which(name)
+        if path:
+            return path
+    msg = ("headless browser test needs Debian chromium: apt-get install -y chromium "
+           f"(none of {', '.join(CHROMIUM_NAMES)} on PATH)")
+    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+        pytest.fail(msg)
+    pytest.skip(msg)
+
+
+def _render(html: Path, shot: Path, profile: Path) -> list[str]:
+    """Load ``html`` in headless chromium, write a 1280x4000 screenshot; console lines."""
+    cmd = [_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
+           "--virtual-time-budget=5000", f"--screenshot={shot}", "--window-size=1280,4000",
+           "--hide-scrollbars", html.resolve().as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert shot.is_file(), proc.stderr[-2000:]
+    return [line for line in proc.stderr.splitlines() if ":CONSOLE" in line]
+
+
+PROBE = """<script>
+window.addEventListener('load', function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  var rects = imgs.map(function (i) {
+    var r = i.getBoundingClientRect();
+    return [Math.round(r.left), Math.round(r.top), Math.round(r.width), Math.round(r.height),
+            i.complete && i.naturalWidth > 0 ? 1 : 0];
+  });
+  console.log('PROBE ' + JSON.stringify(rects));
+});
+</script>"""
+
+
+def test_page_in_headless_chromium(run_dir: Path, tmp_path: Path) -> None:
+    from PIL import Image
+
+    # 1. The report as written: no console output at all (no errors, no warnings).
+    shot = tmp_path / "report.png"
+    console = _render(run_dir / "report.html", shot, tmp_path / "profile1")
+    assert console == [], console
+    keep = os.environ.get("IMUBOUNDS_KEEP_SCREENSHOT")
+    if keep:
+        shutil.copy(shot, keep)
+    # 2. The same page with a probe script: every image decoded, and where it is.
+    probed = tmp_path / "probed.html"
+    probed.write_text((run_dir / "report.html").read_text().replace("</body>", PROBE + "</body>"))
+    lines = _render(probed, tmp_path / "probed.png", tmp_path / "profile2")
+    probe = [ln for ln in lines if "PROBE " in ln]
+    assert len(probe) == 1 and len(lines) == 1, lines
+    rects = json.loads(re.search(r"PROBE (\[.*\])", probe[0]).group(1))  # type: ignore[union-attr]
+    n_figs = 4 if VN100.is_dir() else 1
+    assert len(rects) == n_figs
+    assert all(r[4] == 1 and r[2] > 400 and r[3] > 150 for r in rects), rects
+    # 3. The screenshot shows the figures: inside each visible image rectangle the pixels
+    #    vary and include plot colours (not a blank or broken-image box).
+    img = np.asarray(Image.open(shot).convert("RGB"), dtype=float)
+    assert img.shape == (4000, 1280, 3)
+    seen = 0
+    for left, top, width, height, _ in rects:
+        if top + 50 >= img.shape[0]:
+            continue
+        box = img[top: min(top + height, img.shape[0]), left: left + width]
+        sat = box.max(axis=2) - box.min(axis=2)
+        assert box.std() > 20.0
+        assert (sat > 60).mean() > 0.002, "no coloured plot lines in the figure area"
+        seen += 1
+    assert seen >= 1
+    # the page is not blank outside the figures either (tables rendered)
+    assert (img < 128).mean() > 0.01
