@@ -10,7 +10,7 @@ content of ``noise.json`` and whose :meth:`~StaticResult.kalibr_yaml` is
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -256,11 +256,13 @@ def analyse_static(
     *,
     channels: Sequence[str] | None = None,
     progress: Progress | None = None,
+    curves: Mapping[str, AllanResult] | None = None,
 ) -> StaticResult:
     """Run the stationary characterisation on every (or the selected) channel.
 
     ``progress(stage, done, total)`` is called as work advances (the library
-    never prints).
+    never prints). ``curves`` supplies Allan curves computed elsewhere (the
+    out-of-core path, :mod:`imubounds.stream`); they must match ``settings``.
     """
     settings = settings or StaticSettings()
     if settings.terms_from not in ("fit", "slope"):
@@ -280,14 +282,15 @@ def analyse_static(
         if progress is not None:
             progress("allan", done, total)
 
-    curves = allan_channels(
-        {n: log.channels[n] for n in imu_names},
-        log.rate_hz,
-        taus=settings.taus,
-        estimator=settings.estimator,
-        confidence=settings.confidence,
-        progress=allan_progress,
-    )
+    if curves is None:
+        curves = allan_channels(
+            {n: log.channels[n] for n in imu_names},
+            log.rate_hz,
+            taus=settings.taus,
+            estimator=settings.estimator,
+            confidence=settings.confidence,
+            progress=allan_progress,
+        )
     t_avg = settings.averaging_time_s or log.duration_s
     run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}

@@ -72,8 +72,39 @@ def register(sub: Any) -> None:
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages on stderr")
+    add_outofcore_options(p)
     add_log_options(p)
     p.set_defaults(func=run)
+
+
+def add_outofcore_options(p: argparse.ArgumentParser) -> None:
+    """``--max-memory``, ``--out-of-core`` and ``--tmpdir`` (shared with ``fleet``)."""
+    g = p.add_argument_group("large logs")
+    g.add_argument(
+        "--max-memory",
+        default="1GiB",
+        metavar="SIZE",
+        help="memory setting, e.g. 1GiB, 512MB: logs that would need more are analysed "
+        "out-of-core, with data buffers bounded by SIZE (default 1GiB)",
+    )
+    g.add_argument(
+        "--out-of-core", action="store_true", help="force the out-of-core (chunked) Allan path"
+    )
+    g.add_argument(
+        "--tmpdir", metavar="DIR", help="where out-of-core phase files go (default: system temp)"
+    )
+
+
+def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    from imubounds.readers import parse_column_map
+
+    return {
+        "rate_hz": args.rate,
+        "columns": parse_column_map(args.columns) if args.columns else None,
+        "gyro_unit": args.gyro_unit,
+        "accel_unit": args.accel_unit,
+        "time_unit": args.time_unit,
+    }
 
 
 def summary(result: Any) -> dict[str, Any]:
@@ -121,6 +152,12 @@ def print_table(result: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from imubounds.outputs import ensure_dir, write_json, write_run_record, write_text
     from imubounds.static import StaticSettings, analyse_static
+    from imubounds.stream import (
+        analyse_static_outofcore,
+        format_bytes,
+        parse_memory,
+        route_outofcore,
+    )
 
     rep = Reporter(args.quiet)
     models = (
@@ -138,16 +175,38 @@ def run(args: argparse.Namespace) -> int:
         terms_from=args.terms_from,
         models=models,
     )
-    log = read_log_from_args(args.log, args)
-    for w in log.warnings:
-        rep.warn(w)
-    rep.info(
-        f"read {log.source}: {log.n_samples} samples at {log.rate_hz:g} Hz "
-        f"({log.duration_s / 3600:.3g} h), channels {', '.join(log.channel_names())}"
-    )
     channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
-    with rep.session() as progress:
-        result = analyse_static(log, settings, channels=channels, progress=progress)
+    big = route_outofcore(
+        args.log, args.max_memory, force=args.out_of_core, channels=channels, **_open_kwargs(args)
+    )
+    if big is not None:
+        rep.info(
+            f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
+            f" data buffers <= {format_bytes(parse_memory(args.max_memory))}"
+        )
+        with rep.session() as progress:
+            result = analyse_static_outofcore(
+                big,
+                settings,
+                channels=channels,
+                memory_limit=args.max_memory,
+                tmpdir=args.tmpdir,
+                progress=progress,
+            )
+        for w in big.warnings:
+            rep.warn(w)
+        for note in result.notes:
+            rep.info(note)
+    else:
+        log = read_log_from_args(args.log, args)
+        for w in log.warnings:
+            rep.warn(w)
+        rep.info(
+            f"read {log.source}: {log.n_samples} samples at {log.rate_hz:g} Hz "
+            f"({log.duration_s / 3600:.3g} h), channels {', '.join(log.channel_names())}"
+        )
+        with rep.session() as progress:
+            result = analyse_static(log, settings, channels=channels, progress=progress)
     outdir = ensure_dir(args.out)
     write_json(outdir / "noise.json", result.to_json())
     write_text(outdir / "imu.yaml", result.kalibr_yaml())

@@ -1,0 +1,113 @@
+"""``imubounds fleet GLOB... -o DIR``: characterise many units on Dask."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+from imubounds.cli._common import Reporter, add_log_options, parse_taus
+
+ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "fleet",
+        help="characterise a fleet of units (many static logs) on Dask",
+        description="Run the static pipeline (Allan deviation, noise terms) over many logs on "
+        "a Dask cluster (local by default) and write DIR/fleet.parquet (one row per unit and "
+        "channel), DIR/fleet.json, DIR/fleet.png and, with --spec, DIR/passfail.csv. Units "
+        "already done (same file content and settings) are taken from DIR/.cache.",
+    )
+    p.add_argument("logs", nargs="+", metavar="GLOB", help="log files or glob patterns")
+    p.add_argument("-o", "--out", default="fleet", metavar="DIR", help="output directory")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="running dask scheduler, tcp://h:8786")
+    p.add_argument("--workers", type=int, default=2, help="local cluster workers (default 2)")
+    p.add_argument("--threads-per-worker", type=int, default=1, help="default 1")
+    p.add_argument("--spec", metavar="YAML", help="datasheet limits (max N, B, K per kind)")
+    p.add_argument("--tau", default="octave", help="tau grid (as for static)")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping")
+    p.add_argument("--confidence", type=float, default=0.683)
+    p.add_argument("--terms-from", choices=("fit", "slope"), default="fit")
+    p.add_argument(
+        "--max-memory", default="1GiB", metavar="SIZE",
+        help="per-unit memory setting: larger logs take the out-of-core path",
+    )  # fmt: skip
+    p.add_argument(
+        "--task-size", default="32MB", metavar="SIZE",
+        help="group small logs into tasks of about SIZE of input (default 32MB)",
+    )  # fmt: skip
+    p.add_argument("--no-plot", action="store_true", help="skip fleet.png/.svg")
+    p.add_argument("--json", action="store_true", help="print fleet.json on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
+    add_log_options(p)
+    p.set_defaults(func=run)
+
+
+def _g(v: Any) -> str:
+    return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.4g}"
+
+
+def run(args: argparse.Namespace) -> int:
+    from imubounds.fleet import FleetSettings, run_fleet
+    from imubounds.readers import parse_column_map
+    from imubounds.stream import parse_memory
+
+    rep = Reporter(args.quiet)
+    read: dict[str, Any] = {
+        "rate_hz": args.rate,
+        "columns": parse_column_map(args.columns) if args.columns else None,
+        "gyro_unit": args.gyro_unit,
+        "accel_unit": args.accel_unit,
+        "time_unit": args.time_unit,
+        "on_gap": args.on_gap,
+        "gap_tolerance": args.gap_tolerance,
+    }
+    taus = parse_taus(args.tau)
+    settings = FleetSettings(
+        taus=tuple(taus) if isinstance(taus, list) else taus,
+        estimator=args.estimator,
+        confidence=args.confidence,
+        terms_from=args.terms_from,
+        memory_limit=args.max_memory,
+        read={k: v for k, v in read.items() if v is not None},
+    )
+    parse_memory(args.max_memory)
+    with rep.session() as progress:
+        res = run_fleet(
+            args.logs, args.out, settings, scheduler=args.scheduler, n_workers=args.workers,
+            threads_per_worker=args.threads_per_worker, spec=args.spec,
+            target_task_bytes=parse_memory(args.task_size), plot=not args.no_plot,
+            progress=progress,
+        )  # fmt: skip
+    summ = res.summary()
+    for f in res.failed:
+        rep.warn(f"unit {f['unit']} failed: {f['error']}")
+    if args.json:
+        json.dump(summ, sys.stdout, indent=2, default=float)
+        print()
+    elif not args.quiet:
+        print(
+            f"{summ['n_units']} units: {summ['n_ok']} analysed ({summ['n_cached']} from cache), "
+            f"{summ['n_failed']} failed; {res.n_tasks} tasks on {res.scheduler}, "
+            f"{res.seconds:.1f} s"
+        )
+        for kind, terms in summ["terms_ieee"].items():
+            for t in ("N", "B", "K"):
+                s = terms.get(t, {})
+                if s.get("n"):
+                    print(
+                        f"  {kind:<5} {t}: median {_g(s['median'])} {s['unit_ieee']}"
+                        f"  (5-95 %: {_g(s['p05'])} .. {_g(s['p95'])}, {s['n']} axes)"
+                    )
+        if "spec" in summ:
+            sp = summ["spec"]
+            print(
+                f"spec {sp['name']} ({sp['criterion']}): {sp['n_pass']} pass, {sp['n_fail']} fail"
+                + (f": {', '.join(sp['units_failing'])}" if sp["units_failing"] else "")
+            )
+    rep.info(f"wrote {', '.join(res.files.values())} to {args.out}")
+    return 0
