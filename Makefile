@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-test
 OUT ?= out
 PYTEST_ARGS ?=
 
-.PHONY: demo test lint bench clean venv
+.PHONY: demo test lint bench clean venv browser
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,7 +23,17 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/imubounds demo -o $(OUT)
 
-test: $(STAMP)
+# The report's browser test needs Debian's chromium; install it when we can (root + apt).
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian's chromium for the report's browser test"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else \
+	    echo "chromium is not installed: the report's browser test will not run (apt-get install chromium)"; \
+	  fi; }
+
+test: $(STAMP) browser
 	$(VENV)/bin/ruff check src tests benchmarks
 	$(PY) -m pytest -n 2 $(PYTEST_ARGS)
 
@@ -33,6 +43,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/bench_allan.py
 	$(PY) benchmarks/bench_interval.py
+	$(PY) benchmarks/bench_estimator.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache .hypothesis

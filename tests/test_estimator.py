@@ -326,3 +326,21 @@ def test_qrelax_rule_tolerates_outliers(tmp_path: Path) -> None:
             assert s["empty_rule"].startswith("q-relaxed")
     assert enc["qrelax"] > 0.98
     assert enc["qrelax"] > enc["keep"] + 0.05 and enc["qrelax"] > enc["reset"] + 0.05
+
+
+def test_bias_margin_widens_bounds_by_B_and_reduces_inconsistency(tmp_path: Path) -> None:
+    # The simulated MTx has a bias instability (1 deg/s gyro, 0.02 m/s^2 accel) far
+    # above the paper's k*sigma_c: its bounds are violated and intersections go empty.
+    log = sim_log(tmp_path, duration_s=300.0, distance_m=3500.0)
+    base = config_for_log(log)
+    wide = config_for_log(log, bias_margin=1.0)
+    s0, s1 = prepare_steps(log, base), prepare_steps(log, wide)
+    for i, ch in enumerate(("accel_x", "accel_y", "gyro_z")):
+        assert s1.half[i] - s0.half[i] == pytest.approx(base.imu.coeffs(ch)["B"], rel=1e-12)
+    r0, r1 = run(log, base), run(log, wide)
+
+    def n_empty(res: object) -> int:
+        s = res.summary  # type: ignore[attr-defined]
+        return sum(v["count"] for k, v in s["flags"].items() if "empty" in k)
+
+    assert n_empty(r1) < n_empty(r0)

@@ -17,7 +17,15 @@ from imubounds import __version__
 from imubounds.errors import ImuboundsError
 
 # Command modules, in the order they appear in ``--help``.
-COMMAND_MODULES: tuple[str, ...] = ("static", "simulate_noise", "report", "demo")
+COMMAND_MODULES: tuple[str, ...] = (
+    "static",
+    "simulate_noise",
+    "simulate",
+    "dynamic",
+    "fleet",
+    "report",
+    "demo",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -11,8 +11,10 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "demo",
         help="run the whole pipeline on the bundled real data",
-        description="Run the stationary analysis on the bundled ADIS16405 extract "
-        "(and the dynamic analysis where available), writing everything under DIR.",
+        description="Run the stationary analysis on the bundled ADIS16405 extract, the "
+        "dynamic analysis on the paper's simulated trip and on the bundled VN-100 drive, "
+        "and write one report: DIR/static, DIR/sim, DIR/dynamic, DIR/dynamic_vn100, "
+        "DIR/report.html.",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
@@ -23,26 +25,54 @@ def run(args: argparse.Namespace) -> int:
     from imubounds.cli import main as cli_main
     from imubounds.outputs import ensure_dir
     from imubounds.readers import bundled_static_log
+    from imubounds.readers.drive import VN100_IMU_SPEC, bundled_drive_log
 
-    out = ensure_dir(args.out)
+    out = Path(ensure_dir(args.out))
     quiet = ["--quiet"] if args.quiet else []
-    static_dir = Path(out) / "static"
-    code = cli_main(
-        [
-            "static",
-            str(bundled_static_log()),
-            "-o",
-            str(static_dir),
-            "--tau",
-            "40",
-            "--no-report",
-            *quiet,
-        ]
-    )
-    if code:
-        return code
+    steps: list[tuple[str, list[str]]] = [
+        (
+            "stationary analysis of the bundled ADIS16405 static log",
+            [
+                "static",
+                str(bundled_static_log()),
+                "-o",
+                str(out / "static"),
+                "--tau",
+                "40",
+                "--no-report",
+            ],
+        ),
+        (
+            "simulating the paper's 9.4 km / 792 s trip (MTx-grade IMU, GPS, compass)",
+            ["simulate", "--scenario", "paper", "--seed", "0", "-o", str(out / "sim")],
+        ),
+        (
+            "dynamic error margins on the simulated trip",
+            ["dynamic", str(out / "sim"), "-o", str(out / "dynamic"), "--no-report"],
+        ),
+        (
+            "dynamic error margins on the bundled VN-100 + BU-353N drive",
+            [
+                "dynamic",
+                str(bundled_drive_log()),
+                "-o",
+                str(out / "dynamic_vn100"),
+                "--imu-spec",
+                VN100_IMU_SPEC,
+                "--no-report",
+            ],
+        ),
+    ]
+    for i, (what, argv) in enumerate(steps, 1):
+        if not args.quiet:
+            print(f"[{i}/{len(steps) + 1}] {what}")
+        code = cli_main([*argv, *quiet])
+        if code:
+            return code
     from imubounds.report import write_report
 
+    if not args.quiet:
+        print(f"[{len(steps) + 1}/{len(steps) + 1}] writing the report")
     path = write_report(out)
     if not args.quiet:
         print(f"demo finished; open {path}")

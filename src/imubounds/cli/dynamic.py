@@ -39,6 +39,13 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--k-sigma", type=float, help="factor k of the IMU bound k*sigma_c (3)")
     p.add_argument(
+        "--bias-margin",
+        type=float,
+        metavar="M",
+        help="widen the IMU bound by M x the bias-instability B (0, the paper; 1 keeps a "
+        "sensor whose bias wanders by its bias stability inside its bounds)",
+    )
+    p.add_argument(
         "--avg-time",
         type=float,
         metavar="S",
@@ -272,6 +279,7 @@ def run(args: argparse.Namespace) -> int:
         )
     overrides: dict[str, Any] = dict(
         k_sigma=args.k_sigma,
+        bias_margin=args.bias_margin,
         t_avg_s=args.avg_time,
         gps_cep_m=args.gps_cep,
         gps_box=args.gps_box,

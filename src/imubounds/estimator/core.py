@@ -79,6 +79,10 @@ class EstimatorConfig:
     q_outliers: int = 1
     k_sigma: float = 3.0
     t_avg_s: float | None = None  # averaging time of sigma_c; the drive length if None
+    # Extra half-width of the IMU intervals, in units of the bias-instability
+    # coefficient B: 0 is the paper's k*sigma_c alone; 1 adds B, so that a
+    # sensor whose bias wanders by its bias stability stays inside its bounds.
+    bias_margin: float = 0.0
     gps_cep_m: float = 3.0
     gps_box: str = "p=0.999"
     default_hdop: float = 1.0
@@ -111,7 +115,7 @@ class EstimatorConfig:
             raise OptionError("--q must be >= 0")
         if self.passes < 1 or self.window < 1:
             raise OptionError("--passes and --window must be at least 1")
-        for name in ("nav_accel_bound", "jerk_bound", "k_sigma"):
+        for name in ("nav_accel_bound", "jerk_bound", "k_sigma", "bias_margin"):
             if not getattr(self, name) >= 0:
                 raise OptionError(f"--{name.replace('_', '-')} must be non-negative")
         parse_gps_box(self.gps_box)
@@ -255,11 +259,14 @@ def prepare_steps(log: DriveLog, cfg: EstimatorConfig) -> StepData:
     t_avg = cfg.t_avg_s if cfg.t_avg_s else max(duration, dt)
     half = np.array(
         [
-            interval_halfwidth(
-                cfg.imu.coeffs(ch)["N"], cfg.imu.coeffs(ch)["B"], dt, t_avg, cfg.k_sigma
+            (
+                interval_halfwidth(
+                    cfg.imu.coeffs(ch)["N"], cfg.imu.coeffs(ch)["B"], dt, t_avg, cfg.k_sigma
+                )
+                if cfg.k_sigma > 0
+                else 0.0
             )
-            if cfg.k_sigma > 0
-            else 0.0
+            + cfg.bias_margin * cfg.imu.coeffs(ch)["B"]
             for ch in CHANNELS
         ]
     )
