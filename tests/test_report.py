@@ -91,6 +91,7 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
     assert f"[{lo:.4g}, {hi:.4g}] m/s^2" in page
     assert c["verdict"] in page
     assert "mounted backwards" in page  # reader warnings reach the warnings section
+    assert "Why the paper and full kinematics differ" in page
 
 
 def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
@@ -206,3 +207,19 @@ def test_page_in_headless_chromium(run_dir: Path, tmp_path: Path) -> None:
     assert seen >= 1
     # the page is not blank outside the figures either (tables rendered)
     assert (img < 128).mean() > 0.01
+
+
+def test_every_dynamic_directory_gets_a_section(run_dir: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from imubounds.report import build_report
+
+    root = tmp_path / "run"
+    shutil.copytree(run_dir, root)
+    if not (root / "dynamic").is_dir():
+        pytest.skip("no dynamic run in the fixture (real VN-100 drive not beside the repository)")
+    shutil.copytree(root / "dynamic", root / "dynamic_second")
+    page = build_report(root)
+    assert "<section id='dynamic'>" in page
+    assert "<section id='dynamic-dynamic_second'>" in page
+    assert "Dynamic error margins — dynamic_second" in page

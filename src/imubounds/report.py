@@ -220,11 +220,17 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
 
 
 DYN_FIGURES = (
-    ("intervals", "Dynamic error intervals per step: the aided interval of each quantity "
-     "minus the measured value, with the stationary 95 % level for comparison."),
+    (
+        "intervals",
+        "Dynamic error intervals per step: the aided interval of each quantity "
+        "minus the measured value, with the stationary 95 % level for comparison.",
+    ),
     ("trajectory", "Trajectory in the local ENU frame: GPS boxes and contracted position boxes."),
-    ("comparison", "Mean dynamic error intervals of the paper and full kinematic modes against "
-     "the stationary 95 % levels."),
+    (
+        "comparison",
+        "Mean dynamic error intervals of the paper and full kinematic modes against "
+        "the stationary 95 % levels.",
+    ),
 )
 
 
@@ -237,7 +243,7 @@ def _kv_table(items: dict[str, Any], per_row: int = 1) -> str:
             if len(v) > 160:
                 v = v[:157] + "..."
         cells.append(f"<th class='l'>{_e(k)}</th><td class='l'>{_e(v)}</td>")
-    rows = ["".join(cells[i: i + per_row]) for i in range(0, len(cells), per_row)]
+    rows = ["".join(cells[i : i + per_row]) for i in range(0, len(cells), per_row)]
     return "<table>" + "".join(f"<tr>{r}</tr>" for r in rows) + "</table>"
 
 
@@ -261,8 +267,11 @@ def _mode_table(mode: str, summ: dict[str, Any]) -> str:
         if not isinstance(c, dict):
             continue
         unit = str(c.get("unit", ""))
-        deg = _interval(c.get("dynamic_error_mean_interval"), 180.0 / math.pi) if unit == (
-            "rad/s") else "—"
+        deg = (
+            _interval(c.get("dynamic_error_mean_interval"), 180.0 / math.pi)
+            if unit == ("rad/s")
+            else "—"
+        )
         inside = c.get("measurement_inside_aided")
         verdict = str(c.get("verdict", "—"))
         cls = "bad" if "superset" in verdict else "ok"
@@ -277,21 +286,70 @@ def _mode_table(mode: str, summ: dict[str, Any]) -> str:
             f"<td class='l {cls}'>{_e(verdict)}</td></tr>"
         )
     parts.append("</table>")
-    extra = {k: v for k, v in summ.items() if k in (
-        "empty_rule", "position_box_mean_width_m", "gps_box_mean_width_m", "enclosure", "counts")}
+    extra = {
+        k: v
+        for k, v in summ.items()
+        if k
+        in (
+            "empty_rule",
+            "position_box_mean_width_m",
+            "gps_box_mean_width_m",
+            "enclosure",
+            "counts",
+        )
+    }
     if extra:
         parts.append(_kv_table(extra))
     return "".join(parts)
 
 
-def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list[str]]:
+def _modes_explained(modes: dict[str, Any]) -> str:
+    """Why the ``paper`` and ``full`` kinematic modes differ, with this run's numbers."""
+    paper, full = modes.get("paper"), modes.get("full")
+    if not (isinstance(paper, dict) and isinstance(full, dict)):
+        return ""
+
+    def empties(summ: dict[str, Any]) -> int:
+        flags = summ.get("flags") or {}
+        return sum(int(v.get("count", 0)) for k, v in flags.items() if "empty" in k)
+
+    def share(summ: dict[str, Any], key: str) -> str:
+        enc = summ.get("enclosure") or {}
+        v = enc.get(key)
+        return "—" if v is None else f"{100 * float(v):.1f} %"
+
+    rows = "".join(
+        f"<tr><td class='l'>{name}</td><td>{empties(summ)}</td>"
+        f"<td>{share(summ, 'position_box')}</td><td>{share(summ, 'v')}</td></tr>"
+        for name, summ in (("paper", paper), ("full", full))
+    )
+    return (
+        "<h3 id='modes'>Why the paper and full kinematics differ</h3>"
+        "<p>The paper's mechanisation (mode <code>paper</code>) integrates the accelerometer "
+        "readings as if they were u̇ and v̇. In a rotating body frame an accelerometer measures "
+        "a<sub>x</sub> = u̇ − r·v and a<sub>y</sub> = v̇ + r·u, so in a turn the centripetal "
+        "term r·u (metres per second squared in a car) is read as lateral acceleration: the "
+        "predicted lateral velocity drifts, the predicted position box misses the GPS box "
+        "(an empty intersection) and the neglected term lands in the 'dynamic error'. Mode "
+        "<code>full</code> keeps the transport terms. On straight segments the two agree.</p>"
+        "<table><tr><th class='l'>mode</th><th>empty intersections</th>"
+        "<th>truth in position box</th><th>truth in lateral-velocity interval</th></tr>"
+        f"{rows}</table>"
+    )
+
+
+def _dynamic_section(
+    d: Path, dyn: dict[str, Any], label: str = ""
+) -> tuple[str, list[str], list[str]]:
     inp = dyn.get("input") or {}
     warnings = [str(w) for w in (inp.get("warnings") or dyn.get("warnings") or [])]
     commands = []
     run = _load_json(d / "run.json")
     if run and run.get("command"):
         commands.append(str(run["command"]))
-    parts = ["<section id='dynamic'><h2>Dynamic error margins</h2>"]
+    sid = "dynamic" if not label else f"dynamic-{label}"
+    title = "Dynamic error margins" + (f" — {_e(label)}" if label else "")
+    parts = [f"<section id='{sid}'><h2>{title}</h2>"]
     modes = dyn.get("modes") or {}
     primary = str(dyn.get("primary_mode") or next(iter(modes), ""))
     if primary in modes:
@@ -310,6 +368,7 @@ def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list
             f"<h3 id='verdict'>Verdict: dynamic vs stationary ({_e(primary)} mode)</h3>"
             f"<ul>{''.join(items)}</ul>"
         )
+    parts.append(_modes_explained(modes))
     for mode, summ in modes.items():
         if isinstance(summ, dict):
             parts.append(_mode_table(str(mode), summ))
@@ -327,8 +386,10 @@ def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list
     if dyn.get("verdict") and not modes:
         parts.append(f"<h3>Dynamic vs stationary</h3><p>{_e(dyn['verdict'])}</p>")
     if dyn.get("with_model_error"):
-        parts.append("<h3>With the scenario's model-error bounds</h3>"
-                     + _kv_table(dyn["with_model_error"].get("bounds") or {}))
+        parts.append(
+            "<h3>With the scenario's model-error bounds</h3>"
+            + _kv_table(dyn["with_model_error"].get("bounds") or {})
+        )
     shown = set()
     for stem, caption in DYN_FIGURES:
         if (d / f"{stem}.png").is_file():
@@ -338,8 +399,9 @@ def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list
         if png.stem not in shown and png.stem != "allan":
             parts.append(_img(png, png.stem.replace("_", " ")))
     if inp:
-        parts.append("<h3>Inputs</h3>" + _kv_table({k: v for k, v in inp.items()
-                                                   if k != "warnings"}))
+        parts.append(
+            "<h3>Inputs</h3>" + _kv_table({k: v for k, v in inp.items() if k != "warnings"})
+        )
     settings = dyn.get("settings") or {}
     if settings:
         parts.append("<h3>Settings</h3>" + _kv_table(settings, per_row=3))
@@ -350,8 +412,10 @@ def _dynamic_section(d: Path, dyn: dict[str, Any]) -> tuple[str, list[str], list
         parts.append(
             f"<h3>Stationary IMU bounds used (source: {_e(bounds.get('source', '?'))})</h3>"
             "<table><tr><th class='l'>channel</th><th>half-width per step</th></tr>"
-            + "".join(f"<tr><td class='l'>{_e(k)}</td><td>{_num(v)} {_e(units.get(k, ''))}</td>"
-                      "</tr>" for k, v in half.items())
+            + "".join(
+                f"<tr><td class='l'>{_e(k)}</td><td>{_num(v)} {_e(units.get(k, ''))}</td></tr>"
+                for k, v in half.items()
+            )
             + "</table>"
         )
     parts.append(_run_block(d))
@@ -368,8 +432,9 @@ def build_report(directory: str | Path) -> str:
     warnings: list[str] = []
     commands: list[str] = []
     static_dir = _find(root, "noise.json", ("static",))
-    dyn_dir = _find(root, "dynamic.json", ("dynamic",))
-    if static_dir is None and dyn_dir is None:
+    dyn_dirs = [root] if (root / "dynamic.json").is_file() else []
+    dyn_dirs += sorted(p for p in root.iterdir() if p.is_dir() and (p / "dynamic.json").is_file())
+    if static_dir is None and not dyn_dirs:
         raise InputError(
             f"{root}: no noise.json or dynamic.json found (also looked in static/ and dynamic/); "
             "run 'imubounds static' or 'imubounds dynamic' with -o there first"
@@ -380,11 +445,12 @@ def build_report(directory: str | Path) -> str:
         sections.append(html_s)
         warnings += w
         commands += c
-    if dyn_dir is not None:
+    for i, dyn_dir in enumerate(dyn_dirs):
         dyn = _load_json(dyn_dir / "dynamic.json") or {}
-        html_d, w, c = _dynamic_section(dyn_dir, dyn)
+        label = "" if i == 0 else dyn_dir.name
+        html_d, w, c = _dynamic_section(dyn_dir, dyn, label)
         sections.append(html_d)
-        warnings += w
+        warnings += [f"{dyn_dir.name}: {x}" if label else x for x in w]
         commands += c
     warn_html = (
         "".join(f"<div class='warn'>{_e(w)}</div>" for w in warnings)
