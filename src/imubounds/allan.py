@@ -631,15 +631,33 @@ def allan(
     t0 = 1.0 / rate
     x = _k.phase_from_rate(arr, t0)
     sums = _k.sumsq_tasks(x, estimator, ms)
+    if fixed_alpha is None:
+        alphas = _identify_alphas(x, ms, t0, estimator)
+    else:
+        alphas = np.full(ms.size, fixed_alpha, dtype=np.int64)
+    return result_from_sums(sums, ms, tau, alphas, estimator, n, rate, conf)
+
+
+def result_from_sums(
+    sums: np.ndarray,
+    ms: np.ndarray,
+    tau: np.ndarray,
+    alphas: np.ndarray,
+    estimator: str,
+    n: int,
+    rate: float,
+    conf: float,
+) -> AllanResult:
+    """Finish a curve from its per-τ sums of squares: normalise, EDF, CI.
+
+    Shared by the in-memory path (:func:`allan`) and the out-of-core path
+    (:mod:`imubounds.stream`), so both give the same numbers by construction.
+    """
     nt = np.array([_k.n_terms(estimator, n, int(m)) for m in ms], dtype=np.int64)
     var = sums / (_NORM_FACTOR[estimator] * tau**2 * nt)
     if estimator == "modified":
         var = var / ms.astype(np.float64) ** 2
     dev = np.sqrt(var)
-    if fixed_alpha is None:
-        alphas = _identify_alphas(x, ms, t0, estimator)
-    else:
-        alphas = np.full(ms.size, fixed_alpha, dtype=np.int64)
     edf = np.array(
         [_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
         dtype=np.float64,

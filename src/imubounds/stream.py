@@ -57,16 +57,14 @@ from numba import njit
 
 from imubounds import _allan_kernels as _k
 from imubounds.allan import (
-    _NORM_FACTOR,
     NOISE_ID_MAX_POINTS,
     AllanResult,
     _alpha_limits,
     _check_estimator,
     _check_rate,
-    _edf,
     _parse_noise,
-    confidence_interval,
     noise_id_lag1,
+    result_from_sums,
     tau_grid,
 )
 from imubounds.errors import AnalysisError, InputError, OptionError
@@ -543,34 +541,11 @@ def allan_from_phase_file(
     ms, tau = tau_grid(n, rate, taus, estimator)
     t0 = 1.0 / rate
     sums = sumsq_file(ph, estimator, ms, block, tick)
-    nt = np.array([_k.n_terms(estimator, n, int(m)) for m in ms], dtype=np.int64)
-    var = sums / (_NORM_FACTOR[estimator] * tau**2 * nt)
-    if estimator == "modified":
-        var = var / ms.astype(np.float64) ** 2
-    dev = np.sqrt(var)
     if fixed_alpha is None:
         alphas = _alphas_file(ph, ms, t0, estimator, block)
     else:
         alphas = np.full(ms.size, fixed_alpha, dtype=np.int64)
-    edf = np.array(
-        [_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
-        dtype=np.float64,
-    )
-    lo, hi = confidence_interval(dev, edf, conf)
-    return AllanResult(
-        tau=tau,
-        m=ms,
-        dev=dev,
-        ci_lower=lo,
-        ci_upper=hi,
-        edf=edf,
-        n_terms=nt,
-        alpha=alphas,
-        estimator=estimator,
-        n_samples=n,
-        rate_hz=rate,
-        confidence=conf,
-    )
+    return result_from_sums(sums, ms, tau, alphas, estimator, n, rate, conf)
 
 
 def _work_terms(estimator: str, n: int, ms: np.ndarray) -> int:
