@@ -1,33 +1,13 @@
 """The interval INS/GPS/compass estimator of dynamic error margins (METHOD.md 3)."""
 
-import hashlib
 from pathlib import Path
 
+from imubounds import _numba_cache
 
-def _refresh_numba_cache() -> None:
-    """Drop this package's numba cache when it or the interval rules it calls changed.
-
-    numba validates a cached function only against its own source file; the
-    compiled loop inlines :mod:`imubounds.interval` rules, so an edit there
-    must invalidate it too.
-    """
-    here = Path(__file__).resolve().parent
-    cache = here / "__pycache__"
-    try:
-        srcs = sorted(here.glob("*.py")) + sorted((here.parent / "interval").glob("*.py"))
-        digest = hashlib.sha1(b"".join(p.read_bytes() for p in srcs)).hexdigest()
-        stamp = cache / "numba_sources.sha1"
-        if stamp.is_file() and stamp.read_text() == digest:
-            return
-        cache.mkdir(exist_ok=True)
-        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
-            f.unlink(missing_ok=True)
-        stamp.write_text(digest)
-    except OSError:  # read-only install: numba then caches elsewhere
-        return
-
-
-_refresh_numba_cache()
+# The compiled loop inlines the imubounds.interval rules: an edit there must
+# invalidate this package's numba cache too.
+_HERE = Path(__file__).resolve().parent
+_numba_cache.refresh(_HERE, [_HERE.parent / "interval"])
 
 from imubounds.estimator.core import (  # noqa: E402
     CHANNELS,

@@ -21,36 +21,13 @@ Units: whatever the caller uses; angles in rad.
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
+from imubounds import _numba_cache
 
-def _refresh_numba_cache() -> None:
-    """Drop this package's numba cache files when any of its sources changed.
-
-    numba's on-disk cache is validated only against the file of the cached
-    function itself, not against the modules it calls: after an edit of
-    ``_core.py`` the compiled contractors in ``_ctc.py`` would silently keep
-    the old rules. A fingerprint of all sources of this package guards that.
-    """
-    here = Path(__file__).resolve().parent
-    cache = here / "__pycache__"
-    try:
-        digest = hashlib.sha1(
-            b"".join(p.read_bytes() for p in sorted(here.glob("*.py")))
-        ).hexdigest()
-        stamp = cache / "numba_sources.sha1"
-        if stamp.is_file() and stamp.read_text() == digest:
-            return
-        cache.mkdir(exist_ok=True)
-        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
-            f.unlink(missing_ok=True)
-        stamp.write_text(digest)
-    except OSError:  # read-only install: numba then caches elsewhere
-        return
-
-
-_refresh_numba_cache()
+# numba validates a cached function only against its own file: an edit of
+# _core.py must also invalidate the compiled contractors of _ctc.py.
+_numba_cache.refresh(Path(__file__).resolve().parent)
 
 from imubounds.interval import _core as scalar  # noqa: E402
 from imubounds.interval import _ctc as scalar_contractors  # noqa: E402
