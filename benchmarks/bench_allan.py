@@ -2,7 +2,7 @@
 
 Compares, in one run and on the same tau list,
 
-* ``imubounds.allan.allan`` (full call: phase, all sums, noise identification,
+* ``imubounds.stationary.allan.allan`` (full call: phase, all sums, noise identification,
   EDF and confidence intervals) and its sum-of-squares stage alone;
 * ``allantools.oadev(..., data_type="freq", taus=...)``;
 * ``allan_variance.compute_avar`` (PyPI ``allan-variance``). It has no tau-list
@@ -59,7 +59,7 @@ def _best(fn, repeat: int) -> tuple[float, object]:
 def _cold_compile_seconds() -> float:
     code = (
         "import time, numpy as np; t = time.perf_counter();"
-        "from imubounds.allan import allan;"
+        "from imubounds.stationary.allan import allan;"
         "[allan(np.random.default_rng(0).normal(size=5000), 10.0, 8, e) for e in"
         " ('overlapping', 'non-overlapping', 'modified', 'hadamard', 'total')];"
         "print(time.perf_counter() - t)"
@@ -85,8 +85,8 @@ def main() -> None:
     import numba
     from allan_variance import avar as av
 
-    from imubounds import _allan_kernels as K
-    from imubounds.allan import allan
+    from imubounds.stationary import _allan_kernels as K
+    from imubounds.stationary.allan import allan
 
     n, rate = args.n, args.rate
     dt = 1.0 / rate

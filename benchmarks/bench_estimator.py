@@ -3,7 +3,7 @@
 Runs the single-pass estimator (full mode) on the simulated paper trip, tiled
 to a long run, and reports steps per second for
 
-* the compiled numba loop (:func:`imubounds.estimator.kernel.run_kernel`),
+* the compiled numba loop (:func:`imubounds.dynamic.estimator.kernel.run_kernel`),
 * the same algorithm written per step with ``codac.Interval`` (C++ intervals
   driven from Python, the usual way to prototype such a contractor),
 
@@ -28,11 +28,11 @@ except ImportError:  # pragma: no cover
 
 import numpy as np
 
-from imubounds.estimator import config_for_log, prepare_steps
-from imubounds.estimator import kernel as K
-from imubounds.estimator.core import initial_state
-from imubounds.readers.drive import read_drive
-from imubounds.scenario import ScenarioConfig, simulate, write_scenario
+from imubounds.dynamic.estimator import config_for_log, prepare_steps
+from imubounds.dynamic.estimator import kernel as K
+from imubounds.dynamic.estimator.core import initial_state
+from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
+from imubounds.io.drive_readers import read_drive
 
 
 def make_inputs(n_steps: int, tmpdir: str) -> tuple[np.ndarray, ...]:

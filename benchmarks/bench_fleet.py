@@ -3,8 +3,8 @@
 Simulates ``--units`` static logs (``--minutes`` at ``--rate`` Hz, six axes,
 CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 
-* a serial loop of :func:`imubounds.fleet.analyse_unit` in this process;
-* :func:`imubounds.fleet.run_fleet` on a fresh ``LocalCluster`` with
+* a serial loop of :func:`imubounds.stationary.fleet.analyse_unit` in this process;
+* :func:`imubounds.stationary.fleet.run_fleet` on a fresh ``LocalCluster`` with
   ``--workers`` single-threaded worker processes (cluster start-up included),
   cache emptied first;
 * the same again (everything from the cache);
@@ -34,8 +34,8 @@ def main() -> None:
     import h5py  # noqa: F401  (import order, see tests/conftest.py)
     import pandas as pd
 
-    from imubounds.fleet import FleetSettings, analyse_unit, expand_globs, run_fleet
-    from imubounds.sim import NoiseSpec, simulate, write_csv
+    from imubounds.stationary.fleet import FleetSettings, analyse_unit, expand_globs, run_fleet
+    from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--units", type=int, default=16)

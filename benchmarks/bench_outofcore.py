@@ -5,9 +5,9 @@ Generates (once) a single-axis gyro log of ``--samples`` float64 values
 committed): white noise plus a small random walk, written block by block.
 Then, each in a fresh subprocess so that peak RSS is its own:
 
-* the out-of-core path (:func:`imubounds.stream.allan_outofcore`, memory
+* the out-of-core path (:func:`imubounds.stationary.stream.allan_outofcore`, memory
   setting ``--memory``): wall time, samples/s, peak RSS;
-* the in-memory path (:func:`imubounds.allan.allan` on the loaded array) at
+* the in-memory path (:func:`imubounds.stationary.allan.allan` on the loaded array) at
   the largest size that fits (``--in-memory-samples``, default the smaller of
   ``--samples`` and what 40 % of the available RAM allows), and the
   out-of-core path at that same size, for ratios.
@@ -65,8 +65,8 @@ def _peak_rss_mib() -> float:
 def child(mode: str, path: str, n: int, rate: float, memory: str) -> None:
     import h5py  # noqa: F401  (import order, see tests/conftest.py)
 
-    from imubounds.allan import allan
-    from imubounds.stream import OutOfCoreStats, allan_outofcore
+    from imubounds.stationary.allan import allan
+    from imubounds.stationary.stream import OutOfCoreStats, allan_outofcore
 
     base = _peak_rss_mib()
     t0 = time.perf_counter()

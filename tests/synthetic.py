@@ -1,6 +1,6 @@
 """Synthetic rate signals with known IEEE 952 noise terms, for tests only.
 
-Independent of :mod:`imubounds.sim` on purpose: the fit is checked against a
+Independent of :mod:`imubounds.stationary.noise_sim` on purpose: the fit is checked against a
 generator that does not share code with the library.
 """
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds.aiding import (
+from imubounds.dynamic.aiding import (
     cep_to_drms,
     compass_to_model,
     course_over_ground,
@@ -24,8 +24,8 @@ from imubounds.aiding import (
     radius_at_probability,
     wrap_pi,
 )
-from imubounds.aiding.compass import read_calibration
-from imubounds.aiding.geodesy import enu_to_geodetic, haversine_enu
+from imubounds.dynamic.aiding.compass import read_calibration
+from imubounds.dynamic.aiding.geodesy import enu_to_geodetic, haversine_enu
 from imubounds.errors import AnalysisError, InputError, OptionError
 
 

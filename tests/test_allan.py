@@ -1,4 +1,4 @@
-"""Tests of the Allan-variance family (imubounds.allan, imubounds._allan_kernels)."""
+"""Tests of the Allan-variance family (imubounds.stationary.allan and its kernels)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds import _allan_kernels as K
-from imubounds.allan import (
+from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import _allan_kernels as K
+from imubounds.stationary.allan import (
     ESTIMATORS,
     AllanResult,
     allan,
@@ -26,7 +27,6 @@ from imubounds.allan import (
     noise_id_lag1,
     tau_grid,
 )
-from imubounds.errors import AnalysisError, InputError, OptionError
 
 allantools = pytest.importorskip("allantools")  # test-only dependency
 from allantools import ci as at_ci  # noqa: E402

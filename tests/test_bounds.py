@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from imubounds import bounds
 from imubounds.errors import OptionError
+from imubounds.stationary import bounds
 
 
 def test_paper_worked_levels() -> None:

@@ -10,11 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imubounds.aiding.compass import course_over_ground, wrap_pi
-from imubounds.aiding.geodesy import geodetic_to_enu
+from imubounds.dynamic.aiding.compass import course_over_ground
+from imubounds.frames import wrap_pi
+from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import InputError
-from imubounds.readers.drive import detect_layout, read_drive
-from imubounds.scenario import ScenarioConfig, simulate, write_scenario
+from imubounds.io.drive_readers import detect_layout, read_drive
 
 
 @pytest.fixture(scope="module")

@@ -10,14 +10,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds import bounds
-from imubounds.drive import DriveLog
+from imubounds.dynamic.estimator import config_for_log, prepare_steps, run, scenario_model_error
+from imubounds.dynamic.estimator.kernel import F_GPS_EMPTY, F_GPS_MISSING
+from imubounds.dynamic.estimator.reference import run_reference
+from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import AnalysisError
-from imubounds.estimator import config_for_log, prepare_steps, run, scenario_model_error
-from imubounds.estimator.kernel import F_GPS_EMPTY, F_GPS_MISSING
-from imubounds.estimator.reference import run_reference
-from imubounds.readers.drive import read_drive
-from imubounds.scenario import ScenarioConfig, simulate, write_scenario
+from imubounds.io.drive import DriveLog
+from imubounds.io.drive_readers import read_drive
+from imubounds.stationary import bounds
 
 
 def sim_log(tmp: Path, **kw: object) -> DriveLog:
@@ -239,7 +239,7 @@ def test_heading_wrap_north(tmp_path: Path) -> None:
         heading=heading,
     )
     log.validate()
-    from imubounds.aiding.compass import ZERO_DEVIATION
+    from imubounds.dynamic.aiding.compass import ZERO_DEVIATION
 
     cfg = config_for_log(log, deviation=ZERO_DEVIATION, initial_speed_bound=15.0)
     res = run(log, cfg)
@@ -297,7 +297,7 @@ def test_comma2k19_position_enclosure(shared_data: Path) -> None:
     st.integers(0, 3),
 )
 def test_qrelaxed_1d_matches_brute_force(ivs: list[tuple[float, float]], q: int) -> None:
-    from imubounds.estimator.kernel import qrelaxed_1d
+    from imubounds.dynamic.estimator.kernel import qrelaxed_1d
 
     lo = np.array([a for a, _ in ivs])
     hi = np.array([a + w for a, w in ivs])

@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from imubounds.errors import OptionError
-from imubounds.fleet import (
+from imubounds.stationary.fleet import (
     FleetSettings,
     analyse_unit,
     content_key,
@@ -30,7 +30,7 @@ N_UNITS = 4
 
 @pytest.fixture(scope="module")
 def fleet_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from imubounds.sim import NoiseSpec, simulate, write_csv
+    from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
 
     d = tmp_path_factory.mktemp("fleet")
     for i in range(N_UNITS):
@@ -67,7 +67,7 @@ def test_fleet_with_a_corrupt_unit(fleet_dir: Path, tmp_path: Path, cluster) -> 
     res = run_fleet([str(fleet_dir / "unit*.csv.gz")], out, client=cluster,
                     spec=fleet_dir / "spec.yaml")  # fmt: skip
     summ = json.loads((out / "fleet.json").read_text())
-    assert summ["format"] == "imubounds.fleet/1"
+    assert summ["format"] == "imubounds.stationary.fleet/1"
     assert summ["n_units"] == N_UNITS + 1
     assert summ["n_ok"] == N_UNITS and summ["n_failed"] == 1
     assert summ["failed"][0]["unit"] == "unit_corrupt"
@@ -80,8 +80,8 @@ def test_fleet_with_a_corrupt_unit(fleet_dir: Path, tmp_path: Path, cluster) -> 
     assert len(ok) == N_UNITS * 6
     assert set(ok.channel) == {"gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"}
     # the rest are right: the same numbers as the static pipeline on each file alone
-    from imubounds.readers import read_imu
-    from imubounds.static import StaticSettings, analyse_static
+    from imubounds.io import read_imu
+    from imubounds.stationary.pipeline import StaticSettings, analyse_static
 
     for unit in sorted(set(ok.unit)):
         alone = analyse_static(read_imu(fleet_dir / f"{unit}.csv.gz"), StaticSettings(models=()))

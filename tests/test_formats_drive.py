@@ -20,14 +20,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from imubounds.errors import InputError
-from imubounds.readers.nmea import nmea_checksum, read_drive_nmea, scan_nmea, sniff_nmea
-from imubounds.readers.rosbag import (
-    covariance_hdop,
-    enu_yaw_to_heading,
-    quaternion_yaw_enu,
-    read_drive_rosbag,
-)
-from imubounds.readers.ulog import quaternion_ned_heading, read_drive_ulog
+from imubounds.frames import enu_yaw_to_heading, quaternion_yaw_enu
+from imubounds.io.nmea import nmea_checksum, read_drive_nmea, scan_nmea, sniff_nmea
+from imubounds.io.rosbag import covariance_hdop, read_drive_rosbag
+from imubounds.io.ulog import quaternion_ned_heading, read_drive_ulog
 
 FORMATS = Path(__file__).parent / "data" / "formats"
 VN100 = (
@@ -245,7 +241,7 @@ def test_enu_and_ned_quaternions_give_the_same_heading(
 
 
 def test_covariance_hdop() -> None:
-    from imubounds.aiding.gps import cep_to_drms
+    from imubounds.dynamic.aiding.gps import cep_to_drms
 
     var = (0.8 * cep_to_drms(3.0)) ** 2 / 2
     cov = np.array([[var, var], [0.0, 0.0], [np.nan, np.nan]])

@@ -21,7 +21,7 @@ import pytest
 
 from imubounds.cli import main as cli_main
 from imubounds.errors import InputError
-from imubounds.readers import bundled_static_log, find_reader, read_imu
+from imubounds.io import bundled_static_log, find_reader, read_imu
 from imubounds.units import DEG, G0
 
 FORMATS = Path(__file__).parent / "data" / "formats"

@@ -15,9 +15,9 @@ from scipy import signal
 from statsmodels.regression.linear_model import burg as sm_burg
 from statsmodels.tsa.arima_process import arma_acovf
 
-from imubounds import models as M
-from imubounds.allan import allan
 from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import models as M
+from imubounds.stationary.allan import allan
 
 # ---------------------------------------------------------------------------
 # references written independently of the library
@@ -147,7 +147,7 @@ def test_white_noise_theory_within_ci() -> None:
 
 def test_random_walk_theory_within_ci() -> None:
     # random walk = limit of an AR(1) with φ → 1 is not stationary; use the simulator's K
-    from imubounds.sim import AxisNoise, simulate_axis
+    from imubounds.stationary.noise_sim import AxisNoise, simulate_axis
 
     ax = AxisNoise(K=1e-3)
     y = simulate_axis(ax, 100_000, 10.0, seed=2)
@@ -373,7 +373,7 @@ def test_white_noise_has_no_gauss_markov_model_but_still_an_ar() -> None:
 
 
 def test_real_adis_log_models(adis_log_path: object) -> None:
-    from imubounds.readers import read_imu
+    from imubounds.io import read_imu
 
     log = read_imu(adis_log_path)
     t0 = time.perf_counter()

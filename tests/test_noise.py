@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from imubounds.errors import AnalysisError
-from imubounds.noise import B_FACTOR, TERMS, avar_terms, fit_slopes, fit_terms
+from imubounds.stationary.terms import B_FACTOR, TERMS, avar_terms, fit_slopes, fit_terms
 from imubounds.units import DEG, to_ieee
 
 from .synthetic import five_term_signal
@@ -75,7 +75,7 @@ def test_fit_pins_absent_terms_at_zero() -> None:
 
 
 def test_fit_recovers_terms_from_synthetic_noise() -> None:
-    from imubounds.allan import allan
+    from imubounds.stationary.allan import allan
 
     rate = 10.0
     y = five_term_signal(2**23, rate, seed=1, **TRUE)

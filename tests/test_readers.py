@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from imubounds.errors import InputError
-from imubounds.log import IMU_CHANNELS, ImuLog
-from imubounds.readers import (
+from imubounds.io import (
     ReadOptions,
     bundled_static_log,
     find_reader,
@@ -21,6 +20,7 @@ from imubounds.readers import (
     registered_readers,
     unregister_reader,
 )
+from imubounds.io.log import IMU_CHANNELS, ImuLog
 from imubounds.units import DEG, G0
 
 DATA = Path(__file__).parent / "data"
@@ -289,7 +289,7 @@ def test_registry_dispatch(tmp_path: Path) -> None:
 
 
 def test_registry_lazy_string(tmp_path: Path) -> None:
-    register_reader("lazy-test", "imubounds.readers.table:read_text_table",
+    register_reader("lazy-test", "imubounds.io.table:read_text_table",
                     suffixes=(".lazycsv",), replace=True)
     try:
         p = tmp_path / "x.lazycsv"

@@ -11,9 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from imubounds.errors import OptionError
-from imubounds.log import IMU_CHANNELS
-from imubounds.readers import parse_column_map, read_imu, recognise
-from imubounds.readers.columns import (
+from imubounds.io import parse_column_map, read_imu, recognise
+from imubounds.io.columns import (
     ACCEL_BASES,
     ACCEL_UNIT_SYNONYMS,
     GYRO_BASES,
@@ -23,6 +22,7 @@ from imubounds.readers.columns import (
     normalise_unit,
     split_bracket_unit,
 )
+from imubounds.io.log import IMU_CHANNELS
 from imubounds.units import ACCEL_UNITS, GYRO_UNITS
 
 # --- examples --------------------------------------------------------------

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from imubounds.errors import ImuboundsError, InputError, OptionError
-from imubounds.readers import read_imu, read_imu_segments
+from imubounds.io import read_imu, read_imu_segments
 
 HEADER = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
 DATA = Path(__file__).parent / "data"

@@ -21,7 +21,7 @@ import pytest
 
 from imubounds import __version__
 from imubounds.cli import main as cli_main
-from imubounds.report import build_report
+from imubounds.report.html import build_report
 
 FORMATS = Path(__file__).parent / "data" / "formats"
 VN100 = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dynamic" / (
@@ -212,7 +212,7 @@ def test_page_in_headless_chromium(run_dir: Path, tmp_path: Path) -> None:
 def test_every_dynamic_directory_gets_a_section(run_dir: Path, tmp_path: Path) -> None:
     import shutil
 
-    from imubounds.report import build_report
+    from imubounds.report.html import build_report
 
     root = tmp_path / "run"
     shutil.copytree(run_dir, root)

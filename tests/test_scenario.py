@@ -9,10 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imubounds.aiding.compass import model_to_compass, wrap_pi
-from imubounds.aiding.gps import cep_to_drms
-from imubounds.errors import OptionError
-from imubounds.scenario import (
+from imubounds.dynamic.aiding.gps import cep_to_drms
+from imubounds.dynamic.scenario import (
     ScenarioConfig,
     closure_error,
     imu_halfwidths,
@@ -20,6 +18,8 @@ from imubounds.scenario import (
     simulate,
     write_scenario,
 )
+from imubounds.errors import OptionError
+from imubounds.frames import model_to_compass, wrap_pi
 from imubounds.units import DEG
 
 

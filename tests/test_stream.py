@@ -11,11 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds import _allan_kernels as _k
-from imubounds.allan import ESTIMATORS, allan
 from imubounds.errors import InputError, OptionError
-from imubounds.readers.chunked import open_chunked
-from imubounds.stream import (
+from imubounds.io.chunked import open_chunked
+from imubounds.stationary import _allan_kernels as _k
+from imubounds.stationary.allan import ESTIMATORS, allan
+from imubounds.stationary.stream import (
     EtaTracker,
     PhaseFile,
     _phase_block,
@@ -176,7 +176,7 @@ def test_every_chunked_format_gives_the_same_curve(tmp_path: Path) -> None:
 
 def test_cli_static_out_of_core_writes_the_same_noise_json(tmp_path: Path) -> None:
     from imubounds.cli import main
-    from imubounds.sim import NoiseSpec, simulate, write_csv
+    from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
 
     spec = NoiseSpec.from_mapping(
         {"gyro": {"N": "0.5 deg/sqrt(h)", "B": "20 deg/h"},

@@ -34,3 +34,14 @@ def refresh(package_dir: Path, extra_dirs: Iterable[Path] = ()) -> None:
         stamp.write_text(digest)
     except OSError:
         return
+
+
+def refresh_all() -> None:
+    """Refresh the caches of every package whose compiled code inlines the interval rules.
+
+    Called by the command-line entry point only (importing the library touches no files).
+    """
+    root = Path(__file__).resolve().parent
+    interval = root / "interval"
+    refresh(interval)
+    refresh(root / "dynamic" / "estimator", [interval])

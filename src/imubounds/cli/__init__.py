@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -48,6 +49,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     args.argv = argv
+    # The command line alone chooses the figure backend and touches numba caches;
+    # importing the library does neither.
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from imubounds import _numba_cache
+
+    _numba_cache.refresh_all()
     try:
         code = args.func(args)
     except ImuboundsError as err:

@@ -50,7 +50,7 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
 
 
 def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
-    from imubounds.readers import parse_column_map, read_imu
+    from imubounds.io import parse_column_map, read_imu
 
     kwargs: dict[str, Any] = {
         "rate_hz": args.rate,

@@ -23,9 +23,9 @@ def register(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from imubounds.cli import main as cli_main
-    from imubounds.outputs import ensure_dir
-    from imubounds.readers import bundled_static_log
-    from imubounds.readers.drive import VN100_IMU_SPEC, bundled_drive_log
+    from imubounds.io import bundled_static_log
+    from imubounds.io.drive_readers import bundled_drive_log
+    from imubounds.io.outputs import ensure_dir
 
     out = Path(ensure_dir(args.out))
     quiet = ["--quiet"] if args.quiet else []
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
                 "-o",
                 str(out / "dynamic_vn100"),
                 "--imu-spec",
-                VN100_IMU_SPEC,
+                "vn100",
                 "--no-report",
             ],
         ),
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         code = cli_main([*argv, *quiet])
         if code:
             return code
-    from imubounds.report import write_report
+    from imubounds.report.html import write_report
 
     if not args.quiet:
         print(f"[{len(steps) + 1}/{len(steps) + 1}] writing the report")

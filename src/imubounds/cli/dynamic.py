@@ -156,15 +156,16 @@ def register(sub: Any) -> None:
 
 
 def parse_imu_spec(text: str | None) -> Any:
-    from imubounds.estimator import ImuSpec
-    from imubounds.scenario import IMU_PRESETS
+    from imubounds.dynamic.estimator import ImuSpec
+    from imubounds.presets import get_preset, preset_names
     from imubounds.units import DEG
 
-    if text is None or text.strip().lower() in IMU_PRESETS:
-        name = (text or "mtx").strip().lower()
-        spec = IMU_PRESETS[name]
+    if text is None or text.strip().lower() in preset_names():
+        p = get_preset(text or "mtx")
         return ImuSpec(
-            accel=dict(spec["accel"]), gyro=dict(spec["gyro"]), source=f"{name} datasheet"
+            accel={k: p.accel[k] for k in ("N", "B")},
+            gyro={k: p.gyro[k] for k in ("N", "B")},
+            source=f"{p.key} datasheet",
         )
     vals: dict[str, float] = {}
     for part in text.split(","):
@@ -190,7 +191,7 @@ def parse_imu_spec(text: str | None) -> Any:
 
 def read_static(path: str) -> Any:
     """N and B per channel from a noise.json written by ``imubounds static``."""
-    from imubounds.estimator import ImuSpec
+    from imubounds.dynamic.estimator import ImuSpec
 
     try:
         js = json.loads(Path(path).read_text())
@@ -223,7 +224,7 @@ def _steps_table(res: Any) -> Any:
     import numpy as np
     import pandas as pd
 
-    from imubounds.estimator import CHANNELS
+    from imubounds.dynamic.estimator import CHANNELS
 
     st = res.steps
     df = pd.DataFrame({"t": st.t, "t_rel": st.t - st.t[0], "flags": res.flags})
@@ -255,11 +256,11 @@ def _steps_table(res: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.aiding.compass import read_calibration
-    from imubounds.estimator import config_dict, config_for_log, scenario_model_error
-    from imubounds.estimator import run as run_est
-    from imubounds.outputs import ensure_dir, write_json, write_with
-    from imubounds.readers.drive import read_drive
+    from imubounds.dynamic.aiding.compass import read_calibration
+    from imubounds.dynamic.estimator import config_dict, config_for_log, scenario_model_error
+    from imubounds.dynamic.estimator import run as run_est
+    from imubounds.io.drive_readers import read_drive
+    from imubounds.io.outputs import ensure_dir, write_json, write_with
 
     def say(msg: str) -> None:
         if not args.quiet:
@@ -360,21 +361,21 @@ def run(args: argparse.Namespace) -> int:
     df = _steps_table(primary)
     write_with(out / "steps.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
     if not args.no_plot:
-        from imubounds import plots_dynamic as pd_
+        from imubounds.report import dynamic_plots as pd_
 
         title = f"{Path(log.source).name} ({log.layout}, mode {args.mode})"
         pd_.plot_intervals(primary, out, title=title)
         pd_.plot_trajectory(primary, out, title=title)
         pd_.plot_comparison(summaries, out)
-    from imubounds.outputs import write_run_record
+    from imubounds.io.outputs import write_run_record
 
     write_run_record(out, getattr(args, "argv", None), command_name="dynamic")
     if not args.no_report:
-        from imubounds.report import write_report
+        from imubounds.report.html import write_report
 
         write_report(out)
     if args.json:
-        from imubounds.outputs import to_jsonable
+        from imubounds.io.outputs import to_jsonable
 
         print(json.dumps(to_jsonable(doc), indent=2))
     for w in st.warnings:

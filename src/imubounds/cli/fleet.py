@@ -52,9 +52,9 @@ def _g(v: Any) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.fleet import FleetSettings, run_fleet
-    from imubounds.readers import parse_column_map
-    from imubounds.stream import parse_memory
+    from imubounds.io import parse_column_map
+    from imubounds.stationary.fleet import FleetSettings, run_fleet
+    from imubounds.stationary.stream import parse_memory
 
     rep = Reporter(args.quiet)
     read: dict[str, Any] = {

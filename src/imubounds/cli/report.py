@@ -19,7 +19,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.report import write_report
+    from imubounds.report.html import write_report
 
     path = write_report(args.dir)
     if not args.quiet:

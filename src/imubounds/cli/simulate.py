@@ -73,7 +73,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.scenario import ScenarioConfig, closure_error, simulate, write_scenario
+    from imubounds.dynamic.scenario import ScenarioConfig, closure_error, simulate, write_scenario
 
     cfg = ScenarioConfig(
         scenario=args.scenario,

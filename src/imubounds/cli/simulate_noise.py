@@ -104,10 +104,10 @@ def _bias_range(text: str | None) -> tuple[float, float] | None:
 
 
 def build_spec(args: argparse.Namespace) -> Any:
-    """The :class:`~imubounds.sim.NoiseSpec` the options describe."""
+    """The :class:`~imubounds.stationary.noise_sim.NoiseSpec` the options describe."""
     from dataclasses import replace
 
-    from imubounds import sim
+    from imubounds.stationary import noise_sim as sim
 
     sources = [s for s in (args.preset, args.from_noise, args.spec) if s]
     if len(sources) > 1:
@@ -149,8 +149,8 @@ def build_spec(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds import sim
     from imubounds.cli._common import Reporter
+    from imubounds.stationary import noise_sim as sim
 
     rep = Reporter(args.quiet)
     if args.list_presets:

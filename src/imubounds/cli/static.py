@@ -96,7 +96,7 @@ def add_outofcore_options(p: argparse.ArgumentParser) -> None:
 
 
 def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    from imubounds.readers import parse_column_map
+    from imubounds.io import parse_column_map
 
     return {
         "rate_hz": args.rate,
@@ -150,9 +150,9 @@ def print_table(result: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.outputs import ensure_dir, write_json, write_run_record, write_text
-    from imubounds.static import StaticSettings, analyse_static
-    from imubounds.stream import (
+    from imubounds.io.outputs import ensure_dir, write_json, write_run_record, write_text
+    from imubounds.stationary.pipeline import StaticSettings, analyse_static
+    from imubounds.stationary.stream import (
         analyse_static_outofcore,
         format_bytes,
         parse_memory,
@@ -213,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
     write_run_record(outdir, getattr(args, "argv", None), command_name="static")
     written = ["noise.json", "imu.yaml", "run.json"]
     if not args.no_plot:
-        from imubounds.plots import allan_figure, save_figure
+        from imubounds.report.static_plots import allan_figure, save_figure
 
         save_figure(allan_figure(result), outdir / "allan")
         written += ["allan.png", "allan.svg"]
@@ -229,7 +229,7 @@ def run(args: argparse.Namespace) -> int:
     elif not args.quiet:
         print_table(result)
     if not args.no_report:
-        from imubounds.report import write_report
+        from imubounds.report.html import write_report
 
         write_report(outdir)
         written.append("report.html")

@@ -21,18 +21,10 @@ Units: whatever the caller uses; angles in rad.
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from imubounds import _numba_cache
-
-# numba validates a cached function only against its own file: an edit of
-# _core.py must also invalidate the compiled contractors of _ctc.py.
-_numba_cache.refresh(Path(__file__).resolve().parent)
-
-from imubounds.interval import _core as scalar  # noqa: E402
-from imubounds.interval import _ctc as scalar_contractors  # noqa: E402
-from imubounds.interval import angles, rounding  # noqa: E402
-from imubounds.interval.array import (  # noqa: E402
+from imubounds.interval import _core as scalar
+from imubounds.interval import _ctc as scalar_contractors
+from imubounds.interval import angles, rounding
+from imubounds.interval.array import (
     I,
     IntervalArray,
     absolute,
@@ -55,7 +47,7 @@ from imubounds.interval.array import (  # noqa: E402
     tan,
     two_pi,
 )
-from imubounds.interval.contractors import (  # noqa: E402
+from imubounds.interval.contractors import (
     HC4Result,
     hc4,
     hc4_add,
@@ -69,8 +61,8 @@ from imubounds.interval.contractors import (  # noqa: E402
     hc4_sqrt,
     hc4_sub,
 )
-from imubounds.interval.network import ContractResult, Network, Primitive  # noqa: E402
-from imubounds.interval.qinter import qinter, qinter_inliers  # noqa: E402
+from imubounds.interval.network import ContractResult, Network, Primitive
+from imubounds.interval.qinter import qinter, qinter_inliers
 
 __all__ = [
     "ContractResult",

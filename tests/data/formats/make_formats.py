@@ -160,7 +160,8 @@ def write_adis_ros1(path: Path, n: int) -> None:
             w.write(conn, ns + 150_000, ts.serialize_ros1(msg, "sensor_msgs/msg/Imu"))
 
 
-FRD_TO_FLU = np.array([1.0, -1.0, -1.0])
+from imubounds.frames import FRD_TO_FLU  # noqa: E402
+
 DRMS_PER_HDOP = 1.2011224087864498 * 3.0  # CEP 3 m -> DRMS (m), HDOP 1
 
 
@@ -383,7 +384,7 @@ def _cs(body: str) -> str:
 def write_vn100_nmea(nmea: Path, imu_csv: Path, bad: Path) -> None:
     """Host-stamped capture: the real $GPGGA and $VNYMR sentences, HDT from the VN-100 yaw,
     RMC with the course over ground between consecutive fixes; and the IMU as CSV."""
-    from imubounds.aiding.geodesy import geodetic_to_enu
+    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 
     imu, gps, ymr, gga = vn100()
     lines: list[tuple[float, str]] = [(t, s) for t, s in zip(gps["t"], gga, strict=True)]

@@ -1,0 +1,45 @@
+"""Input and output: one reader registry, the log models and atomic output writing.
+
+* :mod:`.registry` -- the reader registry and format sniffing (:func:`read_imu`,
+  :func:`find_reader`, :func:`register_reader`);
+* :mod:`.log` -- :class:`ImuLog`, a static IMU log in SI units;
+* :mod:`.drive` -- :class:`DriveLog`, a multi-sensor drive log in SI units;
+* :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
+  shared column recognition, unit conversion and time checks;
+* :mod:`.chunked` -- out-of-core readers;
+* :mod:`.rosbag`, :mod:`.ulog`, :mod:`.nmea`, :mod:`.hdf5` -- other formats;
+* :mod:`.drive_readers` -- drive-log layouts (simulator directory, VN-100, comma2k19);
+* :mod:`.outputs` -- atomic writes of result files.
+"""
+
+from imubounds.io.registry import (
+    ReaderEntry,
+    ReaderFunc,
+    ReadOptions,
+    assemble_logs,
+    bundled_static_log,
+    find_reader,
+    parse_column_map,
+    read_imu,
+    read_imu_segments,
+    recognise,
+    register_reader,
+    registered_readers,
+    unregister_reader,
+)
+
+__all__ = [
+    "ReadOptions",
+    "ReaderEntry",
+    "ReaderFunc",
+    "assemble_logs",
+    "bundled_static_log",
+    "find_reader",
+    "parse_column_map",
+    "read_imu",
+    "read_imu_segments",
+    "recognise",
+    "register_reader",
+    "registered_readers",
+    "unregister_reader",
+]

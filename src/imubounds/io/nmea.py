@@ -1,0 +1,378 @@
+"""NMEA 0183 captures via ``pynmea2``: GPS fixes, course and heading, plus VectorNav IMU.
+
+A capture is a text file of sentences, one a line. A line may start with a
+receive time stamp in seconds (``1763590170.28,$GPGGA,...`` or
+``1763590170.28 $GPGGA,...``); such host stamps are used as the time of the
+sentence (the same clock as an IMU log recorded on that host). Without them
+the time is the UTC time of day in GGA/RMC, on the date of the RMC sentences
+(or ``date``), as Unix seconds; HDT/HDG carry no time and take the time of
+the last timed sentence before them.
+
+Sentences used:
+
+``GGA``
+    latitude, longitude (deg), altitude (m), fix quality (0 = no fix), HDOP.
+``RMC``
+    course over ground (deg clockwise from true north), speed, status, date.
+``HDT``
+    true heading (deg clockwise from north).
+``HDG``
+    magnetic heading, with magnetic variation (E positive) applied when
+    given, so the result is a true heading.
+``VNYMR``
+    VectorNav yaw/pitch/roll, magnetometer, accelerometer (m/s^2) and gyro
+    (rad/s) in the sensor's **FRD** axes; read as an IMU log by
+    :func:`read_nmea_imu` (converted to FLU).
+
+Checksums: a sentence with a ``*hh`` checksum that does not match is an
+error (one line naming the file line), unless ``on_bad_checksum="skip"``;
+sentences without a checksum are accepted (it is optional in NMEA 0183).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from datetime import UTC, date, datetime, time
+from pathlib import Path
+
+import numpy as np
+
+from imubounds.errors import InputError, OptionError
+from imubounds.frames import FRD_TO_FLU
+from imubounds.io.drive import DriveLog
+from imubounds.io.log import ImuLog
+
+from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
+
+_PREFIX = re.compile(r"^\s*([+-]?\d+(?:\.\d*)?)[,;\s]+(?=[$!])")
+
+
+def sniff_nmea(head: bytes) -> bool:
+    """True when the first bytes look like an NMEA capture (a line starting with ``$``)."""
+    try:
+        text = head.decode("ascii", errors="strict")
+    except UnicodeDecodeError:
+        return False
+    first = text.lstrip().split("\n", 1)[0]
+    return first.startswith("$") or bool(_PREFIX.match(first))
+
+
+def nmea_checksum(body: str) -> int:
+    """XOR of the characters between ``$`` and ``*``."""
+    c = 0
+    for ch in body:
+        c ^= ord(ch)
+    return c
+
+
+@dataclass
+class Sentence:
+    """One sentence of a capture: file line, host stamp (s) or None, talker+type, text."""
+
+    line: int
+    host_t: float | None
+    kind: str
+    text: str
+
+
+@dataclass
+class NmeaCapture:
+    """The sentences of a capture file, checked, with notes for the user."""
+
+    path: Path
+    sentences: list[Sentence]
+    notes: list[str] = field(default_factory=list)
+
+
+def scan_nmea(path: str | Path, *, on_bad_checksum: str = "error") -> NmeaCapture:
+    """Read and checksum-check every sentence of a capture (streaming, line by line).
+
+    Parameters
+    ----------
+    path:
+        Text file of NMEA sentences (optionally with host time stamps).
+    on_bad_checksum:
+        ``"error"`` (raise :class:`InputError` at the first bad sentence) or
+        ``"skip"`` (drop bad sentences, with a warning giving the count).
+    """
+    p = Path(path)
+    if on_bad_checksum not in ("error", "skip"):
+        raise OptionError(f"on_bad_checksum must be error or skip, got {on_bad_checksum!r}")
+    if not p.is_file():
+        raise InputError(f"no such file: {p}")
+    out: list[Sentence] = []
+    bad: list[int] = []
+    garbage = no_sum = 0
+    try:
+        with open(p, encoding="ascii", errors="replace", newline="") as f:
+            for lineno, raw in enumerate(f, start=1):
+                line = raw.strip().strip('"')
+                if not line or line.startswith("#"):
+                    continue
+                host_t = None
+                m = _PREFIX.match(line)
+                if m:
+                    host_t = float(m.group(1))
+                    line = line[m.end():]
+                if not line.startswith(("$", "!")):
+                    garbage += 1
+                    continue
+                body, star, given = line[1:].partition("*")
+                if star:
+                    try:
+                        ok = int(given[:2], 16) == nmea_checksum(body)
+                    except ValueError:
+                        ok = False
+                    if not ok:
+                        if on_bad_checksum == "error":
+                            raise InputError(
+                                f"{p}, line {lineno}: NMEA checksum {given[:2]!r} does not "
+                                f"match the sentence (computed {nmea_checksum(body):02X}); the "
+                                "capture is corrupt: repair it or skip bad sentences "
+                                "(on_bad_checksum='skip')"
+                            )
+                        bad.append(lineno)
+                        continue
+                else:
+                    no_sum += 1
+                kind = body.split(",", 1)[0]
+                out.append(Sentence(lineno, host_t, kind, "$" + body))
+    except OSError as err:
+        raise InputError(f"{p}: cannot read ({err.strerror})") from err
+    cap = NmeaCapture(p, out)
+    if bad:
+        cap.notes.append(
+            f"{p}: {len(bad)} sentence(s) with a bad checksum skipped (first at line {bad[0]})"
+        )
+    if garbage:
+        cap.notes.append(f"{p}: {garbage} line(s) that are not NMEA sentences ignored")
+    if no_sum:
+        cap.notes.append(f"{p}: {no_sum} sentence(s) without a checksum accepted unchecked")
+    if not out:
+        raise InputError(f"{p}: no NMEA sentence found (lines must start with $ or a time stamp)")
+    return cap
+
+
+def _f(text: str) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _utc_seconds(d: date, t: time) -> float:
+    dt = datetime.combine(d, t.replace(tzinfo=None), tzinfo=UTC)
+    return dt.timestamp()
+
+
+def read_drive_nmea(
+    nmea_path: str | Path,
+    imu_path: str | Path,
+    *,
+    imu_frame: str = "FLU",
+    date_utc: str | None = None,
+    time_offset_s: float = 0.0,
+    on_bad_checksum: str = "error",
+    imu_options: ReadOptions | None = None,
+) -> DriveLog:
+    """A drive log from an NMEA capture (GGA/RMC/HDT/HDG) and an IMU log, merged by time.
+
+    Parameters
+    ----------
+    nmea_path:
+        The NMEA capture.
+    imu_path:
+        Any IMU log :func:`imubounds.io.read_imu` reads (CSV, Parquet,
+        bag, ULog, HDF5); its time must be on the same clock as the NMEA time
+        (host stamps, or Unix UTC seconds) after adding ``time_offset_s``.
+    imu_frame:
+        Body frame of the IMU file when the format does not say: ``"FLU"``
+        (kept) or ``"FRD"`` (y and z negated).
+    date_utc:
+        ``YYYY-MM-DD`` for captures without host stamps and without RMC.
+    time_offset_s:
+        Added to the NMEA times (s) to put them on the IMU clock.
+    on_bad_checksum:
+        ``"error"`` or ``"skip"`` (see :func:`scan_nmea`).
+
+    Returns
+    -------
+    DriveLog
+        GPS fixes from GGA (RMC positions when there is no GGA), heading in
+        rad clockwise from north from HDT (else HDG), IMU in FLU.
+    """
+    import pynmea2
+
+    from imubounds.io import read_imu
+
+    if imu_frame not in ("FLU", "FRD"):
+        raise OptionError(f"imu_frame must be FLU or FRD, got {imu_frame!r}")
+    cap = scan_nmea(nmea_path, on_bad_checksum=on_bad_checksum)
+    p = cap.path
+    the_date: date | None = None
+    if date_utc is not None:
+        try:
+            the_date = date.fromisoformat(date_utc)
+        except ValueError as err:
+            raise OptionError(f"date {date_utc!r} is not YYYY-MM-DD") from err
+    parsed: list[tuple[Sentence, object]] = []
+    for s in cap.sentences:
+        try:
+            msg = pynmea2.parse(s.text, check=False)
+        except pynmea2.ParseError:
+            continue  # unknown or proprietary sentence types are not used here
+        parsed.append((s, msg))
+        if the_date is None and s.kind.endswith("RMC") and getattr(msg, "datestamp", None):
+            the_date = msg.datestamp  # type: ignore[attr-defined]
+    use_host = all(s.host_t is not None for s, _ in parsed)
+    if not use_host and the_date is None:
+        raise InputError(
+            f"{p}: sentences have no host time stamps and no RMC date; give the date (date_utc)"
+        )
+    gga: list[tuple[float, ...]] = []
+    rmc: list[tuple[float, ...]] = []
+    hdt: list[tuple[float, float]] = []
+    hdg: list[tuple[float, float]] = []
+    last_t = math.nan
+    for s, msg in parsed:
+        stamp = getattr(msg, "timestamp", None)
+        if use_host:
+            t = float(s.host_t)  # type: ignore[arg-type]
+        elif isinstance(stamp, time) and the_date is not None:
+            t = _utc_seconds(the_date, stamp)
+            if t < last_t - 43200:  # passed midnight UTC
+                t += 86400.0
+        else:
+            t = last_t
+        if not math.isfinite(t):
+            continue
+        last_t = t
+        typ = s.kind[-3:]
+        if typ == "GGA":
+            q = _f(msg.gps_qual)  # type: ignore[attr-defined]
+            lat = msg.latitude if msg.lat else math.nan  # type: ignore[attr-defined]
+            lon = msg.longitude if msg.lon else math.nan  # type: ignore[attr-defined]
+            gga.append((t, lat, lon, _f(msg.altitude), _f(msg.horizontal_dil), q))  # type: ignore[attr-defined]
+        elif typ == "RMC":
+            ok = 1.0 if msg.status == "A" else 0.0  # type: ignore[attr-defined]
+            lat = msg.latitude if msg.lat else math.nan  # type: ignore[attr-defined]
+            lon = msg.longitude if msg.lon else math.nan  # type: ignore[attr-defined]
+            rmc.append((t, lat, lon, _f(msg.true_course), ok))  # type: ignore[attr-defined]
+        elif typ == "HDT":
+            hdt.append((t, _f(msg.heading)))  # type: ignore[attr-defined]
+        elif typ == "HDG":
+            h = _f(msg.heading)  # type: ignore[attr-defined]
+            var = _f(msg.variation)  # type: ignore[attr-defined]
+            if math.isfinite(var):
+                h += var if msg.var_dir == "E" else -var  # type: ignore[attr-defined]
+            hdg.append((t, h))
+    warnings = list(cap.notes)
+    if gga:
+        g = _dedupe(np.asarray(gga, dtype=float))
+        g_t, lat, lon, alt, hdop = g[:, 0], g[:, 1], g[:, 2], g[:, 3], g[:, 4]
+        fix = np.isfinite(g[:, 5]) & (g[:, 5] > 0) & np.isfinite(lat) & np.isfinite(lon)
+    elif rmc:
+        r = _dedupe(np.asarray(rmc, dtype=float))
+        g_t, lat, lon = r[:, 0], r[:, 1], r[:, 2]
+        alt = np.full(g_t.shape, np.nan)
+        hdop = np.full(g_t.shape, np.nan)
+        fix = (r[:, 4] > 0) & np.isfinite(lat) & np.isfinite(lon)
+        warnings.append(f"{p}: no GGA sentences: positions from RMC, default HDOP")
+    else:
+        raise InputError(f"{p}: no GGA or RMC sentence: no GPS fixes in the capture")
+    heads = hdt or hdg
+    head_t = head = None
+    if heads:
+        h = _dedupe(np.asarray(heads, dtype=float))
+        h = h[np.isfinite(h[:, 1])]
+        head_t, head = h[:, 0] + time_offset_s, np.mod(np.radians(h[:, 1]), 2 * math.pi)
+        if not hdt:
+            warnings.append(f"{p}: heading from HDG (magnetic, variation applied where given)")
+    settings: dict[str, object] = {"heading_source": "HDT" if hdt else ("HDG" if hdg else "none"),
+                                   "nmea_time": "host stamps" if use_host else "UTC",
+                                   "time_offset_s": time_offset_s, "imu_frame_in": imu_frame}
+    if rmc:
+        r = _dedupe(np.asarray(rmc, dtype=float))
+        settings["rmc_course_deg"] = {"t": (r[:, 0] + time_offset_s).tolist(),
+                                      "course": r[:, 3].tolist()}
+    imu = read_imu(imu_path, on_gap="ignore") if imu_options is None else _read(imu_path,
+                                                                                imu_options)
+    warnings += imu.warnings
+    acc = np.column_stack([imu.channels[f"accel_{a}"] for a in "xyz"])
+    gyr = np.column_stack([imu.channels[f"gyro_{a}"] for a in "xyz"])
+    frame_in = imu.frame if imu.frame in ("FLU", "FRD") else imu_frame
+    if frame_in == "FRD":
+        acc, gyr = acc * FRD_TO_FLU, gyr * FRD_TO_FLU
+        warnings.append(f"{imu_path}: FRD body axes converted to FLU (y and z negated)")
+    log = DriveLog(
+        imu_t=imu.t, accel=acc, gyro=gyr,
+        gps_t=g_t + time_offset_s, lat=lat, lon=lon, alt=alt, hdop=hdop, fix=fix,
+        heading_t=head_t, heading=head, source=f"{p} + {imu_path}", layout="nmea",
+        frame="FLU", warnings=warnings, settings=settings,
+    )
+    log.validate()
+    return log
+
+
+def _read(path: str | Path, opts: ReadOptions) -> ImuLog:
+    from imubounds.io import find_reader
+
+    return find_reader(path).load()(Path(path), opts.validated())[0]
+
+
+def _dedupe(a: np.ndarray) -> np.ndarray:
+    """Sort by time and keep the first row of each time stamp."""
+    a = a[np.argsort(a[:, 0], kind="stable")]
+    keep = np.concatenate(([True], np.diff(a[:, 0]) > 0))
+    return a[keep]
+
+
+def read_nmea_imu(path: Path, opts: ReadOptions) -> list[ImuLog]:
+    """Read the IMU of ``$VNYMR`` sentences (VectorNav) into SI :class:`ImuLog` segment(s).
+
+    The sentence fields are yaw, pitch, roll (deg), magnetometer (gauss),
+    accelerometer (m/s^2) and gyro (rad/s) in the sensor's FRD axes; they are
+    converted to FLU. Time: the host stamps of the lines, else ``--rate``.
+    A capture without VNYMR sentences (only GPS/heading) is refused with a
+    pointer to ``imubounds dynamic``.
+    """
+    cap = scan_nmea(path, on_bad_checksum=str(opts.extra.get("on_bad_checksum", "error")))
+    rows: list[tuple[float, ...]] = []
+    lines: list[int] = []
+    for s in cap.sentences:
+        if s.kind != "VNYMR":
+            continue
+        parts = s.text.split(",")
+        if len(parts) < 13:
+            raise InputError(f"{path}, line {s.line}: VNYMR sentence has {len(parts) - 1} fields,"
+                             " expected 12")
+        vals = [_f(x) for x in parts[7:13]]
+        rows.append((math.nan if s.host_t is None else s.host_t, *vals))
+        lines.append(s.line)
+    if not rows:
+        kinds = sorted({s.kind for s in cap.sentences})
+        raise InputError(
+            f"{path}: no IMU sentences ($VNYMR) in this NMEA capture (it holds "
+            f"{', '.join(kinds)}); NMEA GPS/heading go with an IMU log to 'imubounds dynamic'"
+        )
+    a = np.asarray(rows, dtype=float)
+    acc = a[:, 1:4] * FRD_TO_FLU
+    gyr = a[:, 4:7] * FRD_TO_FLU
+    channels: dict[str, RawChannel] = {}
+    for k, ax in enumerate("xyz"):
+        channels[f"gyro_{ax}"] = RawChannel(gyr[:, k], "rad/s", f"VNYMR gyro {ax}")
+        channels[f"accel_{ax}"] = RawChannel(acc[:, k], "m/s^2", f"VNYMR accel {ax}")
+    if opts.channels is not None:
+        channels = {c: v for c, v in channels.items() if c in opts.channels}
+    has_t = bool(np.all(np.isfinite(a[:, 0])))
+    return assemble_logs(
+        str(path),
+        RawTime(a[:, 0], "s", "host time stamp") if has_t else None,
+        channels,
+        opts,
+        row_label=lambda i: f"line {lines[i]}",
+        notes=[*cap.notes, f"{path}: VectorNav FRD axes converted to FLU (y and z negated)"],
+        frame="FLU",
+    )

@@ -1,0 +1,730 @@
+"""Allan-variance family of a stationary rate signal (METHOD.md section 1.1).
+
+Input is a rate signal ``y`` (gyro in rad/s, accelerometer in m/s^2; the
+module is unit-agnostic and returns deviations in the unit of ``y``) sampled
+at ``rate_hz``. With ``t0 = 1/rate_hz``, cluster size ``m`` and averaging time
+``tau = m*t0``, the integrated signal (phase) is
+``x[0] = 0, x[k] = t0 * sum_{i<k} (y[i] - mean(y))`` (length ``N + 1``) and
+
+========================  ==================================================================
+``overlapping``           ``1/(2 tau^2 (N-2m+1)) sum_{k=0}^{N-2m} (x[k+2m] - 2x[k+m] + x[k])^2``
+                          (IEEE Std 952/1554, NIST SP 1065 eq. 11; allantools ``oadev``)
+``non-overlapping``       ``K = N//m`` cluster means, ``1/(2(K-1)) sum (ybar[j+1]-ybar[j])^2``
+                          (the paper's cluster form; allantools ``adev``)
+``modified``              NIST SP 1065 eq. 14 (allantools ``mdev``)
+``hadamard``              overlapping Hadamard, NIST SP 1065 eq. 20 (allantools ``ohdev``)
+``total``                 TOTDEV with odd reflection at both ends, NIST SP 1065 eq. 25
+                          (allantools ``totdev``)
+========================  ==================================================================
+
+Removing the mean changes none of them (second/third differences of ``x``
+annihilate a linear phase trend, and the TOTDEV reflection preserves it).
+
+Confidence intervals
+--------------------
+Each point gets a chi-squared interval (NIST SP 1065 eq. 45)
+``[dev*sqrt(edf/chi2_{1-p/2}), dev*sqrt(edf/chi2_{p/2})]`` with ``p = 1 -
+confidence`` and equivalent degrees of freedom ``edf`` from
+
+* Greenhall's algorithm (C. A. Greenhall and W. J. Riley, "Uncertainty of
+  stability variances based on finite differences", PTTI 2003) for the
+  overlapping, non-overlapping, modified and Hadamard estimators (the same
+  algorithm as ``allantools.ci.edf_greenhall``);
+* NIST SP 1065 Table 7 (``edf = b*(N+1)/m - c``) for TOTDEV with white, flicker
+  or random-walk FM; for other noise types TOTDEV uses the overlapping-ADEV EDF.
+
+The EDF depends on the power-law noise type ``S_y(f) ~ f^alpha`` (alpha = 2
+white PM / quantization, 1 flicker PM, 0 white FM = angle/velocity random
+walk, -1 flicker FM = bias instability, -2 random-walk FM = rate random walk).
+``noise="auto"`` (default) identifies alpha at each tau with the lag-1
+autocorrelation method (W. J. Riley and C. A. Greenhall, "Power law noise
+identification using the lag 1 autocorrelation", EFTF 2004) applied to the
+cluster means (at most :data:`NOISE_ID_MAX_POINTS` of them); where fewer than
+30 cluster means exist the alpha of the previous tau is kept. An integer
+``noise`` forces one alpha for every tau.
+
+Note: the R package ``avar`` (SMAC-Group), which produced the reference curve
+of the ADIS16405 log, reports a symmetric interval
+``adev * (1 +- 2/sqrt(2*(N/m - 1)))`` (a normal approximation, about 95 %,
+with K - 1 = N/m - 1 degrees of freedom whatever the noise); its estimator also
+drops the last overlapping term (sums N-2m terms, divides by N-2m+1).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import _allan_kernels as _k
+
+__all__ = [
+    "ESTIMATORS",
+    "NOISE_ID_MAX_POINTS",
+    "AllanResult",
+    "allan",
+    "allan_channels",
+    "confidence_interval",
+    "edf_greenhall",
+    "edf_totdev",
+    "max_cluster_size",
+    "noise_id_lag1",
+    "tau_grid",
+]
+
+#: Estimator names accepted by :func:`allan`.
+ESTIMATORS: tuple[str, ...] = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
+
+#: Largest number of cluster means used by the lag-1 noise identification.
+NOISE_ID_MAX_POINTS: int = 1 << 13
+
+_ALPHA_NAMES = {
+    "white_pm": 2,
+    "quantization": 2,
+    "flicker_pm": 1,
+    "white_fm": 0,
+    "random_walk": 0,
+    "flicker_fm": -1,
+    "bias_instability": -1,
+    "random_walk_fm": -2,
+    "rate_random_walk": -2,
+}
+
+
+# --------------------------------------------------------------------------
+# result
+# --------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class AllanResult:
+    """One Allan-family curve.
+
+    Attributes
+    ----------
+    tau : ndarray of float
+        Averaging times in s (``m / rate_hz``).
+    m : ndarray of int
+        Cluster sizes in samples.
+    dev : ndarray of float
+        Deviation, in the unit of the input signal.
+    ci_lower, ci_upper : ndarray of float
+        Chi-squared confidence interval of ``dev`` at level ``confidence``.
+    edf : ndarray of float
+        Equivalent degrees of freedom used for the interval.
+    n_terms : ndarray of int
+        Number of squared terms averaged at each point.
+    alpha : ndarray of int
+        Power-law exponent of ``S_y(f)`` assumed for the EDF at each point.
+    estimator : str
+        One of :data:`ESTIMATORS`.
+    n_samples : int
+        Length of the input signal.
+    rate_hz : float
+        Sample rate in Hz.
+    confidence : float
+        Confidence level of the interval (0.683 = 1 sigma).
+    """
+
+    tau: np.ndarray
+    m: np.ndarray
+    dev: np.ndarray
+    ci_lower: np.ndarray
+    ci_upper: np.ndarray
+    edf: np.ndarray
+    n_terms: np.ndarray
+    alpha: np.ndarray
+    estimator: str
+    n_samples: int
+    rate_hz: float
+    confidence: float
+
+    @property
+    def var(self) -> np.ndarray:
+        """The variance ``dev**2`` (unit of the input, squared)."""
+        return self.dev**2
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict: arrays become lists of floats/ints."""
+        return {
+            "estimator": self.estimator,
+            "n_samples": int(self.n_samples),
+            "rate_hz": float(self.rate_hz),
+            "confidence": float(self.confidence),
+            "tau": [float(v) for v in self.tau],
+            "m": [int(v) for v in self.m],
+            "dev": [float(v) for v in self.dev],
+            "ci_lower": [float(v) for v in self.ci_lower],
+            "ci_upper": [float(v) for v in self.ci_upper],
+            "edf": [float(v) for v in self.edf],
+            "n_terms": [int(v) for v in self.n_terms],
+            "alpha": [int(v) for v in self.alpha],
+        }
+
+
+# --------------------------------------------------------------------------
+# tau grid
+# --------------------------------------------------------------------------
+def _check_estimator(estimator: str) -> str:
+    if estimator not in ESTIMATORS:
+        raise OptionError(
+            f"unknown Allan estimator {estimator!r}: use one of {', '.join(ESTIMATORS)}"
+        )
+    return estimator
+
+
+def max_cluster_size(n_samples: int, estimator: str = "overlapping") -> int:
+    """Largest cluster size ``m`` the estimator supports for ``n_samples`` samples.
+
+    overlapping ``(N-1)//2`` (>= 2 terms), non-overlapping ``N//2`` (K >= 2
+    clusters), modified ``N//3`` (>= 2 terms), hadamard ``(N-1)//3`` (>= 2 terms),
+    total ``N//2`` (tau up to half the record, NIST SP 1065).
+    """
+    _check_estimator(estimator)
+    n = int(n_samples)
+    return {
+        "overlapping": (n - 1) // 2,
+        "non-overlapping": n // 2,
+        "modified": n // 3,
+        "hadamard": (n - 1) // 3,
+        "total": n // 2,
+    }[estimator]
+
+
+def tau_grid(
+    n_samples: int,
+    rate_hz: float,
+    spec: str | int | Sequence[float] | np.ndarray = "octave",
+    estimator: str = "overlapping",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cluster sizes and averaging times for a tau specification.
+
+    Parameters
+    ----------
+    n_samples : int
+        Signal length N.
+    rate_hz : float
+        Sample rate in Hz.
+    spec : {"octave", "decade"} or int or sequence of float
+        ``"octave"``: m = 1, 2, 4, ...; ``"decade"``: m = 1, 2, 5, 10, 20, 50,
+        ...; an int K: K log-spaced m from 1 to the maximum (duplicates after
+        rounding removed, so possibly fewer); a sequence: averaging times in s,
+        each rounded to the nearest whole number of samples.
+    estimator : str
+        Sets the largest usable m (:func:`max_cluster_size`).
+
+    Returns
+    -------
+    m : ndarray of int64
+        Sorted unique cluster sizes.
+    tau : ndarray of float
+        ``m / rate_hz`` in s.
+    """
+    _check_estimator(estimator)
+    rate = _check_rate(rate_hz)
+    m_max = max_cluster_size(n_samples, estimator)
+    if m_max < 1:
+        raise AnalysisError(
+            f"signal of {n_samples} samples is too short for the {estimator} Allan estimator"
+            f" (needs at least {_min_samples(estimator)} samples)"
+        )
+    if isinstance(spec, str):
+        if spec == "octave":
+            m = 2 ** np.arange(int(math.floor(math.log2(m_max))) + 1, dtype=np.int64)
+        elif spec == "decade":
+            vals = [
+                b * 10**e for e in range(int(math.floor(math.log10(m_max))) + 1) for b in (1, 2, 5)
+            ]
+            m = np.array([v for v in vals if v <= m_max], dtype=np.int64)
+        else:
+            raise OptionError(
+                f"unknown tau grid {spec!r}: use 'octave', 'decade', a number of points"
+                " or a list of tau in seconds"
+            )
+    elif isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
+        if spec < 1:
+            raise OptionError(f"tau grid: number of points must be >= 1, got {spec}")
+        m = np.unique(np.rint(np.logspace(0.0, math.log10(m_max), int(spec))).astype(np.int64))
+    else:
+        try:
+            taus = np.asarray(spec, dtype=np.float64).ravel()
+        except (TypeError, ValueError) as exc:
+            raise OptionError(f"tau grid: cannot read {spec!r} as a list of tau in s") from exc
+        if taus.size == 0 or not np.all(np.isfinite(taus)):
+            raise OptionError("tau grid: give at least one finite tau in s")
+        m_f = np.rint(taus * rate)
+        bad = np.flatnonzero(m_f < 1)
+        if bad.size:
+            raise OptionError(
+                f"tau = {taus[bad[0]]:g} s is shorter than one sample ({1.0 / rate:g} s at"
+                f" {rate:g} Hz)"
+            )
+        big = np.flatnonzero(m_f > m_max)
+        if big.size:
+            raise AnalysisError(
+                f"tau = {taus[big[0]]:g} s is too long for {n_samples} samples at {rate:g} Hz:"
+                f" the largest tau of the {estimator} estimator is {m_max / rate:g} s"
+            )
+        m = np.unique(m_f.astype(np.int64))
+    m = m[(m >= 1) & (m <= m_max)]
+    return m, m / rate
+
+
+def _min_samples(estimator: str) -> int:
+    n = 1
+    while max_cluster_size(n, estimator) < 1:
+        n += 1
+    return n
+
+
+def _check_rate(rate_hz: float) -> float:
+    try:
+        rate = float(rate_hz)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"sample rate must be a number in Hz, got {rate_hz!r}") from exc
+    if not math.isfinite(rate) or rate <= 0:
+        raise OptionError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
+    return rate
+
+
+# --------------------------------------------------------------------------
+# equivalent degrees of freedom
+# --------------------------------------------------------------------------
+def _sw(t: float, alpha: int) -> float:
+    a = abs(t)
+    if alpha == 2:
+        return -a
+    if alpha == 0:
+        return a**3
+    if alpha == -2:
+        return a**5
+    if alpha == -4:
+        return a**7
+    if a == 0.0:
+        return 0.0
+    p = {1: 2, -1: 4, -3: 6}[alpha]
+    return t**p * math.log(a)
+
+
+def _sx(t: float, f: float, alpha: int) -> float:
+    if math.isinf(f):
+        return _sw(t, alpha + 2)
+    return f * f * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
+
+
+def _sz(t: float, f: float, alpha: int, d: int) -> float:
+    return sum(
+        (-1) ** abs(k) * math.comb(2 * d, d + k) * _sx(t + k, f, alpha) for k in range(-d, d + 1)
+    )
+
+
+def _basic_sum(j_: float, m_: float, s_: float, f: float, alpha: int, d: int) -> float:
+    total = _sz(0.0, f, alpha, d) ** 2 + (1.0 - j_ / m_) * _sz(j_ / s_, f, alpha, d) ** 2
+    for j in range(1, int(j_)):
+        total += 2.0 * (1.0 - j / m_) * _sz(j / s_, f, alpha, d) ** 2
+    return total
+
+
+# Greenhall & Riley 2003, Tables 1-3: (a0, a1) per (alpha, d).
+_G_TABLE1 = {
+    (2, 1): (2 / 3, 1 / 3), (2, 2): (7 / 9, 1 / 2), (2, 3): (22 / 25, 2 / 3),
+    (1, 1): (0.840, 0.345), (1, 2): (0.997, 0.616), (1, 3): (1.141, 0.843),
+    (0, 1): (1.079, 0.368), (0, 2): (1.033, 0.607), (0, 3): (1.184, 0.848),
+    (-1, 2): (1.048, 0.534), (-1, 3): (1.180, 0.816),
+    (-2, 2): (1.302, 0.535), (-2, 3): (1.175, 0.777),
+    (-3, 3): (1.194, 0.703), (-4, 3): (1.489, 0.702),
+}  # fmt: skip
+_G_TABLE2 = {
+    (2, 1): (3 / 2, 1 / 2), (2, 2): (35 / 18, 1.0), (2, 3): (231 / 100, 3 / 2),
+    (1, 1): (78.6, 25.2), (1, 2): (790.0, 410.0), (1, 3): (9950.0, 6520.0),
+    (0, 1): (2 / 3, 1 / 6), (0, 2): (2 / 3, 1 / 3), (0, 3): (7 / 9, 1 / 2),
+    (-1, 2): (0.852, 0.375), (-1, 3): (0.997, 0.617),
+    (-2, 2): (1.079, 0.368), (-2, 3): (1.033, 0.607),
+    (-3, 3): (1.053, 0.553), (-4, 3): (1.302, 0.535),
+}  # fmt: skip
+_G_TABLE3 = {1: (6.0, 4.0), 2: (15.23, 12.0), 3: (47.8, 40.0)}
+_J_MAX = 100
+
+
+def edf_greenhall(
+    alpha: int, d: int, m: int, n_phase: int, overlapping: bool, modified: bool
+) -> float:
+    """Equivalent degrees of freedom by Greenhall's algorithm.
+
+    Parameters
+    ----------
+    alpha : int
+        Noise exponent of ``S_y(f) ~ f^alpha``, -4..2, with ``alpha + 2d > 1``.
+    d : int
+        Difference order: 2 Allan, 3 Hadamard (1 first-difference variance).
+    m : int
+        Cluster size.
+    n_phase : int
+        Number of phase points (N + 1 for N rate samples).
+    overlapping : bool
+        Overlapped estimator (stride 1) instead of stride m.
+    modified : bool
+        Modified variance (MDEV family).
+
+    Returns
+    -------
+    float
+        The EDF (dimensionless, > 0).
+    """
+    alpha = int(alpha)
+    if alpha + 2 * d <= 1:
+        raise ValueError(f"Greenhall EDF needs alpha + 2d > 1 (alpha={alpha}, d={d})")
+    f = 1.0 if modified else float(m)
+    s = float(m) if overlapping else 1.0
+    length = m / f + m * d
+    m_big = 1.0 + math.floor(s * (n_phase - length) / m)
+    j_ = min(m_big, (d + 1) * s)
+    r = m_big / s
+    if modified:
+        if j_ <= _J_MAX:
+            inv = _basic_sum(j_, m_big, s, 1.0, alpha, d) / (_sz(0.0, 1.0, alpha, d) ** 2 * m_big)
+        elif r > d + 1:
+            a0, a1 = _G_TABLE1[(alpha, d)]
+            inv = (a0 - a1 / r) / r
+        else:
+            mp = _J_MAX / r
+            inv = _basic_sum(_J_MAX, _J_MAX, mp, 1.0, alpha, d) / (
+                _sz(0.0, 1.0, alpha, d) ** 2 * _J_MAX
+            )
+        return 1.0 / inv
+    if alpha <= 0:
+        if j_ <= _J_MAX:
+            fp = float(m) if m * (d + 1) <= _J_MAX else math.inf
+            inv = _basic_sum(j_, m_big, s, fp, alpha, d) / (_sz(0.0, fp, alpha, d) ** 2 * m_big)
+        elif r > d + 1:
+            a0, a1 = _G_TABLE2[(alpha, d)]
+            inv = (a0 - a1 / r) / r
+        else:
+            mp = _J_MAX / r
+            inv = _basic_sum(_J_MAX, _J_MAX, mp, math.inf, alpha, d) / (
+                _sz(0.0, math.inf, alpha, d) ** 2 * _J_MAX
+            )
+        return 1.0 / inv
+    if alpha == 1:
+        if j_ <= _J_MAX:
+            inv = _basic_sum(j_, m_big, s, float(m), 1, d) / (_sz(0.0, float(m), 1, d) ** 2 * m_big)
+        elif r > d + 1:
+            a0, a1 = _G_TABLE2[(1, d)]
+            b0, b1 = _G_TABLE3[d]
+            inv = (a0 - a1 / r) / ((b0 + b1 * math.log(m)) ** 2 * r)
+        else:
+            mp = _J_MAX / r
+            b0, b1 = _G_TABLE3[d]
+            inv = _basic_sum(_J_MAX, _J_MAX, mp, mp, 1, d) / ((b0 + b1 * math.log(m)) ** 2 * _J_MAX)
+        return 1.0 / inv
+    # alpha == 2, unmodified
+    k = math.ceil(r)
+    if k <= d:
+        # too few terms for the asymptotic form: evaluate the basic sum exactly
+        inv = _basic_sum(j_, m_big, s, float(m), 2, d) / (_sz(0.0, float(m), 2, d) ** 2 * m_big)
+        return 1.0 / inv
+    a0 = math.comb(4 * d, 2 * d) / math.comb(2 * d, d) ** 2
+    a1 = d / 2.0
+    return 1.0 / ((a0 - a1 / r) / m_big)
+
+
+def edf_totdev(n_phase: int, m: int, alpha: int) -> float:
+    """EDF of the total deviation, NIST SP 1065 Table 7 (``b*T/tau - c``).
+
+    For alpha outside {0, -1, -2} the overlapping-ADEV Greenhall EDF is used.
+    """
+    table7 = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}
+    if alpha in table7:
+        b, c = table7[alpha]
+        return b * (n_phase / m) - c
+    return edf_greenhall(alpha, 2, m, n_phase, overlapping=True, modified=False)
+
+
+def _edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
+    n_phase = n_samples + 1
+    if estimator == "overlapping":
+        return edf_greenhall(alpha, 2, m, n_phase, True, False)
+    if estimator == "non-overlapping":
+        return edf_greenhall(alpha, 2, m, n_phase, False, False)
+    if estimator == "modified":
+        return edf_greenhall(alpha, 2, m, n_phase, True, True)
+    if estimator == "hadamard":
+        return edf_greenhall(alpha, 3, m, n_phase, True, False)
+    return edf_totdev(n_phase, m, alpha)
+
+
+def _alpha_limits(estimator: str) -> tuple[int, int]:
+    return (-4, 2) if estimator == "hadamard" else (-2, 2)
+
+
+# --------------------------------------------------------------------------
+# noise identification
+# --------------------------------------------------------------------------
+def _lag1(z: np.ndarray) -> float:
+    zc = z - z.mean()
+    den = float(np.dot(zc, zc))
+    if den == 0.0:
+        return 0.0
+    return float(np.dot(zc[:-1], zc[1:])) / den
+
+
+def noise_id_lag1(ybar: np.ndarray, dmax: int = 2) -> int | None:
+    """Power-law exponent alpha of cluster means by the lag-1 autocorrelation method.
+
+    Parameters
+    ----------
+    ybar : ndarray
+        Cluster means of the rate signal (any unit), at least 30 of them.
+    dmax : int
+        Maximum number of differencing steps (2 for Allan, 3 for Hadamard).
+
+    Returns
+    -------
+    int or None
+        alpha in -2*dmax .. 2 (``S_y(f) ~ f^alpha``), or None when fewer than 30
+        points are given.
+    """
+    z = np.asarray(ybar, dtype=np.float64)
+    if z.size < 30:
+        return None
+    t = np.arange(z.size, dtype=np.float64)
+    t -= t.mean()
+    zc = z - z.mean()
+    tt = float(np.dot(t, t))
+    z = zc - (float(np.dot(t, zc)) / tt) * t if tt > 0 else zc  # remove linear drift
+    d = 0
+    while True:
+        r1 = _lag1(z)
+        rho = r1 / (1.0 + r1) if r1 > -1.0 else -math.inf
+        if rho < 0.25 or d >= dmax:
+            if not math.isfinite(rho):
+                return 2
+            return int(-round(2.0 * rho) - 2 * d)
+        z = np.diff(z)
+        d += 1
+
+
+def _identify_alphas(x: np.ndarray, ms: np.ndarray, t0: float, estimator: str) -> np.ndarray:
+    lo, hi = _alpha_limits(estimator)
+    dmax = 3 if estimator == "hadamard" else 2
+    out = np.zeros(ms.size, dtype=np.int64)
+    prev = 0
+    n = x.shape[0] - 1
+    for i, m in enumerate(ms):
+        k = min(n // int(m), NOISE_ID_MAX_POINTS)
+        a = None
+        if k >= 30:
+            xs = np.asarray(x[: k * int(m) + 1 : int(m)])
+            a = noise_id_lag1(np.diff(xs) / (m * t0), dmax=dmax)
+        if a is None:
+            a = prev
+        a = min(max(a, lo), hi)
+        out[i] = a
+        prev = a
+    return out
+
+
+# --------------------------------------------------------------------------
+# main entry points
+# --------------------------------------------------------------------------
+_NORM_FACTOR = {
+    "overlapping": 2.0,
+    "non-overlapping": 2.0,
+    "modified": 2.0,
+    "hadamard": 6.0,
+    "total": 2.0,
+}
+
+
+def _check_signal(y: Any, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: samples are not numbers ({exc})") from exc
+    if arr.ndim != 1:
+        raise InputError(f"{name}: expected a 1-D array of samples, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise InputError(
+            f"{name}: sample {bad} is {arr[bad]} (NaN/inf); remove or interpolate"
+            " non-finite samples first"
+        )
+    return arr
+
+
+def _parse_noise(noise: str | int, estimator: str) -> int | None:
+    if isinstance(noise, str):
+        if noise == "auto":
+            return None
+        if noise in _ALPHA_NAMES:
+            alpha = _ALPHA_NAMES[noise]
+        else:
+            raise OptionError(
+                f"unknown noise type {noise!r}: use 'auto', an integer alpha -4..2 or one of"
+                f" {', '.join(_ALPHA_NAMES)}"
+            )
+    elif isinstance(noise, (int, np.integer)) and not isinstance(noise, bool):
+        alpha = int(noise)
+    else:
+        raise OptionError(f"noise must be 'auto', a name or an integer alpha, got {noise!r}")
+    lo, hi = _alpha_limits(estimator)
+    if not lo <= alpha <= hi:
+        raise OptionError(
+            f"noise alpha={alpha} is outside {lo}..{hi} for the {estimator} estimator"
+        )
+    return alpha
+
+
+def allan(
+    y: np.ndarray | Sequence[float],
+    rate_hz: float,
+    taus: str | int | Sequence[float] | np.ndarray = "octave",
+    estimator: str = "overlapping",
+    confidence: float = 0.683,
+    noise: str | int = "auto",
+    *,
+    name: str = "signal",
+) -> AllanResult:
+    """Allan-family deviation of a rate signal with chi-squared confidence intervals.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        Rate samples (e.g. rad/s or m/s^2), finite.
+    rate_hz : float
+        Sample rate in Hz.
+    taus : see :func:`tau_grid`
+        ``"octave"`` (default), ``"decade"``, a number of log-spaced points or
+        explicit averaging times in s.
+    estimator : str
+        ``"overlapping"`` (default), ``"non-overlapping"``, ``"modified"``,
+        ``"hadamard"`` or ``"total"``.
+    confidence : float
+        Two-sided confidence level of the interval, in (0, 1); 0.683 = 1 sigma.
+    noise : "auto", int or name
+        Noise exponent alpha used for the EDF: ``"auto"`` identifies it per tau
+        (lag-1 autocorrelation); an int -4..2 or a name such as ``"white_fm"``
+        (= angle/velocity random walk) forces it.
+    name : str
+        Name used in error messages (a channel or column).
+
+    Returns
+    -------
+    AllanResult
+        Deviations in the unit of ``y``.
+    """
+    _check_estimator(estimator)
+    rate = _check_rate(rate_hz)
+    try:
+        conf = float(confidence)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"confidence must be a number in (0, 1), got {confidence!r}") from exc
+    if not 0.0 < conf < 1.0:
+        raise OptionError(f"confidence must be in (0, 1), got {confidence!r}")
+    fixed_alpha = _parse_noise(noise, estimator)
+    arr = _check_signal(y, name)
+    n = arr.shape[0]
+    ms, tau = tau_grid(n, rate, taus, estimator)
+    t0 = 1.0 / rate
+    x = _k.phase_from_rate(arr, t0)
+    sums = _k.sumsq_tasks(x, estimator, ms)
+    if fixed_alpha is None:
+        alphas = _identify_alphas(x, ms, t0, estimator)
+    else:
+        alphas = np.full(ms.size, fixed_alpha, dtype=np.int64)
+    return result_from_sums(sums, ms, tau, alphas, estimator, n, rate, conf)
+
+
+def result_from_sums(
+    sums: np.ndarray,
+    ms: np.ndarray,
+    tau: np.ndarray,
+    alphas: np.ndarray,
+    estimator: str,
+    n: int,
+    rate: float,
+    conf: float,
+) -> AllanResult:
+    """Finish a curve from its per-τ sums of squares: normalise, EDF, CI.
+
+    Shared by the in-memory path (:func:`allan`) and the out-of-core path
+    (:mod:`imubounds.stationary.stream`), so both give the same numbers by construction.
+    """
+    nt = np.array([_k.n_terms(estimator, n, int(m)) for m in ms], dtype=np.int64)
+    var = sums / (_NORM_FACTOR[estimator] * tau**2 * nt)
+    if estimator == "modified":
+        var = var / ms.astype(np.float64) ** 2
+    dev = np.sqrt(var)
+    edf = np.array(
+        [_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
+        dtype=np.float64,
+    )
+    lo, hi = confidence_interval(dev, edf, conf)
+    return AllanResult(
+        tau=tau,
+        m=ms,
+        dev=dev,
+        ci_lower=lo,
+        ci_upper=hi,
+        edf=edf,
+        n_terms=nt,
+        alpha=alphas,
+        estimator=estimator,
+        n_samples=n,
+        rate_hz=rate,
+        confidence=conf,
+    )
+
+
+def confidence_interval(
+    dev: np.ndarray, edf: np.ndarray, confidence: float = 0.683
+) -> tuple[np.ndarray, np.ndarray]:
+    """Chi-squared interval of a deviation (NIST SP 1065 eq. 45).
+
+    Returns ``(dev*sqrt(edf/chi2.ppf(1-p/2, edf)), dev*sqrt(edf/chi2.ppf(p/2, edf)))``
+    with ``p = 1 - confidence``; same unit as ``dev``.
+    """
+    dev = np.asarray(dev, dtype=np.float64)
+    edf = np.asarray(edf, dtype=np.float64)
+    p = 1.0 - confidence
+    lo = dev * np.sqrt(edf / stats.chi2.ppf(1.0 - p / 2.0, edf))
+    hi = dev * np.sqrt(edf / stats.chi2.ppf(p / 2.0, edf))
+    return lo, hi
+
+
+def allan_channels(
+    channels: Mapping[str, np.ndarray],
+    rate_hz: float,
+    taus: str | int | Sequence[float] | np.ndarray = "octave",
+    estimator: str = "overlapping",
+    confidence: float = 0.683,
+    noise: str | int = "auto",
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, AllanResult]:
+    """:func:`allan` for every channel of a log.
+
+    Parameters
+    ----------
+    channels : mapping of name -> 1-D array
+        E.g. ``ImuLog.channels`` (SI units).
+    progress : callable(done, total), optional
+        Called after each channel (``done`` = channels finished so far).
+
+    Other parameters are those of :func:`allan`.
+
+    Returns
+    -------
+    dict of name -> AllanResult, in the order of ``channels``.
+    """
+    out: dict[str, AllanResult] = {}
+    total = len(channels)
+    if progress is not None:
+        progress(0, total)
+    for i, (key, values) in enumerate(channels.items()):
+        out[key] = allan(values, rate_hz, taus, estimator, confidence, noise, name=key)
+        if progress is not None:
+            progress(i + 1, total)
+    return out
