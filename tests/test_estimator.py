@@ -15,7 +15,7 @@ from imubounds.dynamic.estimator.kernel import F_GPS_EMPTY, F_GPS_MISSING
 from imubounds.dynamic.estimator.reference import run_reference
 from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import AnalysisError
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 from imubounds.io.drive_readers import read_drive
 from imubounds.stationary import bounds
 

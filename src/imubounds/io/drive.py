@@ -1,119 +1,380 @@
-"""The drive-log model: IMU, GPS fixes, compass heading / magnetometer, optional truth.
+"""The drive-log model: every sensor stream of a trip in SI units, plus its settings.
 
-Frames and units (SI throughout):
+Every drive reader (the generic layout of :mod:`imubounds.io.drive_layout`, VN-100,
+comma2k19, ROS bags, NMEA, ULog, the simulator) produces a :class:`Drive`; the
+dynamic estimator consumes nothing else.
 
-* IMU body axes are **FLU**: x forward, y left, z up. Readers convert from
-  the sensor's frame (FRD on the VN-100 and the comma2k19 phone). ``accel``
-  is specific force in m/s^2, ``gyro`` angular rate in rad/s; the yaw rate
-  ``gyro[:, 2]`` is positive counter-clockwise seen from above, matching the
-  model heading.
-* GPS fixes are geodetic WGS-84 (``lat``/``lon`` in degrees, ``alt`` in m),
-  with ``hdop`` (NaN when not reported) and a ``fix`` flag (False: no fix).
-* ``heading`` is a compass heading in rad, **clockwise from north** (what a
-  compass or a yaw output reports). ``mag`` is the magnetometer in the same
-  FLU body axes (any unit; only the direction is used).
-* ``truth`` (optional) holds the true trajectory in the local ENU frame of
-  ``truth_origin``: ``t`` (s), ``east``/``north`` (m), ``psi`` (rad, model
-  convention: counter-clockwise from east), ``u``/``v`` (m/s, body), and
-  where known ``accel_x``/``accel_y`` (m/s^2, what a noiseless accelerometer
-  under the log's kinematic model reads) and ``r`` (rad/s).
+Frames and units (see :mod:`imubounds.frames`):
+
+* time ``t`` in s on one clock shared by every stream;
+* IMU in the **vehicle body frame FLU** (x forward, y left, z up), after the
+  mount rotation ``imu_axes`` of the drive's settings: ``accel`` specific force
+  in m/s^2, ``gyro`` angular rate in rad/s;
+* GNSS geodetic WGS-84 (degrees, m), velocities in m/s (north, east), course in
+  rad clockwise from north;
+* body velocity (DVL, wheel or CAN speed) in m/s along body x, y, z;
+* heading in rad clockwise from north (compass convention);
+* magnetometer in body FLU axes (any unit: only directions are used);
+* attitude: roll (positive right side down), pitch (positive nose up), yaw
+  (compass convention), rad;
+* truth (optional, for simulations and post-processed references): ENU metres
+  of ``truth_origin`` or geodetic degrees, heading in rad clockwise from north,
+  body velocities in m/s.
+
+Streams that a log does not have are ``None``; columns that a stream does not
+have are ``None`` (never zeros). Values missing in some rows are NaN.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from imubounds.errors import InputError
 
+Array = np.ndarray
+
+
+def _len(name: str, a: Array | None, n: int, src: str) -> None:
+    if a is not None and a.shape[0] != n:
+        raise InputError(f"{src}: {name} has {a.shape[0]} rows, its time column has {n}")
+
 
 @dataclass
-class DriveLog:
-    """A multi-sensor drive log in SI units (see the module docstring for frames)."""
+class ImuStream:
+    """IMU samples in the vehicle body frame FLU: ``accel`` (n, 3) m/s^2, ``gyro`` (n, 3) rad/s.
 
-    imu_t: np.ndarray
-    accel: np.ndarray
-    gyro: np.ndarray
-    gps_t: np.ndarray
-    lat: np.ndarray
-    lon: np.ndarray
-    alt: np.ndarray
-    hdop: np.ndarray
-    fix: np.ndarray
-    heading_t: np.ndarray | None = None
-    heading: np.ndarray | None = None
-    mag_t: np.ndarray | None = None
-    mag: np.ndarray | None = None
-    truth: dict[str, np.ndarray] | None = None
-    truth_origin: tuple[float, float, float] | None = None
+    A column the log does not have is NaN (e.g. a yaw-rate-only gyro).
+    """
+
+    t: Array
+    accel: Array
+    gyro: Array
+    input_units: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sample rate in Hz."""
+        return float(1.0 / np.median(np.diff(self.t)))
+
+    def check(self, src: str) -> None:
+        n = self.t.shape[0]
+        for name in ("accel", "gyro"):
+            a = getattr(self, name)
+            if a.shape != (n, 3):
+                raise InputError(f"{src}: IMU {name} must be (n, 3) matching its {n} time stamps")
+
+
+@dataclass
+class GnssStream:
+    """GNSS fixes: position (deg, m), quality, and velocity where the receiver gives it.
+
+    ``fix`` is False for rows without a fix (kept for counting, never used).
+    ``hdop`` (dimensionless) and ``h_acc_m`` (1-sigma horizontal accuracy in m)
+    are NaN where not reported. ``speed_mps``/``course_rad`` (clockwise from
+    north) and ``vel_n_mps``/``vel_e_mps`` are ``None`` when absent.
+    """
+
+    t: Array
+    lat_deg: Array
+    lon_deg: Array
+    alt_m: Array | None = None
+    hdop: Array | None = None
+    h_acc_m: Array | None = None
+    fix: Array | None = None
+    speed_mps: Array | None = None
+    course_rad: Array | None = None
+    vel_n_mps: Array | None = None
+    vel_e_mps: Array | None = None
+
+    @property
+    def has_velocity(self) -> bool:
+        """True if the stream carries a horizontal velocity (NE components or speed+course)."""
+        return (self.vel_n_mps is not None and self.vel_e_mps is not None) or (
+            self.speed_mps is not None and self.course_rad is not None
+        )
+
+    def velocity_ne(self) -> tuple[Array, Array] | None:
+        """(north, east) velocity in m/s from whichever form the receiver gave, or None."""
+        if self.vel_n_mps is not None and self.vel_e_mps is not None:
+            return self.vel_n_mps, self.vel_e_mps
+        if self.speed_mps is not None and self.course_rad is not None:
+            return self.speed_mps * np.cos(self.course_rad), self.speed_mps * np.sin(
+                self.course_rad
+            )
+        return None
+
+    def usable(self) -> Array:
+        """Rows with a fix and finite latitude and longitude."""
+        ok = np.isfinite(self.lat_deg) & np.isfinite(self.lon_deg)
+        if self.fix is not None:
+            ok &= self.fix.astype(bool)
+        return ok
+
+    def check(self, src: str) -> None:
+        n = self.t.shape[0]
+        for name in (
+            "lat_deg",
+            "lon_deg",
+            "alt_m",
+            "hdop",
+            "h_acc_m",
+            "fix",
+            "speed_mps",
+            "course_rad",
+            "vel_n_mps",
+            "vel_e_mps",
+        ):
+            _len(f"GNSS {name}", getattr(self, name), n, src)
+
+
+@dataclass
+class VelocityStream:
+    """Body-frame velocity (m/s) from a Doppler velocity log, wheel or CAN speed.
+
+    ``kind`` is ``"dvl"``, ``"wheel"``, ``"can"`` or ``"odometry"``. ``v_mps``
+    and ``w_mps`` are ``None`` when the sensor gives forward speed only.
+    """
+
+    t: Array
+    u_mps: Array
+    v_mps: Array | None = None
+    w_mps: Array | None = None
+    kind: str = "dvl"
+
+    def check(self, src: str) -> None:
+        n = self.t.shape[0]
+        for name in ("u_mps", "v_mps", "w_mps"):
+            _len(f"velocity {name}", getattr(self, name), n, src)
+
+
+@dataclass
+class HeadingStream:
+    """Heading (rad, clockwise from north) from a compass, dual-antenna GNSS or an AHRS.
+
+    ``source`` says which (``"compass"``, ``"magnetometer"`` once calibrated,
+    ``"gnss"``, ``"ahrs"``); an AHRS yaw uses the IMU's own gyros and is not
+    independent of it.
+    """
+
+    t: Array
+    heading_rad: Array
+    source: str = "compass"
+
+    def check(self, src: str) -> None:
+        _len("heading", self.heading_rad, self.t.shape[0], src)
+
+
+@dataclass
+class MagStream:
+    """Raw magnetometer (n, 3) in body FLU axes; any unit (``unit`` says which)."""
+
+    t: Array
+    mag: Array
+    unit: str = "unknown"
+
+    def check(self, src: str) -> None:
+        if self.mag.shape != (self.t.shape[0], 3):
+            raise InputError(f"{src}: magnetometer must be (n, 3) matching its time stamps")
+
+
+@dataclass
+class AttitudeStream:
+    """Roll and pitch (rad; roll positive right side down, pitch positive nose up) and
+    optionally yaw (rad, clockwise from north) of the vehicle body."""
+
+    t: Array
+    roll_rad: Array
+    pitch_rad: Array
+    yaw_rad: Array | None = None
+    source: str = "ahrs"
+
+    def check(self, src: str) -> None:
+        n = self.t.shape[0]
+        for name in ("roll_rad", "pitch_rad", "yaw_rad"):
+            _len(f"attitude {name}", getattr(self, name), n, src)
+
+
+@dataclass
+class Truth:
+    """Reference trajectory (simulation truth or post-processed solution).
+
+    ``east_m``/``north_m`` are ENU metres of ``origin`` (lat_deg, lon_deg, alt_m);
+    readers that have geodetic truth convert it with the drive's geodesy.
+    ``extra`` holds any further true quantities by name in SI (e.g.
+    ``accel_x``, ``gyro_z``, ``bias_accel_x``, ``roll_rad``, ``pitch_rad``).
+    """
+
+    t: Array
+    east_m: Array
+    north_m: Array
+    origin: tuple[float, float, float]
+    heading_rad: Array | None = None
+    u_mps: Array | None = None
+    v_mps: Array | None = None
+    extra: dict[str, Array] = field(default_factory=dict)
+
+
+@dataclass
+class GnssSettings:
+    """GNSS error model. ``cep_m``: CEP at HDOP 1 (m), used when a fix has no
+    ``h_acc_m``; ``default_hdop`` when a fix has neither; ``vel_sigma_mps``:
+    1-sigma per velocity component when the receiver reports none."""
+
+    cep_m: float = 3.0
+    default_hdop: float = 1.0
+    vel_sigma_mps: float = 0.1
+
+
+@dataclass
+class VelocitySettings:
+    """Body-velocity sensor bound: |error| <= ``bound_mps`` + ``scale`` x |speed|."""
+
+    bound_mps: float = 0.1
+    scale: float = 0.0
+
+
+@dataclass
+class HeadingSettings:
+    """Compass: ``deviation_deg`` bound after calibration (None: from the calibration's
+    residual), ``declination_deg`` (east positive) added to magnetic headings,
+    ``calibration`` file of (measured, reference) pairs, ``noise_deg`` 1-sigma."""
+
+    deviation_deg: float | None = None
+    declination_deg: float = 0.0
+    calibration: str | None = None
+    noise_deg: float = 0.5
+
+
+@dataclass
+class AttitudeSettings:
+    """Bound on the attitude stream's roll/pitch error (deg)."""
+
+    bound_deg: float = 1.0
+
+
+@dataclass
+class VehicleSettings:
+    """What the vehicle can do (bounds used to make the model error explicit).
+
+    ``kind``: ``"ground"``, ``"marine"`` or ``"air"``; ``lateral_speed_bound_mps``:
+    non-holonomic |v| bound for wheeled vehicles (None: not assumed);
+    ``max_tilt_deg``: roll/pitch bound when there is no attitude stream.
+    """
+
+    kind: str = "ground"
+    max_speed_mps: float = 70.0
+    max_accel_mps2: float = 10.0
+    max_jerk_mps3: float = 20.0
+    max_yaw_rate_dps: float = 90.0
+    max_tilt_deg: float = 10.0
+    lateral_speed_bound_mps: float | None = None
+
+
+@dataclass
+class ImuSettings:
+    """The IMU's noise: a static ``noise_json``, a ``preset`` name, or datasheet figures.
+
+    Datasheet keys and units as ``imubounds dynamic --imu-spec``: ``accel_nd``
+    m/s^2/sqrt(Hz), ``accel_bs`` m/s^2 (in-run bias stability), ``gyro_nd``
+    deg/s/sqrt(Hz), ``gyro_bs`` deg/s; optional turn-on bias, scale factor and
+    misalignment.
+    """
+
+    noise_json: str | None = None
+    preset: str | None = None
+    accel_nd: float | None = None
+    accel_bs: float | None = None
+    gyro_nd: float | None = None
+    gyro_bs: float | None = None
+    accel_turn_on_mps2: float | None = None
+    gyro_turn_on_dps: float | None = None
+    scale_factor: float | None = None
+    misalignment_deg: float | None = None
+
+
+@dataclass
+class DriveSettings:
+    """Everything ``drive.yaml`` can say (see the docs' drive-layout page).
+
+    ``imu_axes`` maps body axes (x forward, y left, z up) to signed IMU axes,
+    e.g. ``("x", "-z", "y")``: body x is IMU x, body y is IMU -z, body z is IMU y.
+    ``assumed`` lists, in words, every setting that was not given and took its
+    documented default; outputs repeat it.
+    """
+
+    imu_axes: tuple[str, str, str] = ("x", "y", "z")
+    imu: ImuSettings = field(default_factory=ImuSettings)
+    gnss: GnssSettings = field(default_factory=GnssSettings)
+    velocity: VelocitySettings = field(default_factory=VelocitySettings)
+    heading: HeadingSettings = field(default_factory=HeadingSettings)
+    attitude: AttitudeSettings = field(default_factory=AttitudeSettings)
+    vehicle: VehicleSettings = field(default_factory=VehicleSettings)
+    lever_arm_m: tuple[float, float, float] | None = None
+    assumed: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Drive:
+    """A drive log: sensor streams in SI on one clock, and the settings that bound them."""
+
+    imu: ImuStream | None = None
+    gnss: GnssStream | None = None
+    velocity: VelocityStream | None = None
+    heading: HeadingStream | None = None
+    mag: MagStream | None = None
+    attitude: AttitudeStream | None = None
+    truth: Truth | None = None
+    settings: DriveSettings = field(default_factory=DriveSettings)
     source: str = "<memory>"
     layout: str = "memory"
-    frame: str = "FLU"
-    settings: dict[str, object] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
 
-    @property
-    def imu_rate_hz(self) -> float:
-        """Median IMU sample rate in Hz."""
-        return float(1.0 / np.median(np.diff(self.imu_t)))
+    def streams(self) -> list[str]:
+        """Names of the streams present."""
+        return [
+            n
+            for n in ("imu", "gnss", "velocity", "heading", "mag", "attitude", "truth")
+            if getattr(self, n) is not None
+        ]
 
-    @property
-    def gps_rate_hz(self) -> float:
-        """Median GPS fix rate in Hz."""
-        return float(1.0 / np.median(np.diff(self.gps_t)))
-
-    def validate(self) -> None:
-        """Check shapes, sorting and overlap; raise :class:`InputError` naming the problem."""
+    def check(self) -> None:
+        """Shapes, finite and strictly increasing time stamps; a missing IMU or no aiding
+        sensor at all is an :class:`InputError` naming what is expected."""
         src = self.source
-        n = self.imu_t.shape[0]
-        if n < 2:
-            raise InputError(f"{src}: the IMU stream has {n} samples; need at least 2")
-        if self.accel.shape != (n, 3) or self.gyro.shape != (n, 3):
-            raise InputError(f"{src}: accel and gyro must be (n, 3) arrays matching the IMU time")
-        for name, t in (
-            ("IMU", self.imu_t),
-            ("GPS", self.gps_t),
-            ("heading", self.heading_t),
-            ("magnetometer", self.mag_t),
+        if self.imu is None:
+            raise InputError(
+                f"{src}: no IMU: the drive needs imu.csv (time_s and gyro_{{x,y,z}}_<unit>, "
+                "accel_{x,y,z}_<unit> columns) or an IMU topic"
+            )
+        if (
+            self.gnss is None
+            and self.velocity is None
+            and self.heading is None
+            and self.mag is None
         ):
-            if t is None:
+            raise InputError(
+                f"{src}: no aiding sensor: give gnss.csv (time_s, lat_deg, lon_deg), "
+                "velocity.csv (time_s, u_mps) or heading.csv (time_s, heading_deg or mag_x/y/z)"
+            )
+        for name in ("imu", "gnss", "velocity", "heading", "mag", "attitude"):
+            s = getattr(self, name)
+            if s is None:
                 continue
+            t = s.t
+            if t.ndim != 1 or t.shape[0] < 1:
+                raise InputError(f"{src}: the {name} stream has no samples")
             if not np.all(np.isfinite(t)):
-                raise InputError(f"{src}: the {name} time stamps contain NaN or inf")
+                i = int(np.flatnonzero(~np.isfinite(t))[0])
+                raise InputError(f"{src}: {name} time_s is NaN or infinite at row {i + 1}")
             bad = np.flatnonzero(np.diff(t) <= 0)
             if bad.size:
+                k = int(bad[0])
                 raise InputError(
-                    f"{src}: {name} time stamps are not strictly increasing at sample {bad[0] + 1} "
-                    f"(0-based; t={t[bad[0]]:.6f} then {t[bad[0] + 1]:.6f} s); "
-                    "sort the log or drop duplicate rows"
+                    f"{src}: {name} time_s is not strictly increasing at row {k + 2} "
+                    f"(t={t[k]:.6f} then {t[k + 1]:.6f} s); sort the file or drop duplicate rows"
                 )
-        m = self.gps_t.shape[0]
-        for name, arr in (
-            ("lat", self.lat),
-            ("lon", self.lon),
-            ("alt", self.alt),
-            ("hdop", self.hdop),
-            ("fix", self.fix),
-        ):
-            if arr.shape[0] != m:
-                raise InputError(f"{src}: GPS column {name} has {arr.shape[0]} rows, time has {m}")
-        good = self.fix & np.isfinite(self.lat) & np.isfinite(self.lon)
-        if not np.any(good):
-            raise InputError(f"{src}: no usable GPS fix (all rows missing or flagged no-fix)")
-        if self.heading is None and self.mag is None:
-            raise InputError(f"{src}: no compass heading and no magnetometer: cannot bound heading")
-        g_t = self.gps_t[good]
-        lo, hi = max(self.imu_t[0], g_t[0]), min(self.imu_t[-1], g_t[-1])
-        if hi <= lo:
-            raise InputError(
-                f"{src}: IMU ({self.imu_t[0]:.3f}..{self.imu_t[-1]:.3f} s) and GPS "
-                f"({g_t[0]:.3f}..{g_t[-1]:.3f} s) do not overlap in time; check the clocks"
-            )
-        ht = self.heading_t if self.heading is not None else self.mag_t
-        assert ht is not None
-        if min(hi, ht[-1]) <= max(lo, ht[0]):
-            raise InputError(
-                f"{src}: the heading source ({ht[0]:.3f}..{ht[-1]:.3f} s) does not overlap the "
-                f"IMU and GPS ({lo:.3f}..{hi:.3f} s)"
-            )
+            s.check(src)

@@ -1,4 +1,4 @@
-"""Readers of multi-sensor drive logs -> :class:`imubounds.io.drive.DriveLog`.
+"""Readers of multi-sensor drive logs -> :class:`imubounds.io.drive_legacy.DriveLog`.
 
 Layouts recognised by :func:`read_drive` (see :func:`detect_layout`):
 
@@ -45,7 +45,7 @@ import pandas as pd
 
 from imubounds.errors import InputError
 from imubounds.frames import frd_to_flu
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 
 
 def detect_layout(paths: list[str]) -> tuple[str, dict[str, Path]]:

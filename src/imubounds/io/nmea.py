@@ -41,7 +41,7 @@ import numpy as np
 
 from imubounds.errors import InputError, OptionError
 from imubounds.frames import FRD_TO_FLU
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs

@@ -27,7 +27,7 @@ import numpy as np
 
 from imubounds.errors import ImuboundsError, InputError
 from imubounds.frames import enu_yaw_to_heading, quaternion_yaw_enu
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs

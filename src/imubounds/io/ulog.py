@@ -29,7 +29,7 @@ import numpy as np
 
 from imubounds.errors import ImuboundsError, InputError
 from imubounds.frames import FRD_TO_FLU
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs

@@ -35,7 +35,7 @@ from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 from imubounds.dynamic.aiding.gps import gps_box_halfwidths, parse_gps_box
 from imubounds.dynamic.estimator import kernel as K
 from imubounds.errors import AnalysisError, OptionError
-from imubounds.io.drive import DriveLog
+from imubounds.io.drive_legacy import DriveLog
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")
