@@ -77,6 +77,15 @@ def nonneg_int(text: str) -> int:
     return n
 
 
+def add_force_option(p: argparse.ArgumentParser) -> None:
+    """``--force``: allow overwriting files in the output directory that imubounds did not write."""
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite files in the output directory that imubounds did not write",
+    )
+
+
 def add_log_options(p: argparse.ArgumentParser) -> None:
     """Options that say how to read an IMU log (shared by static, fleet, ...)."""
     g = p.add_argument_group("reading the log")

@@ -17,17 +17,26 @@ def register(sub: Any) -> None:
         "DIR/report.html.",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
+    p.add_argument(
+        "--force", action="store_true", help="overwrite files imubounds did not write"
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.io.outputs import OutputSet
+
+    with OutputSet(args.out, force=args.force) as outset:
+        outset.check(["report.html"])
+        return _run(args, Path(args.out), outset)
+
+
+def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
     from imubounds.cli import main as cli_main
     from imubounds.io import bundled_static_log
     from imubounds.io.drive_readers import bundled_drive_log
-    from imubounds.io.outputs import ensure_dir
 
-    out = Path(ensure_dir(args.out))
     quiet = ["--quiet"] if args.quiet else []
     steps: list[tuple[str, list[str]]] = [
         (
@@ -66,14 +75,15 @@ def run(args: argparse.Namespace) -> int:
     for i, (what, argv) in enumerate(steps, 1):
         if not args.quiet:
             print(f"[{i}/{len(steps) + 1}] {what}")
-        code = cli_main([*argv, *quiet])
+        code = cli_main([*argv, *quiet, *(["--force"] if args.force else [])])
         if code:
             return code
     from imubounds.report.html import write_report
 
     if not args.quiet:
         print(f"[{len(steps) + 1}/{len(steps) + 1}] writing the report")
-    path = write_report(out)
+    write_report(out, dest=outset.path("report.html"))
+    outset.record(getattr(args, "argv", None), command_name="demo")
     if not args.quiet:
-        print(f"demo finished; open {path}")
+        print(f"demo finished; open {out / 'report.html'}")
     return 0

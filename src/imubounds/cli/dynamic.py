@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from imubounds.cli._common import add_force_option
 from imubounds.errors import InputError, OptionError
 
 
@@ -25,6 +26,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument("log", nargs="+", help="drive log directory or the two VN-100 CSV files")
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
+    add_force_option(p)
     src = p.add_mutually_exclusive_group()
     src.add_argument(
         "--static",
@@ -256,15 +258,27 @@ def _steps_table(res: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.io.outputs import OutputSet
+
+    inputs = [*args.log, *(x for x in (args.static, getattr(args, "compass_cal", None)) if x)]
+    with OutputSet(args.out, force=args.force, inputs=inputs) as outset:
+        outset.check(["dynamic.json", "steps.csv", "report.html"])
+        messages = _run(args, outset)
+    if not args.quiet:
+        for m in messages:
+            print(m, file=sys.stderr)
+    return 0
+
+
+def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     from imubounds.dynamic.aiding.compass import read_calibration
     from imubounds.dynamic.estimator import config_dict, config_for_log, scenario_model_error
     from imubounds.dynamic.estimator import run as run_est
     from imubounds.io.drive_readers import read_drive
-    from imubounds.io.outputs import ensure_dir, write_json, write_with
+    from imubounds.io.outputs import write_json, write_with
 
-    def say(msg: str) -> None:
-        if not args.quiet:
-            print(msg, file=sys.stderr)
+    messages: list[str] = []
+    say = messages.append
 
     log = read_drive(list(args.log), mount=args.mount)
     imu = (
@@ -356,7 +370,7 @@ def run(args: argparse.Namespace) -> int:
         me2 = scenario_model_error(log)
         cfg2 = config_for_log(log, imu=imu, mode=args.mode, **{**overrides, **me2})
         doc["with_model_error"] = {"bounds": me2, "summary": run_est(log, cfg2).summary}
-    out = ensure_dir(args.out)
+    out = outset.staging
     write_json(out / "dynamic.json", doc)
     df = _steps_table(primary)
     write_with(out / "steps.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
@@ -367,9 +381,7 @@ def run(args: argparse.Namespace) -> int:
         pd_.plot_intervals(primary, out, title=title)
         pd_.plot_trajectory(primary, out, title=title)
         pd_.plot_comparison(summaries, out)
-    from imubounds.io.outputs import write_run_record
-
-    write_run_record(out, getattr(args, "argv", None), command_name="dynamic")
+    outset.record(getattr(args, "argv", None), command_name="dynamic")
     if not args.no_report:
         from imubounds.report.html import write_report
 
@@ -381,7 +393,7 @@ def run(args: argparse.Namespace) -> int:
     for w in st.warnings:
         say(f"imubounds: note: {w}")
     s = summaries[args.mode]
-    say(f"dynamic ({args.mode} mode, {s['n_steps']} steps of {s['step_s']:g} s) -> {out}")
+    say(f"dynamic ({args.mode} mode, {s['n_steps']} steps of {s['step_s']:g} s) -> {args.out}")
     for ch, c in s["channels"].items():
         lo, hi = c["dynamic_error_mean_interval"]
         f, unit = (180 / math.pi, "deg/s") if ch == "gyro_z" else (1.0, "m/s^2")
@@ -395,4 +407,4 @@ def run(args: argparse.Namespace) -> int:
     n_empty = sum(v["count"] for k, v in s["flags"].items() if "empty" in k)
     if n_empty:
         say(f"  empty intersections: {n_empty} (rule: {s['empty_rule']}); see dynamic.json flags")
-    return 0
+    return messages

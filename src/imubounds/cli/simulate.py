@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from imubounds.cli._common import add_force_option
+
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
@@ -18,6 +20,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--scenario", choices=("paper",), default="paper", help="base scenario")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
+    add_force_option(p)
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="IMU rate (1 Hz)")
     p.add_argument("--gps-rate", type=float, metavar="HZ", help="GPS rate (1 Hz)")
@@ -102,8 +105,14 @@ def run(args: argparse.Namespace) -> int:
         truth_model=args.truth_model,
         bounded=args.bounded,
     )
-    sc = simulate(cfg)
-    out = write_scenario(sc, args.out)
+    from imubounds.io.outputs import OutputSet
+
+    with OutputSet(args.out, force=args.force) as outset:
+        outset.check(["imu.csv", "gps.csv", "compass.csv", "truth.csv", "scenario.json"])
+        sc = simulate(cfg)
+        write_scenario(sc, outset.staging)
+        outset.record(getattr(args, "argv", None), command_name="simulate")
+    out = args.out
     if not args.quiet:
         tr = sc.truth
         print(

@@ -10,6 +10,7 @@ from typing import Any
 
 from imubounds.cli._common import (
     Reporter,
+    add_force_option,
     add_log_options,
     parse_list,
     parse_taus,
@@ -33,6 +34,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "-o", "--out", default="out", metavar="DIR", help="output directory (default: out)"
     )
+    add_force_option(p)
     p.add_argument(
         "--tau",
         default="octave",
@@ -150,7 +152,19 @@ def print_table(result: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.io.outputs import ensure_dir, write_json, write_run_record, write_text
+    from imubounds.io.outputs import OutputSet
+
+    # The output directory is locked and checked before the analysis, not after it;
+    # the results land in it complete or not at all.
+    with OutputSet(args.out, force=args.force, inputs=[args.log]) as outset:
+        outset.check(["noise.json", "imu.yaml", "allan.png", "allan.svg", "report.html"])
+        written = _run(args, outset)
+    Reporter(args.quiet).info(f"wrote {', '.join(written)} to {args.out}")
+    return 0
+
+
+def _run(args: argparse.Namespace, outset: Any) -> list[str]:
+    from imubounds.io.outputs import write_json, write_text
     from imubounds.stationary.pipeline import StaticSettings, analyse_static
     from imubounds.stationary.stream import (
         analyse_static_outofcore,
@@ -207,10 +221,10 @@ def run(args: argparse.Namespace) -> int:
         )
         with rep.session() as progress:
             result = analyse_static(log, settings, channels=channels, progress=progress)
-    outdir = ensure_dir(args.out)
+    outdir = outset.staging
     write_json(outdir / "noise.json", result.to_json())
     write_text(outdir / "imu.yaml", result.kalibr_yaml())
-    write_run_record(outdir, getattr(args, "argv", None), command_name="static")
+    outset.record(getattr(args, "argv", None), command_name="static")
     written = ["noise.json", "imu.yaml", "run.json"]
     if not args.no_plot:
         from imubounds.report.static_plots import allan_figure, save_figure
@@ -233,5 +247,4 @@ def run(args: argparse.Namespace) -> int:
 
         write_report(outdir)
         written.append("report.html")
-    rep.info(f"wrote {', '.join(written)} to {outdir}")
-    return 0
+    return written

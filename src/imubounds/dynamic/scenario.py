@@ -33,9 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -478,11 +475,14 @@ def estimator_settings(sc: Scenario) -> dict[str, object]:
 
 
 def write_scenario(sc: Scenario, out_dir: str | Path) -> Path:
-    """Write the simulator directory atomically (temp dir, then rename)."""
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    """Write the simulator's files into the directory ``out_dir`` (created if needed).
+
+    Callers that need the set to land complete or not at all write into an
+    :class:`imubounds.io.outputs.OutputSet` staging directory.
+    """
+    tmp = Path(out_dir)
+    tmp.mkdir(parents=True, exist_ok=True)
+    if True:
         import pandas as pd
 
         cfg = sc.config
@@ -543,17 +543,7 @@ def write_scenario(sc: Scenario, out_dir: str | Path) -> Path:
             "true_compass_deviation_deg": list(cfg.compass_dev_deg),
         }
         (tmp / "scenario.json").write_text(json.dumps(meta, indent=2))
-        if out.exists():
-            old = out.with_name(out.name + ".old-" + os.urandom(4).hex())
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+    return tmp
 
 
 def closure_error(sc: Scenario) -> float:

@@ -477,9 +477,10 @@ def build_report(directory: str | Path) -> str:
     )
 
 
-def write_report(directory: str | Path) -> Path:
-    """Write ``directory/report.html`` atomically and return its path."""
+def write_report(directory: str | Path, dest: str | Path | None = None) -> Path:
+    """Write the report of ``directory`` to ``dest`` (default ``directory/report.html``)
+    atomically and return its path."""
     from imubounds.io.outputs import write_text
 
     root = Path(directory)
-    return write_text(root / "report.html", build_report(root))
+    return write_text(Path(dest) if dest is not None else root / "report.html", build_report(root))
