@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-test
 OUT ?= out
 PYTEST_ARGS ?=
 
-.PHONY: demo test lint bench clean venv browser
+.PHONY: demo test lint bench clean venv browser docs
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -40,10 +40,13 @@ test: $(STAMP) browser
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
 
+docs: $(STAMP)
+	$(VENV)/bin/mkdocs build --strict -d site
+
 bench: $(STAMP)
 	$(PY) benchmarks/bench_allan.py
 	$(PY) benchmarks/bench_interval.py
 	$(PY) benchmarks/bench_estimator.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache .hypothesis
+	rm -rf $(VENV) $(OUT) site .pytest_cache .ruff_cache .hypothesis
