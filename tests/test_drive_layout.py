@@ -66,7 +66,7 @@ def test_rotated_mount_is_undone_by_imu_axes(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "data, message",
     [
-        ({"gnss": {"cep": 3}}, "unknown key 'cep'"),
+        ({"gnss": {"cep": 3}}, "unknown key gnss.cep"),
         ({"colour": 1}, "unknown key 'colour'"),
         ({"imu_axes": ["x", "x", "z"]}, "not a rotation"),
         ({"imu_axes": ["x", "y", "w"]}, "use x, y, z"),
