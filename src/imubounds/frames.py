@@ -90,6 +90,19 @@ def axes_matrix(imu_axes: tuple[str, ...] | list[str]) -> np.ndarray:
     return m
 
 
+def rotate_axes(v: np.ndarray, r_body_sensor: np.ndarray) -> np.ndarray:
+    """Sensor-axis vectors (n, 3) -> body axes for a signed permutation from
+    :func:`axes_matrix`, by indexing (no products, so one infinite or NaN component stays
+    in its own axis instead of spreading to the others)."""
+    v = np.asarray(v, dtype=float)
+    m = np.asarray(r_body_sensor, dtype=float)
+    out = np.empty_like(v)
+    for i in range(3):
+        j = int(np.flatnonzero(m[i])[0])
+        out[:, i] = m[i, j] * v[:, j]
+    return out
+
+
 def is_identity_axes(imu_axes: tuple[str, ...] | list[str]) -> bool:
     """True if ``imu_axes`` maps every sensor axis onto the same body axis."""
     return bool(np.array_equal(axes_matrix(imu_axes), np.eye(3)))

@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 
 from imubounds.errors import InputError, OptionError
-from imubounds.frames import axes_matrix, is_identity_axes, quaternion_to_rpy
+from imubounds.frames import axes_matrix, is_identity_axes, quaternion_to_rpy, rotate_axes
 from imubounds.io.drive import (
     AttitudeStream,
     Drive,
@@ -501,8 +501,8 @@ def imu_from_table(df: pd.DataFrame, where: str, rot: np.ndarray) -> ImuStream:
     acc = np.full((n, 3), np.nan) if acc is None else acc
     return ImuStream(
         t=t,
-        accel=acc @ rot.T,
-        gyro=gyro @ rot.T,
+        accel=rotate_axes(acc, rot),
+        gyro=rotate_axes(gyro, rot),
         input_units={"gyro": gu or "", "accel": au or ""},
     )
 
@@ -593,7 +593,7 @@ def heading_from_table(
         rows = np.ones(t.size, bool) if h is None else np.isfinite(mag).any(axis=1)
         if rows.any():
             ms = MagStream(
-                t=t[rows], mag=mag[rows] @ mag_rot.T, unit="raw" if mu == "raw" else "T"
+                t=t[rows], mag=rotate_axes(mag[rows], mag_rot), unit="raw" if mu == "raw" else "T"
             )
         elif hs is None:
             raise InputError(f"{where}: the magnetometer columns have no finite value")
@@ -807,7 +807,7 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
         if fmt == "parquet":
             df.to_parquet(path, index=False)
         else:
-            df.to_csv(path, index=False, float_format="%.17g")
+            df.to_csv(path, index=False)  # shortest repr: reads back bit for bit
 
     if drive.imu is not None:
         cols: dict[str, Any] = {"time_s": drive.imu.t}
@@ -884,9 +884,11 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
         cols.update(tr.extra)
         put("truth", cols)
     doc = settings_to_dict(settings)
-    doc["converted_from"] = drive.source
-    if drive.notes:
-        doc["notes"] = list(drive.notes)
+    doc["converted_from"] = drive.meta.get("converted_from", drive.source)
+    notes = [*drive.notes, *(f"when converted: {w}" for w in drive.warnings
+                             if f"when converted: {w}" not in drive.notes)]
+    if notes:
+        doc["notes"] = notes
     header = (
         "# drive settings (imubounds drive layout, docs/drive-layout.md); settings left out\n"
         "# take their documented default and are listed as assumed by every output\n"
@@ -900,13 +902,14 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
 def _put_heading(drive: Drive, put: Any, settings: DriveSettings) -> None:
     h, m = drive.heading, drive.mag
     if h is not None:
-        settings.heading.sensor = h.source if h.source in ("compass", "gnss", "ahrs") else (
-            "compass"
-        )
-        settings.heading.reference = "true" if h.true_north else "magnetic"
-        settings.defaulted = [
-            k for k in settings.defaulted if k not in ("heading.sensor", "heading.reference")
-        ]
+        # say what the heading column is when it is not the default (a magnetic compass)
+        sensor = h.source if h.source in ("compass", "gnss", "ahrs") else "compass"
+        reference = "true" if h.true_north else "magnetic"
+        for key, value, default in (("sensor", sensor, "compass"),
+                                    ("reference", reference, "magnetic")):
+            setattr(settings.heading, key, value)
+            if value != default and f"heading.{key}" in settings.defaulted:
+                settings.defaulted.remove(f"heading.{key}")
     if h is not None and m is not None and not np.array_equal(h.t, m.t):
         t = np.union1d(h.t, m.t)
         hh: np.ndarray | None = np.full(t.size, np.nan)

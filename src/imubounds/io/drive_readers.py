@@ -72,6 +72,7 @@ from imubounds.frames import (
     is_identity_axes,
     matrix_to_rpy,
     mount_attitude,
+    rotate_axes,
     wrap_pi,
 )
 from imubounds.io.drive import (
@@ -285,10 +286,10 @@ def apply_mount(drive: Drive, *, attitude_of_sensor: bool = False) -> None:
     rot = axes_matrix(s.imu_axes)
     mag_rot = axes_matrix(s.mag_axes) if s.mag_axes is not None else rot
     if drive.imu is not None:
-        drive.imu.accel = drive.imu.accel @ rot.T
-        drive.imu.gyro = drive.imu.gyro @ rot.T
+        drive.imu.accel = rotate_axes(drive.imu.accel, rot)
+        drive.imu.gyro = rotate_axes(drive.imu.gyro, rot)
     if drive.mag is not None:
-        drive.mag.mag = drive.mag.mag @ mag_rot.T
+        drive.mag.mag = rotate_axes(drive.mag.mag, mag_rot)
     a = drive.attitude
     if attitude_of_sensor and a is not None and not is_identity_axes(s.imu_axes):
         a.roll_rad, a.pitch_rad, a.yaw_rad = mount_attitude(a.roll_rad, a.pitch_rad,
@@ -703,7 +704,7 @@ def read_mapped_csv(
         check_input_path(p, "CSV log", directory=False)
         df = _read_any_table(p)
         rename = {src: key for key, src in cmap.items() if src in df.columns}
-        used |= set(rename)
+        used |= set(rename.values())
         mapped = df.rename(columns=rename)
         tcols = [c for c in mapped.columns if c.partition(".")[2] in _TIME_TARGETS
                  or c in _TIME_TARGETS]
@@ -848,6 +849,7 @@ def read_drive(
             )
         else:
             drive = read_mapped_csv(files["paths"], columns, s)
+        _settings_from_streams(drive)
         if info.get("notes"):
             drive.notes[:0] = [str(n) for n in info["notes"]]
     if columns and layout != "csv":
@@ -855,6 +857,20 @@ def read_drive(
     if validate:
         validate_drive(drive, max_speed_mps=max_speed_mps)
     return drive
+
+
+def _settings_from_streams(drive: Drive) -> None:
+    """What a reader knows about its heading stream goes into the settings (unless the
+    user's drive.yaml said otherwise), so that a converted drive.yaml says it too."""
+    h = drive.heading
+    if h is None:
+        return
+    where = f"the {drive.layout} reader"
+    sensor = h.source if h.source in ("compass", "gnss", "ahrs") else "compass"
+    if sensor != "compass":
+        _given(drive.settings, "heading.sensor", sensor, where)
+    if h.true_north:
+        _given(drive.settings, "heading.reference", "true", where)
 
 
 def bundled_drive_log() -> Path:

@@ -220,8 +220,8 @@ def _check_gyro_units(drive: Drive, f: str) -> None:
     ref = _unwrapped_reference_heading(drive)
     if ref is None:
         return
-    slope, corr, turned = _rate_slope(imu.t, -g[:, 2], *ref[:2])
-    if slope is None or corr < 0.8 or turned < math.radians(90.0):
+    slope, r2, turned = _rate_slope(imu.t, -g[:, 2], *ref[:2])
+    if slope is None or r2 < 0.5 or turned < math.radians(90.0):
         return
     deg = 180.0 / math.pi
     if 0.6 * deg < slope < 1.5 * deg:
@@ -245,8 +245,9 @@ def _check_gyro_units(drive: Drive, f: str) -> None:
 def _rate_slope(
     t_imu: np.ndarray, rate: np.ndarray, t_ref: np.ndarray, psi_ref: np.ndarray
 ) -> tuple[float | None, float, float]:
-    """Slope and correlation of the IMU's clockwise rate against a reference heading's
-    rate over intervals of at least 0.5 s, and the total turn of the reference (rad)."""
+    """Slope (through the origin) of the IMU's clockwise rate against a reference heading's
+    rate over intervals of at least 0.5 s, the fit's R^2, and the total turn (rad) of the
+    reference. A constant gyro bias only perturbs the slope."""
     lo, hi = max(t_imu[0], t_ref[0]), min(t_imu[-1], t_ref[-1])
     if hi - lo < 5.0:
         return None, 0.0, 0.0
@@ -259,11 +260,13 @@ def _rate_slope(
     cum = np.concatenate(([0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t_imu))))
     imu_rate = np.diff(np.interp(grid, t_imu, cum)) / step
     turned = float(np.sum(np.abs(np.diff(psi))))
-    if np.std(ref_rate) == 0 or np.std(imu_rate) == 0:
+    den = float(np.sum(ref_rate**2))
+    tot = float(np.sum(imu_rate**2))
+    if den == 0 or tot == 0:
         return None, 0.0, turned
-    corr = float(np.corrcoef(ref_rate, imu_rate)[0, 1])
-    slope = float(np.polyfit(ref_rate, imu_rate, 1)[0])
-    return slope, abs(corr), turned
+    slope = float(np.sum(ref_rate * imu_rate) / den)
+    r2 = 1.0 - float(np.sum((imu_rate - slope * ref_rate) ** 2)) / tot
+    return slope, r2, turned
 
 
 def _check_accel_units(drive: Drive, f: str) -> None:
@@ -503,7 +506,9 @@ def _check_velocity(drive: Drive, max_speed: float) -> None:
     keep = np.isfinite(v.u_mps)
     nb = int((~keep).sum())
     if nb == v.t.size:
-        raise InputError(f"{f}: u_mps has no finite value in {v.t.size} row(s)")
+        beyond = drive.counts.get("velocity_beyond_max", 0)
+        why = f" ({beyond} beyond the maximum speed {max_speed:g} m/s)" if beyond else ""
+        raise InputError(f"{f}: u_mps has no usable value in {v.t.size} row(s){why}")
     if nb:
         drive.warn("velocity_nan", nb, f"{f}: {nb} row(s) with NaN u_mps skipped")
         v.t = v.t[keep]
