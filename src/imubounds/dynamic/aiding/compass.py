@@ -580,27 +580,45 @@ def _mag_heading(
             notes.append(f"{int((~inside).sum())} magnetometer sample(s) outside the attitude "
                          "stream: its end values are used for their tilt")
     if fit == "ellipse":
+        from imubounds.dynamic.aiding.magcal import MIN_COVERAGE_DEG
+
+        turn = _imu_turn_deg(drive, m.t[0], m.t[-1])
+        if turn is not None and turn < MIN_COVERAGE_DEG:
+            raise AnalysisError(
+                f"{drive.source}: the drive turns through {turn:.0f} deg of heading only (the "
+                f"IMU's yaw over the magnetometer's time); an ellipse fit of the magnetometer "
+                f"needs {MIN_COVERAGE_DEG:.0f} deg or more: give a swing calibration file, "
+                "heading.deviation_deg, or fit to the GNSS course explicitly"
+            )
         cal = fit_magnetometer(m.mag, roll, pitch)
-        n = cal.n
-        k = k_sigma(alpha, n)
-        sigma = max(cal.residual_rms, cal.residual_max / k)
+        k = k_sigma(alpha, cal.n)
+        sigma = cal.residual_sigma
+        radial = cal.residual(m.mag, roll, pitch)
+        keep = np.abs(radial) <= k * sigma
         heading = cal.heading(m.mag, roll, pitch)
-        # parameter error of the fit (5 parameters), at 3 sigma
-        fit_term = 3.0 * cal.residual_rms * math.sqrt(5.0 / max(n, 1))
+        # parameter error of the fit (10 parameters), at 3 sigma
+        fit_term = 3.0 * sigma * math.sqrt(10.0 / max(cal.n, 1))
         detail["ellipse"] = cal.to_dict()
+        detail["ellipse"]["disturbed_samples"] = int((~keep).sum())
         notes.append(
-            f"magnetometer calibrated by an ellipse fit ({cal.mode}, "
+            f"magnetometer calibrated by an ellipse fit ("
             f"{'tilt-compensated with the attitude' if cal.levelled else 'level assumed'}; "
-            f"hard and soft iron) on {n} samples covering {cal.coverage_deg:.0f} deg: residual "
-            f"{100 * cal.residual_rms:.1f} % rms, {100 * cal.residual_max:.1f} % max of the "
-            "horizontal field"
+            f"hard and soft iron) on {cal.n} samples covering {cal.coverage_deg:.0f} deg: "
+            f"residual {100 * sigma:.1f} % (robust sigma), {100 * cal.residual_max:.1f} % max "
+            "of the horizontal field"
         )
         notes.append(
-            "heading error bound from the fit's radial residual, assuming the disturbance is "
-            "as large across the field as along it (isotropic)"
+            "heading noise from the fit's radial residual, assuming the disturbance of the field "
+            "is as large across it as along it (isotropic)"
         )
+        if not keep.all():
+            notes.append(
+                f"{int((~keep).sum())} magnetometer sample(s) with a disturbed field (radial "
+                f"residual beyond {k:.1f} sigma) dropped"
+            )
         notes.extend(cal.notes)
-        return m.t, heading, True, math.asin(min(1.0, sigma)), math.asin(min(1.0, fit_term))
+        return (m.t[keep], heading[keep], True, math.asin(min(1.0, sigma)),
+                math.asin(min(1.0, fit_term)))
     # a swing file or a GNSS fit of the raw levelled magnetometer (hard iron as one-cycle)
     from imubounds.frames import level_vectors
 
@@ -608,6 +626,20 @@ def _mag_heading(
     heading = heading_from_magnetometer(v[:, 0], v[:, 1], "FLU")
     notes.append("magnetometer heading from the raw field (levelled when the attitude is known)")
     return m.t, heading, True, math.radians(drive.settings.heading.noise_deg), 0.0
+
+
+def _imu_turn_deg(drive: Any, t0: float, t1: float) -> float | None:
+    """Range of the heading the IMU's gyro z turns through over [t0, t1] (deg), a check of
+    whether a magnetometer self-calibration can work; None without a gyro z."""
+    imu = drive.imu
+    if imu is None or not np.isfinite(imu.gyro[:, 2]).all():
+        return None
+    sel = (imu.t >= t0) & (imu.t <= t1)
+    if sel.sum() < 2:
+        return None
+    t, gz = imu.t[sel], imu.gyro[sel, 2]
+    psi = np.concatenate(([0.0], np.cumsum(0.5 * (gz[1:] + gz[:-1]) * np.diff(t))))
+    return float(np.degrees(np.ptp(psi)))
 
 
 def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_speed: float) -> None:

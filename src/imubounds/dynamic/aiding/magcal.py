@@ -1,31 +1,35 @@
-"""Hard- and soft-iron calibration of a raw magnetometer by an ellipse (or ellipsoid) fit.
+"""Hard- and soft-iron calibration of a raw magnetometer by an ellipse fit (no reference).
 
-No reference heading is needed (no GNSS, no swing): the field the sensor sees
-while the vehicle turns traces an ellipse in the level plane,
+No reference heading is needed (no GNSS, no swing). The sensor reads
 
-    m_h = W^-1 H (cos psi, sin psi) + c + e,
+    m = W^-1 C_bn^T F + h + e,
 
-with hard iron ``c`` (an offset), soft iron ``W^-1`` (a symmetric distortion),
-the horizontal field ``H`` and a disturbance ``e``. Fitting the ellipse gives
-``c`` and ``W`` up to scale; the corrected vector ``W (m_h - c) / H`` lies on
-the unit circle and its angle is the magnetic heading (clockwise from north;
-in the FLU body frame the field's forward component is ``cos psi`` and its
-left component ``sin psi``).
+with the Earth's field ``F`` (horizontal ``H`` towards magnetic north,
+vertical ``V``), the body attitude ``C_bn`` (roll, pitch, heading), hard iron
+``h`` (an offset), soft iron ``W^-1`` (a symmetric distortion) and a
+disturbance ``e``. The corrected vector ``c = W (m - h)``, levelled with the
+attitude's roll and pitch, is the field in the level frame of the vehicle:
+its horizontal part traces a circle of radius ``H`` as the vehicle turns and
+its vertical part stays ``V``. The fit finds ``h`` (3), the symmetric ``W``
+(6, scaled so that the circle has radius 1) and ``V/H`` by least squares on
+both (initialised by an algebraic ellipse fit of the levelled samples); the
+corrected horizontal angle is the magnetic heading (clockwise from north: in
+the FLU body frame the field's forward part is ``cos psi`` and its left part
+``sin psi``). The vertical hard iron is observable only through tilt changes;
+when the vehicle stays level it does not matter either.
 
-Tilt: with an attitude stream the raw vectors are levelled (roll, pitch)
-before the fit, so the fit sees the horizontal field; without one the vehicle
-is assumed level and the effect of its tilt ends up in the residual. When the
-data span three dimensions (a vehicle that rolls and pitches a lot) and an
-attitude stream exists, the fit is an ellipsoid in the body frame and the
-corrected vectors are levelled afterwards (``mode="3d"``).
+Without an attitude stream the vehicle is taken as level; its tilt changes
+then end up in the residual.
 
-What the residual says, and what it cannot: the radial residual ``|W (m -
-c)/H| - 1`` of each sample measures the disturbance of the field seen during
-this drive; under the stated assumption that the disturbance is isotropic,
-the heading error it causes (the tangential part) has the same size. A
-constant rotation (the magnetometer's yaw misalignment to the vehicle axis,
-a rotational part of the soft iron) leaves the ellipse unchanged and is
-invisible to any self-calibration: it is a separate, stated allowance
+What the residual says, and what it cannot: the radial residual ``|c_h| - 1``
+of each sample measures the disturbance of the field seen during this drive.
+Its robust standard deviation (MAD) is the noise level; under the stated
+assumption that the disturbance is isotropic, the heading error it causes
+(the tangential part) has the same distribution. Samples whose radial
+residual exceeds ``k`` noise levels show a disturbed field and are dropped
+(counted). A constant rotation (the magnetometer's yaw misalignment to the
+vehicle axis, a rotational part of the soft iron) leaves the fit unchanged
+and is invisible to any self-calibration: it is a separate, stated allowance
 (``heading.alignment_deg``).
 """
 
@@ -53,13 +57,14 @@ class MagCalibration:
 
     Attributes
     ----------
-    mode:
-        ``"2d"`` (ellipse in the level plane) or ``"3d"`` (ellipsoid in the body).
     hard_iron:
-        Offset in the data's unit: (2,) in the level plane, or (3,) in the body.
+        Offset (3,) in the data's unit, body axes.
     soft_iron:
-        Symmetric matrix (2x2 or 3x3) taking ``m - hard_iron`` onto the unit
-        circle (sphere): the correction, field strength included.
+        Symmetric 3x3 matrix taking ``m - hard_iron`` to the corrected field in
+        units of the horizontal field ``field``.
+    vertical_ratio:
+        Vertical over horizontal field (``V/H``; negative north of the magnetic
+        equator, body z up).
     field:
         Horizontal field strength, in the data's unit.
     levelled:
@@ -68,17 +73,21 @@ class MagCalibration:
         Samples used.
     coverage_deg:
         Heading range the samples cover (10 deg bins), deg.
+    residual_sigma:
+        Robust standard deviation (1.4826 MAD) of the radial residual, as a
+        fraction of the horizontal field.
     residual_rms, residual_max:
-        RMS and max of the radial residual ``|corrected| - 1`` (fraction of the field).
+        RMS and largest radial residual of the samples used.
     """
 
-    mode: str
     hard_iron: np.ndarray
     soft_iron: np.ndarray
+    vertical_ratio: float
     field: float
     levelled: bool
     n: int
     coverage_deg: float
+    residual_sigma: float
     residual_rms: float
     residual_max: float
     notes: list[str] = field(default_factory=list)
@@ -86,17 +95,14 @@ class MagCalibration:
     def corrected(
         self, mag: np.ndarray, roll: np.ndarray | None = None, pitch: np.ndarray | None = None
     ) -> np.ndarray:
-        """Corrected horizontal field (n, 2) in the level frame (x forward, y left), unit
-        length for an undisturbed sample."""
-        m = np.asarray(mag, dtype=float)
+        """Corrected field (n, 3) in the level frame (x forward, y left, z up), in units of
+        the horizontal field: the horizontal part has length 1 for an undisturbed sample."""
         if self.levelled and (roll is None or pitch is None):
             raise OptionError("this calibration was fitted on levelled data: give roll, pitch")
-        if self.mode == "3d":
-            c = level_vectors((m - self.hard_iron) @ self.soft_iron.T, roll, pitch)  # type: ignore[arg-type]
-            return c[:, :2]
-        if self.levelled:
-            m = level_vectors(m, roll, pitch)  # type: ignore[arg-type]
-        return (m[:, :2] - self.hard_iron) @ self.soft_iron.T
+        c = (np.asarray(mag, dtype=float) - self.hard_iron) @ self.soft_iron.T
+        if roll is None or pitch is None:
+            return c
+        return level_vectors(c, roll, pitch)
 
     def heading(
         self, mag: np.ndarray, roll: np.ndarray | None = None, pitch: np.ndarray | None = None
@@ -108,19 +114,20 @@ class MagCalibration:
     def residual(
         self, mag: np.ndarray, roll: np.ndarray | None = None, pitch: np.ndarray | None = None
     ) -> np.ndarray:
-        """Radial residual ``|corrected| - 1`` (2d) of raw samples."""
+        """Radial residual ``|corrected horizontal| - 1`` of raw samples."""
         c = self.corrected(mag, roll, pitch)
         return np.hypot(c[:, 0], c[:, 1]) - 1.0
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "mode": self.mode,
             "hard_iron": self.hard_iron.tolist(),
             "soft_iron": self.soft_iron.tolist(),
+            "vertical_ratio": self.vertical_ratio,
             "field": self.field,
             "levelled": self.levelled,
             "n": self.n,
             "coverage_deg": self.coverage_deg,
+            "residual_sigma": self.residual_sigma,
             "residual_rms": self.residual_rms,
             "residual_max": self.residual_max,
             "notes": list(self.notes),
@@ -135,13 +142,8 @@ def _sym_sqrt(m: np.ndarray) -> np.ndarray:
 
 
 def fit_ellipse(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ellipse through 2-D points: (centre (2,), S (2x2 symmetric)) with |S (p - centre)| = 1.
-
-    An algebraic conic fit (on normalised data) refined by geometric least squares
-    on the radial residual.
-    """
-    from scipy.optimize import least_squares
-
+    """Algebraic ellipse through 2-D points (on normalised data): (centre (2,), S (2x2
+    symmetric)) with ``|S (p - centre)| = 1`` for points on the ellipse."""
     p = np.asarray(xy, dtype=float)
     mu = p.mean(axis=0)
     scale = float(np.sqrt(np.mean(np.sum((p - mu) ** 2, axis=1)))) or 1.0
@@ -161,63 +163,7 @@ def fit_ellipse(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     k = ctr @ m @ ctr - f
     if k <= 0:
         raise AnalysisError("the magnetometer ellipse fit is degenerate")
-    s0 = _sym_sqrt(m / k)
-
-    def resid(v: np.ndarray) -> np.ndarray:
-        s = np.array([[v[2], v[3]], [v[3], v[4]]])
-        r = (q - v[:2]) @ s.T
-        return np.hypot(r[:, 0], r[:, 1]) - 1.0
-
-    v0 = np.array([ctr[0], ctr[1], s0[0, 0], s0[0, 1], s0[1, 1]])
-    v = least_squares(resid, v0, method="lm").x
-    s = np.array([[v[2], v[3]], [v[3], v[4]]])
-    if np.linalg.det(s) <= 0 or np.trace(s) <= 0:
-        s, v = s0, v0
-    return mu + scale * v[:2], s / scale
-
-
-def fit_ellipsoid(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ellipsoid through 3-D points: (centre (3,), S (3x3 symmetric)) with |S (p - c)| = 1."""
-    from scipy.optimize import least_squares
-
-    p = np.asarray(xyz, dtype=float)
-    mu = p.mean(axis=0)
-    scale = float(np.sqrt(np.mean(np.sum((p - mu) ** 2, axis=1)))) or 1.0
-    q = (p - mu) / scale
-    x, y, z = q.T
-    d = np.column_stack(
-        [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z,
-         np.ones_like(x)]
-    )
-    v = np.linalg.svd(d, full_matrices=False)[2][-1]
-    m = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
-    g, f = v[6:9], v[9]
-    if np.trace(m) < 0:
-        m, g, f = -m, -g, -f
-    if np.any(np.linalg.eigvalsh(m) <= 0):
-        raise AnalysisError("the magnetometer samples do not lie on an ellipsoid")
-    ctr = np.linalg.solve(m, -g)
-    k = ctr @ m @ ctr - f
-    if k <= 0:
-        raise AnalysisError("the magnetometer ellipsoid fit is degenerate")
-    s0 = _sym_sqrt(m / k)
-    iu = np.triu_indices(3)
-
-    def unpack(w: np.ndarray) -> np.ndarray:
-        s = np.zeros((3, 3))
-        s[iu] = w[3:]
-        return s + np.triu(s, 1).T
-
-    def resid(w: np.ndarray) -> np.ndarray:
-        r = (q - w[:3]) @ unpack(w).T
-        return np.linalg.norm(r, axis=1) - 1.0
-
-    w0 = np.concatenate([ctr, s0[iu]])
-    w = least_squares(resid, w0, method="lm").x
-    s = unpack(w)
-    if np.any(np.linalg.eigvalsh(s) <= 0):
-        s, w = s0, w0
-    return mu + scale * w[:3], s / scale
+    return mu + scale * ctr, _sym_sqrt(m / k) / scale
 
 
 def heading_coverage_deg(heading_rad: np.ndarray, bin_deg: float = 10.0) -> float:
@@ -227,12 +173,45 @@ def heading_coverage_deg(heading_rad: np.ndarray, bin_deg: float = 10.0) -> floa
     return float(bins.size * bin_deg)
 
 
+_IU = np.triu_indices(3)
+
+
+def fit_ellipsoid(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Algebraic ellipsoid through 3-D points: (centre (3,), S (3x3 symmetric)) with
+    ``|S (p - centre)| = 1`` on the ellipsoid."""
+    p = np.asarray(xyz, dtype=float)
+    mu = p.mean(axis=0)
+    scale = float(np.sqrt(np.mean(np.sum((p - mu) ** 2, axis=1)))) or 1.0
+    x, y, z = ((p - mu) / scale).T
+    d = np.column_stack(
+        [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z,
+         np.ones_like(x)]
+    )
+    w = np.linalg.svd(d, full_matrices=False)[2][-1]
+    m = np.array([[w[0], w[3], w[4]], [w[3], w[1], w[5]], [w[4], w[5], w[2]]])
+    g, f = w[6:9], w[9]
+    if np.trace(m) < 0:
+        m, g, f = -m, -g, -f
+    if np.any(np.linalg.eigvalsh(m) <= 0):
+        raise AnalysisError("the magnetometer samples do not lie on an ellipsoid")
+    ctr = np.linalg.solve(m, -g)
+    k = ctr @ m @ ctr - f
+    if k <= 0:
+        raise AnalysisError("the magnetometer ellipsoid fit is degenerate")
+    return mu + scale * ctr, _sym_sqrt(m / k) / scale
+
+
+def _unpack(w: np.ndarray) -> np.ndarray:
+    s = np.zeros((3, 3))
+    s[_IU] = w
+    return s + np.triu(s, 1).T
+
+
 def fit_magnetometer(
     mag: np.ndarray,
     roll: np.ndarray | None = None,
     pitch: np.ndarray | None = None,
     *,
-    mode: str = "auto",
     min_coverage_deg: float = MIN_COVERAGE_DEG,
 ) -> MagCalibration:
     """Fit the hard and soft iron of raw magnetometer samples (n, 3) in body FLU axes.
@@ -243,70 +222,98 @@ def fit_magnetometer(
         Raw samples, any unit (the field strength is fitted).
     roll, pitch:
         Attitude (rad) at the samples, for tilt compensation; None: level.
-    mode:
-        ``"2d"``, ``"3d"`` (needs ``roll``/``pitch`` and samples spanning three
-        dimensions) or ``"auto"`` (3d when the samples span three dimensions and
-        the attitude is known, else 2d).
     min_coverage_deg:
         Refuse (:class:`AnalysisError`) when the corrected headings cover less
         of the circle: the ellipse is then not determined.
     """
+    from scipy.optimize import least_squares
+
     m = np.asarray(mag, dtype=float)
     if m.ndim != 2 or m.shape[1] != 3:
         raise OptionError("magnetometer samples must be an (n, 3) array")
-    ok = np.isfinite(m).all(axis=1)
     levelled = roll is not None and pitch is not None
-    if levelled:
-        r_ = np.asarray(roll, dtype=float)
-        p_ = np.asarray(pitch, dtype=float)
-        ok &= np.isfinite(r_) & np.isfinite(p_)
-        r_, p_ = r_[ok], p_[ok]
-    m = m[ok]
+    ok = np.isfinite(m).all(axis=1)
+    r_ = np.zeros(m.shape[0]) if roll is None else np.asarray(roll, dtype=float)
+    p_ = np.zeros(m.shape[0]) if pitch is None else np.asarray(pitch, dtype=float)
+    ok &= np.isfinite(r_) & np.isfinite(p_)
+    m, r_, p_ = m[ok], r_[ok], p_[ok]
     if m.shape[0] < MIN_SAMPLES:
         raise AnalysisError(
             f"the magnetometer calibration needs at least {MIN_SAMPLES} samples, got {m.shape[0]}"
         )
-    if mode not in ("auto", "2d", "3d"):
-        raise OptionError(f"magnetometer fit mode must be auto, 2d or 3d, got {mode!r}")
+    lev = level_vectors(m, r_, p_)
+    starts: list[tuple[np.ndarray, np.ndarray]] = []
+    ctr, s2 = fit_ellipse(lev[:, :2])
+    s3 = np.eye(3) * float(np.sqrt(np.linalg.det(s2)))
+    s3[:2, :2] = s2
+    starts.append((np.array([ctr[0], ctr[1], 0.0]), s3))
     spread = np.linalg.svd(m - m.mean(axis=0), compute_uv=False)
-    three_d = bool(spread[2] > 0.3 * spread[0])
-    if mode == "3d" and not levelled:
-        raise OptionError("a 3-D magnetometer fit needs the attitude (roll, pitch)")
-    use_3d = mode == "3d" or (mode == "auto" and three_d and levelled)
-    notes: list[str] = []
-    if use_3d:
-        ctr, s = fit_ellipsoid(m)
-        c3 = level_vectors((m - ctr) @ s.T, r_, p_)
-        h_frac = float(np.median(np.hypot(c3[:, 0], c3[:, 1])))  # cos(inclination)
-        c = c3[:, :2] / h_frac
-        total = 1.0 / float(np.mean(np.linalg.eigvalsh(s)))
-        cal_args: tuple[Any, ...] = ("3d", ctr, s / h_frac, total * h_frac)
-    else:
-        pts = level_vectors(m, r_, p_) if levelled else m
-        ctr, s = fit_ellipse(pts[:, :2])
-        c = (pts[:, :2] - ctr) @ s.T
-        field_strength = 1.0 / float(np.sqrt(np.linalg.det(s)))
-        cal_args = ("2d", ctr, s, field_strength)
-        if not levelled:
-            notes.append("no attitude: the vehicle is taken as level; its tilt during the drive "
-                         "is part of the residual")
-    radial = np.hypot(c[:, 0], c[:, 1]) - 1.0
-    heading = np.arctan2(c[:, 1], c[:, 0])
-    cover = heading_coverage_deg(heading)
+    if levelled and spread[2] > 0.1 * spread[0]:
+        # samples spanning 3-D (large tilts): also start from the ellipsoid of the raw samples
+        try:
+            h0, e3 = fit_ellipsoid(m)
+        except AnalysisError:
+            pass
+        else:
+            ce = level_vectors((m - h0) @ e3.T, r_, p_)
+            starts.append((h0, e3 / float(np.median(np.hypot(ce[:, 0], ce[:, 1])))))
+    h0, s3 = starts[0]
+    c0 = level_vectors((m - h0) @ s3.T, r_, p_)
+    cover = heading_coverage_deg(np.arctan2(c0[:, 1], c0[:, 0]))
     if cover < min_coverage_deg:
         raise AnalysisError(
             f"the drive turns through {cover:.0f} deg of heading only; an ellipse fit of the "
             f"magnetometer needs {min_coverage_deg:.0f} deg or more (drive a full circle, give a "
             "swing calibration file, heading.deviation_deg, or fit to the GNSS course explicitly)"
         )
+    best = None
+    for h0, s3 in starts:
+        c0 = level_vectors((m - h0) @ s3.T, r_, p_)
+        v0 = np.concatenate([h0, s3[_IU], [float(np.median(c0[:, 2]))]])
+        det2 = float(np.sqrt(np.linalg.det(s3[:2, :2])))
+        # The vertical hard iron and the vertical row of the soft iron show only through
+        # tilt changes: a weak pull towards the start keeps them defined on a level drive.
+        scale = np.concatenate([np.full(3, 1.0 / det2), np.full(6, det2)])
+        weak = np.array([2, 5, 7, 8])  # hz, S[0,2], S[1,2], S[2,2] in v
+        lam = 1e-3 * math.sqrt(m.shape[0])
+
+        def resid(v: np.ndarray, v0: np.ndarray = v0, scale: np.ndarray = scale,
+                  weak: np.ndarray = weak, lam: float = lam) -> np.ndarray:
+            c = level_vectors((m - v[:3]) @ _unpack(v[3:9]).T, r_, p_)
+            pull = lam * (v[weak] - v0[weak]) / scale[weak]
+            return np.concatenate([np.hypot(c[:, 0], c[:, 1]) - 1.0, c[:, 2] - v[9], pull])
+
+        sol = least_squares(resid, v0, method="lm")
+        if np.all(np.linalg.eigvalsh(_unpack(sol.x[3:9])) > 0) and (
+            best is None or sol.cost < best.cost
+        ):
+            best = sol
+    if best is None:
+        raise AnalysisError(
+            "the magnetometer fit did not converge to a soft-iron correction (does the drive "
+            f"turn through {min_coverage_deg:.0f} deg or more?)"
+        )
+    v = best.x
+    s = _unpack(v[3:9])
+    if np.any(np.linalg.eigvalsh(s) <= 0):
+        raise AnalysisError("the magnetometer fit did not converge to a soft-iron correction")
+    c = level_vectors((m - v[:3]) @ s.T, r_, p_)
+    radial = np.hypot(c[:, 0], c[:, 1]) - 1.0
+    cover = heading_coverage_deg(np.arctan2(c[:, 1], c[:, 0]))
+    notes: list[str] = []
+    if not levelled:
+        notes.append("no attitude: the vehicle is taken as level; its tilt during the drive "
+                     "is part of the residual")
+    sigma = 1.4826 * float(np.median(np.abs(radial - np.median(radial))))
     return MagCalibration(
-        mode=cal_args[0],
-        hard_iron=np.asarray(cal_args[1], dtype=float),
-        soft_iron=np.asarray(cal_args[2], dtype=float),
-        field=float(cal_args[3]),
+        hard_iron=v[:3].copy(),
+        soft_iron=s,
+        vertical_ratio=float(v[9]),
+        field=1.0 / float(np.cbrt(abs(np.linalg.det(s)))),
         levelled=levelled,
         n=int(m.shape[0]),
         coverage_deg=cover,
+        residual_sigma=max(sigma, 1e-12),
         residual_rms=float(np.sqrt(np.mean(radial**2))),
         residual_max=float(np.max(np.abs(radial))),
         notes=notes,
