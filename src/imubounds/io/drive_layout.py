@@ -124,7 +124,13 @@ TABLE_COLUMNS: dict[str, tuple[str, ...]] = {
 }
 
 _AXES = {"x": 0, "y": 1, "z": 2}
-_GYRO_UNITS = {**GYRO_UNITS, "rad_s": 1.0, "deg_s": math.pi / 180.0}
+_GYRO_UNITS = {
+    **GYRO_UNITS,
+    "rad_s": 1.0,
+    "deg_s": math.pi / 180.0,
+    "deg_h": math.pi / 180.0 / 3600.0,
+    "mrad_s": 1e-3,
+}
 _ACCEL_UNITS = {**ACCEL_UNITS, "m_s2": 1.0}
 #: Magnetometer units -> tesla ("raw": counts of unknown scale, kept as they are).
 MAG_UNITS = {
@@ -408,7 +414,7 @@ def _col(df: pd.DataFrame, name: str, where: str, required: bool = False) -> np.
             )
         return None
     raw = df[name]
-    if raw.dtype == bool:
+    if pd.api.types.is_numeric_dtype(raw.dtype):  # parsed as numbers (or booleans) already
         return raw.to_numpy(float)
     v = pd.to_numeric(raw, errors="coerce")
     bad = v.isna() & raw.notna() & (raw.astype(str).str.strip().str.lower() != "nan")
