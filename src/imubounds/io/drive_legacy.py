@@ -186,7 +186,7 @@ def to_drive(log: Any) -> Any:
             t=tr["t"],
             east_m=e,
             north_m=n,
-            origin=tuple(origin),  # type: ignore[arg-type]
+            origin=tuple(origin),
             heading_rad=np.asarray(model_to_compass(tr["psi"])) if "psi" in tr else None,
             u_mps=tr.get("u"),
             v_mps=tr.get("v"),

@@ -572,6 +572,7 @@ def read_comma2k19(d: Path, settings: DriveSettings) -> Drive:
         drive.mag = MagStream(t=mt, mag=frd_to_flu(mv) * 1e-6, unit="T")  # uT -> T
     gp = d / "global_pose"
     if gp.is_dir():
+        assert drive.gnss.fix is not None
         ok = np.flatnonzero(drive.gnss.fix)
         if ok.size == 0:
             raise InputError(f"{d}: no u-blox fix: no origin for the truth")

@@ -247,7 +247,7 @@ def read_drive_nmea(
             continue  # unknown or proprietary sentence types are not used here
         parsed.append((s, msg))
         if the_date is None and s.kind.endswith("RMC") and getattr(msg, "datestamp", None):
-            the_date = msg.datestamp  # type: ignore[attr-defined]
+            the_date = msg.datestamp
     use_host = all(s.host_t is not None for s, _ in parsed)
     if not use_host and the_date is None:
         raise InputError(
@@ -327,16 +327,16 @@ def read_drive_nmea(
             gs.course_rad = np.where(near, np.mod(np.radians(v[k, 1]), 2 * math.pi), np.nan)
         drive.gnss = gs
     if hdt:
-        h = _dedupe(np.asarray(hdt, dtype=float))
-        h = h[np.isfinite(h[:, 1])]
-        drive.heading = HeadingStream(t=h[:, 0] + off, heading_rad=np.mod(np.radians(h[:, 1]),
+        hh = _dedupe(np.asarray(hdt, dtype=float))
+        hh = hh[np.isfinite(hh[:, 1])]
+        drive.heading = HeadingStream(t=hh[:, 0] + off, heading_rad=np.mod(np.radians(hh[:, 1]),
                                       2 * math.pi), source="compass", true_north=True)
     elif hdg:
-        h = _dedupe(np.asarray(hdg, dtype=float))
-        h = h[np.isfinite(h[:, 1])]
-        true = bool(np.all(np.isfinite(h[:, 2])))
-        deg = h[:, 1] + (h[:, 2] if true else 0.0)
-        drive.heading = HeadingStream(t=h[:, 0] + off, heading_rad=np.mod(np.radians(deg),
+        hh = _dedupe(np.asarray(hdg, dtype=float))
+        hh = hh[np.isfinite(hh[:, 1])]
+        true = bool(np.all(np.isfinite(hh[:, 2])))
+        deg = hh[:, 1] + (hh[:, 2] if true else 0.0)
+        drive.heading = HeadingStream(t=hh[:, 0] + off, heading_rad=np.mod(np.radians(deg),
                                       2 * math.pi), source="compass", true_north=true)
         drive.notes.append(
             f"{p}: heading from HDG (magnetic" + (", variation applied: true north)" if true else

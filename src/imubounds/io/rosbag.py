@@ -421,24 +421,23 @@ def _imu_orientation(bag: _Bag, path: Path, topic: str, drive: Drive) -> None:
 def _velocities(bag: _Bag, path: Path, tp: dict[str, Any], drive: Drive,
                 used: dict[str, str | None]) -> None:
     topics = bag.topics()
-    twists = [t for t, (ty, _) in topics.items() if ty in TWIST_TYPES]
-    odoms = [t for t, (ty, _) in topics.items() if ty == ODOM_TYPE]
+    twists = [tn for tn, (ty, _) in topics.items() if ty in TWIST_TYPES]
+    odoms = [tn for tn, (ty, _) in topics.items() if ty == ODOM_TYPE]
     frames: dict[str, str] = {}
-    for t in twists + odoms:
-        for _, msg in bag.messages(t):
-            frames[t] = str(msg.header.frame_id)
+    for tn in twists + odoms:
+        for _, msg in bag.messages(tn):
+            frames[tn] = str(msg.header.frame_id)
             break
     gv = tp.get("gnss_velocity")
     if gv is None:
-        geo = [t for t in twists if _geographic(frames.get(t, ""))]
-        gv = max(geo, key=lambda t: topics[t][1]) if geo else None
+        geo = [tn for tn in twists if _geographic(frames.get(tn, ""))]
+        gv = max(geo, key=lambda tn: topics[tn][1]) if geo else None
     else:
         bag.pick(gv, TWIST_TYPES, "GNSS velocity", "--topic gnss_velocity=...")
     bv = tp.get("velocity")
     if bv is None:
-        body = [t for t in odoms] + [t for t in twists if not _geographic(frames.get(t, ""))
-                                      and t != gv]
-        bv = max(body, key=lambda t: topics[t][1]) if body else None
+        body = odoms + [tn for tn in twists if not _geographic(frames.get(tn, "")) and tn != gv]
+        bv = max(body, key=lambda tn: topics[tn][1]) if body else None
     else:
         bag.pick(bv, (*TWIST_TYPES, ODOM_TYPE), "velocity", "--topic velocity=...")
     if gv is not None and drive.gnss is not None:

@@ -65,7 +65,7 @@ class MagCalibration:
     vertical_ratio:
         Vertical over horizontal field (``V/H``; negative north of the magnetic
         equator, body z up).
-    field:
+    horizontal_field:
         Horizontal field strength, in the data's unit.
     levelled:
         True if the samples were tilt-compensated with an attitude stream.
@@ -83,7 +83,7 @@ class MagCalibration:
     hard_iron: np.ndarray
     soft_iron: np.ndarray
     vertical_ratio: float
-    field: float
+    horizontal_field: float
     levelled: bool
     n: int
     coverage_deg: float
@@ -123,7 +123,7 @@ class MagCalibration:
             "hard_iron": self.hard_iron.tolist(),
             "soft_iron": self.soft_iron.tolist(),
             "vertical_ratio": self.vertical_ratio,
-            "field": self.field,
+            "horizontal_field": self.horizontal_field,
             "levelled": self.levelled,
             "n": self.n,
             "coverage_deg": self.coverage_deg,
@@ -309,7 +309,7 @@ def fit_magnetometer(
         hard_iron=v[:3].copy(),
         soft_iron=s,
         vertical_ratio=float(v[9]),
-        field=1.0 / float(np.cbrt(abs(np.linalg.det(s)))),
+        horizontal_field=1.0 / float(np.cbrt(abs(np.linalg.det(s)))),
         levelled=levelled,
         n=int(m.shape[0]),
         coverage_deg=cover,
