@@ -63,7 +63,7 @@ def _inputs(items: list[str], shared: Path) -> list[str]:
 
 def _read_kwargs(opts: list[str]) -> dict[str, Any]:
     """The read_drive arguments equal to the convert options of a case."""
-    from imubounds.cli.convert import parse_topics
+    from imubounds.cli._common import parse_topics
     from imubounds.io.drive_readers import parse_drive_columns
 
     kw: dict[str, Any] = {}
@@ -190,3 +190,42 @@ def test_round_trip_keeps_headings_true_and_magnetic(tmp_path: Path) -> None:
     )
     assert math.isclose(float(back.heading.heading_rad[0]), float(d.heading.heading_rad[0]),
                         rel_tol=1e-13)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--imu-axes", "x,x,z"], "is not a rotation"),
+        (["--imu-axes", "x,y,w"], "use x, y, z with an optional sign"),
+        (["--max-speed", "-5"], "argument --max-speed: must be > 0"),
+        (["--max-speed", "nan"], "is not a finite number"),
+        (["--time-offset", "inf"], "is not a finite number"),
+        (["--topic", "compass=/x"], "unknown role 'compass'"),
+        (["--topic", "gnss="], "names no topic"),
+        (["--columns", "lat=Lat"], "--columns key 'lat' is not a drive-layout column"),
+        (["--columns", "time_s"], "write LAYOUT_COLUMN=SOURCE_COLUMN"),
+        (["--format", "xlsx"], "argument --format: invalid choice"),
+    ],
+)
+def test_bad_convert_options(args: list[str], message: str, tmp_path: Path,
+                             capsys: pytest.CaptureFixture[str]) -> None:
+    src = str(DRIVES / "vn100_drive_ros2")
+    try:
+        code = main(["convert", src, "-o", str(tmp_path / "o"), *args])
+    except SystemExit as exc:  # argparse rejects the option while parsing
+        code = int(exc.code or 0)
+    assert code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_options_that_do_not_apply_are_errors(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    ulog = str(FORMATS / "vn100_drive.ulg")
+    assert main(["convert", ulog, "-o", str(tmp_path / "a"), "--topic", "gnss=/x"]) == 2
+    assert "--topic applies to ROS bags only" in capsys.readouterr().err
+    assert main(["convert", ulog, "-o", str(tmp_path / "b"), "--columns", "lat_deg=x"]) == 2
+    assert "--columns applies to CSV logs only" in capsys.readouterr().err
+    bag = str(DRIVES / "vn100_drive_ros1.bag")
+    assert main(["convert", bag, "-o", str(tmp_path / "c"), "--topic", "heading=/gps/fix"]) == 2
+    assert "is sensor_msgs/msg/NavSatFix, not geometry_msgs" in capsys.readouterr().err

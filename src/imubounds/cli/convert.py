@@ -6,10 +6,8 @@ import argparse
 import sys
 from typing import Any
 
-from imubounds.cli._common import add_force_option, finite_float, positive_float
+from imubounds.cli._common import add_drive_options, add_force_option, drive_read_options
 from imubounds.errors import OptionError
-
-TOPIC_ROLES = ("imu", "gnss", "mag", "heading", "velocity", "gnss_velocity", "attitude")
 
 
 def register(sub: Any) -> None:
@@ -39,111 +37,19 @@ def register(sub: Any) -> None:
         default="csv",
         help="table format of the output (csv)",
     )
-    p.add_argument(
-        "--settings",
-        metavar="YAML",
-        help="drive.yaml with the bounds and mount of this drive (replaces the input's own)",
-    )
-    p.add_argument(
-        "--imu-axes",
-        metavar="AXES",
-        help="mount: body axes x,y,z (forward, left, up) as signed IMU axes, e.g. 'x,-z,y'",
-    )
-    p.add_argument(
-        "--mount",
-        choices=("auto", "forward", "backward"),
-        default="auto",
-        help="VN-100: detect a backwards unit from its yaw and the GPS course (auto)",
-    )
-    p.add_argument(
-        "--topic",
-        action="append",
-        metavar="[ROLE=]TOPIC",
-        help="ROS bag topic of a role (imu, gnss, mag, heading, velocity, gnss_velocity, "
-        "attitude); a bare name is the IMU topic; repeatable",
-    )
-    p.add_argument(
-        "--columns",
-        metavar="MAP",
-        help="CSV logs: layout column = source column, e.g. "
-        "'time_s=stamp,gyro_z_dps=yaw_rate,accel_x_g=ax,lat_deg=Lat,lon_deg=Lon'",
-    )
-    n = p.add_argument_group("NMEA captures")
-    n.add_argument(
-        "--imu-frame",
-        choices=("FLU", "FRD"),
-        default="FLU",
-        help="axes of the IMU log beside an NMEA capture when its format does not say (FLU)",
-    )
-    n.add_argument("--date", metavar="YYYY-MM-DD", help="UTC date of a capture without RMC")
-    n.add_argument(
-        "--time-offset",
-        type=finite_float,
-        default=0.0,
-        metavar="S",
-        help="seconds added to the NMEA times to put them on the IMU clock (0)",
-    )
-    n.add_argument(
-        "--on-bad-checksum",
-        choices=("error", "skip"),
-        default="error",
-        help="a sentence with a wrong checksum: stop (error) or skip and count it",
-    )
-    p.add_argument(
-        "--max-speed",
-        type=positive_float,
-        metavar="M/S",
-        help="speeds beyond this are dropped and counted (drive.yaml vehicle.max_speed_mps, "
-        "70 m/s)",
-    )
+    add_drive_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
     p.set_defaults(func=run)
 
 
-def parse_topics(items: list[str] | None) -> dict[str, str]:
-    """``["imu=/imu/data", "/gps/fix"]`` -> {role: topic} (a bare name is the IMU topic)."""
-    out: dict[str, str] = {}
-    for item in items or []:
-        role, eq, topic = item.partition("=")
-        if not eq:
-            role, topic = "imu", item
-        role, topic = role.strip().lower(), topic.strip()
-        if role not in TOPIC_ROLES:
-            raise OptionError(
-                f"--topic {item!r}: unknown role {role!r}; use {', '.join(TOPIC_ROLES)}"
-            )
-        if not topic:
-            raise OptionError(f"--topic {item!r} names no topic")
-        if role in out:
-            raise OptionError(f"--topic gives the {role} topic twice")
-        out[role] = topic
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     from imubounds.io.drive_layout import FILES, FORMATS, SETTINGS_FILE, write_layout
-    from imubounds.io.drive_readers import parse_drive_columns, read_drive
+    from imubounds.io.drive_readers import read_drive
     from imubounds.io.outputs import OutputSet
 
-    axes = None
-    if args.imu_axes is not None:
-        axes = [a for a in args.imu_axes.replace(" ", ",").split(",") if a]
-    columns = parse_drive_columns(args.columns) if args.columns is not None else None
-    topics = parse_topics(args.topic)
-    drive = read_drive(
-        list(args.input),
-        settings=args.settings,
-        imu_axes=axes,
-        mount=args.mount,
-        topics=topics or None,
-        columns=columns,
-        imu_frame=args.imu_frame,
-        date_utc=args.date,
-        time_offset_s=args.time_offset,
-        on_bad_checksum=args.on_bad_checksum,
-        max_speed_mps=args.max_speed,
-    )
-    if topics and drive.layout != "rosbag":
+    opts = drive_read_options(args)
+    drive = read_drive(list(args.input), **opts)
+    if opts.get("topics") and drive.layout != "rosbag":
         raise OptionError("--topic applies to ROS bags only")
     inputs = [*args.input, *([args.settings] if args.settings else [])]
     suffix = FORMATS[args.format]
