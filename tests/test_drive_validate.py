@@ -166,6 +166,12 @@ CASES: list[tuple[str, Callable[[Path], None] | None, list[str], int, str]] = [
      r"the fixes move \d+x slower than the measured speed: lat/lon are in radians"),
     ("course-radians", _edit("gnss.csv", _course_radians), [], 2,
      r"course_deg stays within 0..6.3 .* the course is in radians"),
+    ("heading-radians", _edit("heading.csv", lambda df: df.assign(
+        heading_deg=np.radians(df["heading_deg"]))), [], 2,
+     r"heading.csv: heading_deg stays within \+-6.3 .* the heading is in radians"),
+    ("attitude-pitch-beyond-90",
+     _text("attitude.csv", "time_s,roll_deg,pitch_deg\n0,1,2\n1,1,95\n"), [], 2,
+     r"attitude.csv: pitch 95 deg at data row 2 \(t=1.000 s\) is beyond \+-90 deg"),
     ("fix-no-rows", _edit("gnss.csv", _fix_rows), [], 0,
      r"warning: .*gnss.csv: 3 of 60 row\(s\) without a fix \(fix = 0\) skipped"),
     ("hdop-0-nan-minus1", _edit("gnss.csv", _hdops), [], 0,
