@@ -139,7 +139,8 @@ def add_drive_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--imu-axes",
         metavar="AXES",
-        help="mount: body axes x,y,z (forward, left, up) as signed IMU axes, e.g. 'x,-z,y'",
+        help="mount: body axes x,y,z (forward, left, up) as signed IMU axes, e.g. 'x,-z,y' "
+        "(write --imu-axes=-x,-y,z when the first one has a sign)",
     )
     g.add_argument(
         "--mount",
