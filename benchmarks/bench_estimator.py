@@ -32,7 +32,7 @@ from imubounds.dynamic.estimator import config_for_log, prepare_steps
 from imubounds.dynamic.estimator import kernel as K
 from imubounds.dynamic.estimator.core import initial_state
 from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
-from imubounds.io.drive_readers import read_drive
+from imubounds.io.drive_legacy import read_drive_log as read_drive
 
 
 def make_inputs(n_steps: int, tmpdir: str) -> tuple[np.ndarray, ...]:

@@ -16,7 +16,7 @@ from imubounds.dynamic.estimator.reference import run_reference
 from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import AnalysisError
 from imubounds.io.drive_legacy import DriveLog
-from imubounds.io.drive_readers import read_drive
+from imubounds.io.drive_legacy import read_drive_log as read_drive
 from imubounds.stationary import bounds
 
 

@@ -21,8 +21,9 @@ from hypothesis import strategies as st
 
 from imubounds.errors import InputError
 from imubounds.frames import enu_yaw_to_heading, quaternion_yaw_enu
+from imubounds.io import Drive, read_drive
 from imubounds.io.nmea import nmea_checksum, read_drive_nmea, scan_nmea, sniff_nmea
-from imubounds.io.rosbag import covariance_hdop, read_drive_rosbag
+from imubounds.io.rosbag import read_drive_rosbag
 from imubounds.io.ulog import quaternion_ned_heading, read_drive_ulog
 
 FORMATS = Path(__file__).parent / "data" / "formats"
@@ -47,11 +48,11 @@ MAKE = _load_make_formats()
 
 
 @pytest.fixture(scope="module")
-def drives() -> dict[str, object]:
+def drives() -> dict[str, Drive]:
     return {
-        "mcap": read_drive_rosbag(FORMATS / "vn100_drive_mcap"),
-        "ulog": read_drive_ulog(FORMATS / "vn100_drive.ulg"),
-        "nmea": read_drive_nmea(FORMATS / "vn100.nmea", FORMATS / "vn100_imu.csv", imu_frame="FRD"),
+        "mcap": read_drive(FORMATS / "vn100_drive_mcap"),
+        "ulog": read_drive(FORMATS / "vn100_drive.ulg"),
+        "nmea": read_drive([FORMATS / "vn100.nmea", FORMATS / "vn100_imu.csv"], imu_frame="FRD"),
     }
 
 
@@ -61,74 +62,85 @@ def _raw_imu() -> dict[str, np.ndarray]:
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
-def test_imu_frd_to_flu(drives: dict[str, object]) -> None:
+def test_imu_frd_to_flu(drives: dict[str, Drive]) -> None:
     raw = _raw_imu()  # VN-100 FRD
-    for name, log in drives.items():
+    for name, d in drives.items():
+        assert d.imu is not None
         tol = 1e-6 if name == "ulog" else 0.0  # PX4 stores float32
-        np.testing.assert_allclose(log.gyro[:, 0], raw["gyro_x"], rtol=tol, atol=tol, err_msg=name)
-        np.testing.assert_allclose(log.gyro[:, 1], -raw["gyro_y"], rtol=tol, atol=tol)
-        np.testing.assert_allclose(log.gyro[:, 2], -raw["gyro_z"], rtol=tol, atol=tol)
-        np.testing.assert_allclose(log.accel[:, 2], -raw["acc_z"], rtol=tol, atol=tol)
-        assert np.median(log.accel[:, 2]) > 9.0, name  # FLU: z up reads +g at rest/level
-        assert log.frame == "FLU"
+        g, a = d.imu.gyro, d.imu.accel
+        np.testing.assert_allclose(g[:, 0], raw["gyro_x"], rtol=tol, atol=tol, err_msg=name)
+        np.testing.assert_allclose(g[:, 1], -raw["gyro_y"], rtol=tol, atol=tol)
+        np.testing.assert_allclose(g[:, 2], -raw["gyro_z"], rtol=tol, atol=tol)
+        np.testing.assert_allclose(a[:, 2], -raw["acc_z"], rtol=tol, atol=tol)
+        assert np.median(a[:, 2]) > 9.0, name  # FLU: z up reads +g at rest/level
 
 
-def test_gps_agrees_and_covariance_gives_hdop(drives: dict[str, object]) -> None:
-    m, u, n = drives["mcap"], drives["ulog"], drives["nmea"]
-    np.testing.assert_allclose(m.lat, n.lat, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(u.lat, n.lat, rtol=0, atol=2e-7)  # PX4: int32 1e-7 deg
-    np.testing.assert_allclose(m.alt, n.alt, atol=1e-9)
-    # The MCAP NavSatFix covariance was written from the real HDOP: it comes back as HDOP.
-    np.testing.assert_allclose(m.hdop, n.hdop, rtol=1e-12)
-    np.testing.assert_allclose(u.hdop, n.hdop, rtol=1e-6)
-    assert n.hdop[0] == 0.96 and np.all(n.fix) and np.all(m.fix) and np.all(u.fix)
-    np.testing.assert_allclose(m.gps_t, n.gps_t, atol=1e-6)
+def test_gnss_agrees_and_covariance_gives_h_acc(drives: dict[str, Drive]) -> None:
+    m, u, n = (drives[k].gnss for k in ("mcap", "ulog", "nmea"))
+    assert m is not None and u is not None and n is not None
+    np.testing.assert_allclose(m.lat_deg, n.lat_deg, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(u.lat_deg, n.lat_deg, rtol=0, atol=2e-7)  # PX4: int32 1e-7 deg
+    np.testing.assert_allclose(m.alt_m, n.alt_m, atol=1e-9)  # type: ignore[arg-type]
+    # The MCAP NavSatFix covariance was written from the real HDOP (per-axis variance
+    # (HDOP x DRMS)^2 / 2): it comes back as the per-axis 1-sigma h_acc_m.
+    assert n.hdop is not None and m.h_acc_m is not None and u.h_acc_m is not None
+    np.testing.assert_allclose(m.h_acc_m, n.hdop * MAKE.DRMS_PER_HDOP / math.sqrt(2), rtol=1e-12)
+    np.testing.assert_allclose(u.h_acc_m, n.hdop * MAKE.DRMS_PER_HDOP, rtol=1e-6)  # PX4 eph
+    np.testing.assert_allclose(u.hdop, n.hdop, rtol=1e-6)  # type: ignore[arg-type]
+    assert n.hdop[0] == 0.96 and n.usable().all() and m.usable().all() and u.usable().all()
+    np.testing.assert_allclose(m.t, n.t, atol=1e-6)
 
 
-def test_headings_clockwise_from_north_agree(drives: dict[str, object]) -> None:
-    """ENU quaternion (ROS), NED quaternion (PX4) and HDT all give the VN-100 yaw."""
-    m, u, n = drives["mcap"], drives["ulog"], drives["nmea"]
-    assert m.heading is not None and u.heading is not None and n.heading is not None
+def test_headings_clockwise_from_north_agree(drives: dict[str, Drive]) -> None:
+    """ENU quaternion (ROS), NED quaternion (PX4 attitude) and HDT all give the VN-100 yaw."""
+    m, n = drives["mcap"].heading, drives["nmea"].heading
+    u = drives["ulog"].attitude
+    assert m is not None and n is not None and u is not None and u.yaw_rad is not None
+    assert m.true_north and n.true_north
     # the first VN-100 yaw of the sample is +066.172 deg (clockwise from north)
-    assert math.degrees(m.heading[0]) == pytest.approx(66.172, abs=1e-9)
-    assert math.degrees(u.heading[0]) == pytest.approx(66.172, abs=1e-4)
-    assert math.degrees(n.heading[0]) == pytest.approx(66.172, abs=1e-9)
+    assert math.degrees(m.heading_rad[0]) == pytest.approx(66.172, abs=1e-9)
+    assert math.degrees(u.yaw_rad[0]) == pytest.approx(66.172, abs=1e-4)
+    assert math.degrees(n.heading_rad[0]) == pytest.approx(66.172, abs=1e-9)
     # PX4 times are since boot (another clock): compare sample by sample (MCAP at 10 Hz).
-    d = np.angle(np.exp(1j * (u.heading[::4] - m.heading)))
+    d = np.angle(np.exp(1j * (u.yaw_rad[::4] - m.heading_rad)))
     assert np.max(np.abs(d)) < 1e-4
-    assert u.heading_t[0] == pytest.approx(100.0) and m.heading_t[0] > 1.7e9
-    np.testing.assert_allclose(n.heading, m.heading, atol=1e-9)
+    assert u.t[0] == pytest.approx(100.0) and m.t[0] > 1.7e9
+    np.testing.assert_allclose(n.heading_rad, m.heading_rad, atol=1e-9)
 
 
-def test_magnetometer_frames_and_units(drives: dict[str, object]) -> None:
+def test_magnetometer_frames_and_units(drives: dict[str, Drive]) -> None:
     raw_first = (2.653e-05, 7.91e-06 * -1, 3.577e-05)  # FRD tesla of the first VN-100 sample
-    m, u = drives["mcap"], drives["ulog"]
+    m, u = drives["mcap"].mag, drives["ulog"].mag
+    assert m is not None and u is not None
     expect = np.array(raw_first) * np.array([1.0, -1.0, -1.0])
     np.testing.assert_allclose(m.mag[0], expect, rtol=1e-12)
     np.testing.assert_allclose(u.mag[0], expect, rtol=1e-6)  # gauss float32 -> tesla
 
 
-def test_drive_logs_validate_and_settings(drives: dict[str, object]) -> None:
-    for name, log in drives.items():
-        log.validate()
-        assert log.layout in ("rosbag", "ulog", "nmea"), name
-    assert drives["mcap"].settings["heading_topic"] == "/imu/heading"
-    assert drives["ulog"].settings["heading_source"] == "vehicle_attitude"
-    assert drives["nmea"].settings["heading_source"] == "HDT"
-    rmc = drives["nmea"].settings["rmc_course_deg"]
-    assert len(rmc["course"]) == 10 and 0 <= min(rmc["course"]) and max(rmc["course"]) < 360
+def test_drive_sources_and_velocity(drives: dict[str, Drive]) -> None:
+    assert {k: d.layout for k, d in drives.items()} == {
+        "mcap": "rosbag", "ulog": "ulog", "nmea": "nmea"}
+    assert drives["mcap"].meta["topics"]["heading"] == "/imu/heading"
+    # RMC speed and course come with the GGA fix of the same epoch (the first fix has none)
+    g = drives["nmea"].gnss
+    assert g is not None and g.speed_mps is not None and g.course_rad is not None
+    assert np.isnan(g.speed_mps[0]) and np.isfinite(g.speed_mps[1:]).all()
+    assert 0 <= np.nanmin(g.course_rad) and np.nanmax(g.course_rad) < 2 * math.pi
 
 
 def test_rosbag_drive_topic_errors() -> None:
-    with pytest.raises(InputError, match="no GPS topic"):
-        read_drive_rosbag(FORMATS / "adis_ros2")
+    with pytest.raises(InputError, match="no aiding sensor"):
+        read_drive(FORMATS / "adis_ros2")
     with pytest.raises(InputError, match="not geometry_msgs/msg/QuaternionStamped or"):
-        read_drive_rosbag(FORMATS / "vn100_drive_mcap", heading_topic="/gps/fix")
+        read_drive_rosbag(FORMATS / "vn100_drive_mcap", topics={"heading": "/gps/fix"})
+    with pytest.raises(InputError, match="unknown topic role"):
+        read_drive_rosbag(FORMATS / "vn100_drive_mcap", topics={"compass": "/x"})
 
 
 def test_ulog_drive_without_gps() -> None:
-    with pytest.raises(InputError, match="no vehicle_gps_position"):
-        read_drive_ulog(FORMATS / "adis_px4.ulg")
+    with pytest.raises(InputError, match="no aiding sensor"):
+        read_drive(FORMATS / "adis_px4.ulg")
+    assert read_drive_ulog(FORMATS / "adis_px4.ulg").gnss is None
 
 
 # ----------------------------------------------------------------------------- NMEA
@@ -156,7 +168,8 @@ def test_nmea_utc_time_without_host_stamps(tmp_path: Path) -> None:
     host = read_drive_nmea(FORMATS / "vn100.nmea", FORMATS / "vn100_imu.csv", imu_frame="FRD")
     # the first GGA is 22:09:32.00 UTC on 19 Nov 2025; the host clock said 1763590170.28
     utc0 = 1763590172.0
-    assert host.gps_t[0] == pytest.approx(1763590170.2813318, abs=1e-6)
+    assert host.gnss is not None
+    assert host.gnss.t[0] == pytest.approx(1763590170.2813318, abs=1e-6)
     with open(imu, "w") as f:
         f.write("t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n")
         for i in range(raw["t"].size):
@@ -167,10 +180,11 @@ def test_nmea_utc_time_without_host_stamps(tmp_path: Path) -> None:
                 )
                 + "\n"
             )
-    log = read_drive_nmea(p, imu, imu_frame="FRD", time_offset_s=0.0)
-    assert log.gps_t[0] == pytest.approx(utc0, abs=1e-6)
-    assert np.all(np.diff(log.gps_t) == pytest.approx(1.0, abs=1e-9))
-    assert log.settings["nmea_time"] == "UTC"
+    d = read_drive_nmea(p, imu, imu_frame="FRD", time_offset_s=0.0)
+    assert d.gnss is not None
+    assert d.gnss.t[0] == pytest.approx(utc0, abs=1e-6)
+    assert np.all(np.diff(d.gnss.t) == pytest.approx(1.0, abs=1e-9))
+    assert d.meta["nmea_time"] == "UTC"
 
 
 def test_nmea_hdg_variation(tmp_path: Path) -> None:
@@ -184,10 +198,11 @@ def test_nmea_hdg_variation(tmp_path: Path) -> None:
     lines.insert(2, f"{t + 0.5:.6f},${body}*{nmea_checksum(body):02X}")
     p = tmp_path / "hdg.nmea"
     p.write_text("\n".join(lines) + "\n")
-    log = read_drive_nmea(p, FORMATS / "vn100_imu.csv", imu_frame="FRD")
-    assert log.heading is not None
-    np.testing.assert_allclose(np.degrees(log.heading), [95.0, 2.0], atol=1e-9)
-    assert log.settings["heading_source"] == "HDG"
+    d = read_drive_nmea(p, FORMATS / "vn100_imu.csv", imu_frame="FRD")
+    assert d.heading is not None
+    np.testing.assert_allclose(np.degrees(d.heading.heading_rad), [95.0, 2.0], atol=1e-9)
+    assert d.heading.true_north  # every HDG carried its variation
+    assert any("heading from HDG" in n for n in d.notes)
 
 
 def test_sniff_nmea() -> None:
@@ -198,11 +213,12 @@ def test_sniff_nmea() -> None:
 
 @pytest.mark.skipif(not VN100.is_dir(), reason="real VN-100 data folder not beside the repo")
 def test_nmea_gga_matches_the_original_gps_csv() -> None:
-    log = read_drive_nmea(FORMATS / "vn100.nmea", FORMATS / "vn100_imu.csv", imu_frame="FRD")
+    g = read_drive_nmea(FORMATS / "vn100.nmea", FORMATS / "vn100_imu.csv", imu_frame="FRD").gnss
+    assert g is not None
     with open(VN100 / "circle_data_0_gps.csv", newline="") as f:
-        rows = list(csv.DictReader(f))[: log.gps_t.size]
-    np.testing.assert_allclose(log.lat, [float(r["latitude"]) for r in rows], atol=1e-9)
-    np.testing.assert_allclose(log.lon, [float(r["longitude"]) for r in rows], atol=1e-9)
+        rows = list(csv.DictReader(f))[: g.t.size]
+    np.testing.assert_allclose(g.lat_deg, [float(r["latitude"]) for r in rows], atol=1e-9)
+    np.testing.assert_allclose(g.lon_deg, [float(r["longitude"]) for r in rows], atol=1e-9)
 
 
 # ----------------------------------------------------------------------------- conversions
@@ -240,26 +256,16 @@ def test_enu_and_ned_quaternions_give_the_same_heading(
     assert math.isclose(math.cos(h2 - h), 1.0, abs_tol=1e-9)
 
 
-def test_covariance_hdop() -> None:
-    from imubounds.dynamic.aiding.gps import cep_to_drms
-
-    var = (0.8 * cep_to_drms(3.0)) ** 2 / 2
-    cov = np.array([[var, var], [0.0, 0.0], [np.nan, np.nan]])
-    h = covariance_hdop(cov, 3.0)
-    assert h[0] == pytest.approx(0.8, rel=1e-12)
-    assert np.isnan(h[1]) and np.isnan(h[2])
-
-
 @pytest.mark.parametrize(
     "sources",
     [
         ["vn100_drive.ulg"],
         ["vn100_drive_mcap"],
-        ["vn100.nmea", "vn100_imu.csv"],
     ],
 )
 def test_dynamic_cli_reads_every_drive_format(sources: list[str], tmp_path: Path) -> None:
-    """``imubounds dynamic`` takes a ULog, a ROS 2/MCAP bag and NMEA + IMU CSV as they are."""
+    """``imubounds dynamic`` takes a ULog and a ROS 2/MCAP bag as they are (NMEA with an
+    FRD IMU CSV needs the IMU frame: see the convert tests)."""
     import json
 
     from imubounds.cli import main

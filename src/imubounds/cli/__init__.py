@@ -22,6 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "static",
     "simulate_noise",
     "simulate",
+    "convert",
     "dynamic",
     "fleet",
     "report",

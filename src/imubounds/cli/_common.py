@@ -124,6 +124,113 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--dataset", metavar="PATH", help="HDF5 path of the IMU table, e.g. /imu")
 
 
+TOPIC_ROLES = ("imu", "gnss", "mag", "heading", "velocity", "gnss_velocity", "attitude")
+
+
+def add_drive_options(p: argparse.ArgumentParser) -> None:
+    """Options that say how to read a drive log (``imubounds.io.read_drive``): settings,
+    mount, ROS topics, CSV column map, NMEA clock and IMU frame, maximum speed."""
+    g = p.add_argument_group("reading the drive log")
+    g.add_argument(
+        "--settings",
+        metavar="YAML",
+        help="drive.yaml with the bounds and mount of this drive (replaces the input's own)",
+    )
+    g.add_argument(
+        "--imu-axes",
+        metavar="AXES",
+        help="mount: body axes x,y,z (forward, left, up) as signed IMU axes, e.g. 'x,-z,y' "
+        "(write --imu-axes=-x,-y,z when the first one has a sign)",
+    )
+    g.add_argument(
+        "--mount",
+        choices=("auto", "forward", "backward"),
+        default="auto",
+        help="VN-100: detect a backwards unit from its yaw and the GPS course (auto)",
+    )
+    g.add_argument(
+        "--topic",
+        action="append",
+        metavar="[ROLE=]TOPIC",
+        help="ROS bag topic of a role (imu, gnss, mag, heading, velocity, gnss_velocity, "
+        "attitude); a bare name is the IMU topic; repeatable",
+    )
+    g.add_argument(
+        "--columns",
+        metavar="MAP",
+        help="CSV logs: layout column = source column, e.g. "
+        "'time_s=stamp,gyro_z_dps=yaw_rate,accel_x_g=ax,lat_deg=Lat,lon_deg=Lon'",
+    )
+    g.add_argument(
+        "--imu-frame",
+        choices=("FLU", "FRD"),
+        default="FLU",
+        help="axes of the IMU log beside an NMEA capture when its format does not say (FLU)",
+    )
+    g.add_argument("--date", metavar="YYYY-MM-DD", help="UTC date of an NMEA capture without RMC")
+    g.add_argument(
+        "--time-offset",
+        type=finite_float,
+        default=0.0,
+        metavar="S",
+        help="seconds added to the NMEA times to put them on the IMU clock (0)",
+    )
+    g.add_argument(
+        "--on-bad-checksum",
+        choices=("error", "skip"),
+        default="error",
+        help="an NMEA sentence with a wrong checksum: stop (error) or skip and count it",
+    )
+    g.add_argument(
+        "--max-speed",
+        type=positive_float,
+        metavar="M/S",
+        help="speeds beyond this are dropped and counted (drive.yaml vehicle.max_speed_mps, "
+        "70 m/s)",
+    )
+
+
+def parse_topics(items: list[str] | None) -> dict[str, str]:
+    """``["imu=/imu/data", "/gps/fix"]`` -> {role: topic} (a bare name is the IMU topic)."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        role, eq, topic = item.partition("=")
+        if not eq:
+            role, topic = "imu", item
+        role, topic = role.strip().lower(), topic.strip()
+        if role not in TOPIC_ROLES:
+            raise OptionError(
+                f"--topic {item!r}: unknown role {role!r}; use {', '.join(TOPIC_ROLES)}"
+            )
+        if not topic:
+            raise OptionError(f"--topic {item!r} names no topic")
+        if role in out:
+            raise OptionError(f"--topic gives the {role} topic twice")
+        out[role] = topic
+    return out
+
+
+def drive_read_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of ``imubounds.io.read_drive`` from :func:`add_drive_options`."""
+    from imubounds.io.drive_readers import parse_drive_columns
+
+    axes = None
+    if args.imu_axes is not None:
+        axes = [a for a in args.imu_axes.replace(" ", ",").split(",") if a]
+    return {
+        "settings": args.settings,
+        "imu_axes": axes,
+        "mount": args.mount,
+        "topics": parse_topics(args.topic) or None,
+        "columns": parse_drive_columns(args.columns) if args.columns is not None else None,
+        "imu_frame": args.imu_frame,
+        "date_utc": args.date,
+        "time_offset_s": args.time_offset,
+        "on_bad_checksum": args.on_bad_checksum,
+        "max_speed_mps": args.max_speed,
+    }
+
+
 def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
     from imubounds.io import parse_column_map, read_imu
 

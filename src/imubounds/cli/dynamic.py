@@ -274,7 +274,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     from imubounds.dynamic.aiding.compass import read_calibration
     from imubounds.dynamic.estimator import config_dict, config_for_log, scenario_model_error
     from imubounds.dynamic.estimator import run as run_est
-    from imubounds.io.drive_readers import read_drive
+    from imubounds.io.drive_legacy import read_drive_log as read_drive
     from imubounds.io.outputs import write_json, write_with
 
     messages: list[str] = []

@@ -3,15 +3,20 @@
 * :mod:`.registry` -- the reader registry and format sniffing (:func:`read_imu`,
   :func:`find_reader`, :func:`register_reader`);
 * :mod:`.log` -- :class:`ImuLog`, a static IMU log in SI units;
-* :mod:`.drive` -- :class:`DriveLog`, a multi-sensor drive log in SI units;
+* :mod:`.drive` -- :class:`Drive`, a multi-sensor drive log in SI units, and its settings;
+* :mod:`.drive_readers` -- :func:`read_drive`, the one entry point for drive logs (the
+  generic layout of :mod:`.drive_layout`, VN-100, comma2k19, ROS bags, ULog, NMEA, CSV
+  through a column map), validated by :mod:`.drive_validate`;
 * :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
   shared column recognition, unit conversion and time checks;
 * :mod:`.chunked` -- out-of-core readers;
 * :mod:`.rosbag`, :mod:`.ulog`, :mod:`.nmea`, :mod:`.hdf5` -- other formats;
-* :mod:`.drive_readers` -- drive-log layouts (simulator directory, VN-100, comma2k19);
 * :mod:`.outputs` -- atomic writes of result files.
 """
 
+from imubounds.io.drive import Drive, DriveSettings
+from imubounds.io.drive_layout import read_layout, write_layout
+from imubounds.io.drive_readers import read_drive
 from imubounds.io.registry import (
     ReaderEntry,
     ReaderFunc,
@@ -29,6 +34,8 @@ from imubounds.io.registry import (
 )
 
 __all__ = [
+    "Drive",
+    "DriveSettings",
     "ReadOptions",
     "ReaderEntry",
     "ReaderFunc",
@@ -36,10 +43,13 @@ __all__ = [
     "bundled_static_log",
     "find_reader",
     "parse_column_map",
+    "read_drive",
     "read_imu",
     "read_imu_segments",
+    "read_layout",
     "recognise",
     "register_reader",
     "registered_readers",
     "unregister_reader",
+    "write_layout",
 ]

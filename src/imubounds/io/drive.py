@@ -72,9 +72,13 @@ class GnssStream:
     """GNSS fixes: position (deg, m), quality, and velocity where the receiver gives it.
 
     ``fix`` is False for rows without a fix (kept for counting, never used).
-    ``hdop`` (dimensionless) and ``h_acc_m`` (1-sigma horizontal accuracy in m)
-    are NaN where not reported. ``speed_mps``/``course_rad`` (clockwise from
-    north) and ``vel_n_mps``/``vel_e_mps`` are ``None`` when absent.
+    ``hdop`` (dimensionless) and ``h_acc_m`` (1-sigma accuracy in m of each
+    horizontal axis: u-blox ``hAcc``, PX4 ``eph``, the square root of a ROS
+    NavSatFix east/north covariance) are NaN where not reported.
+    ``speed_mps``/``course_rad`` (clockwise from north) and
+    ``vel_n_mps``/``vel_e_mps`` are ``None`` when absent; ``vel_acc_mps`` is
+    the receiver's 1-sigma accuracy of each horizontal velocity component
+    (NaN or ``None`` where not reported).
     """
 
     t: Array
@@ -88,6 +92,7 @@ class GnssStream:
     course_rad: Array | None = None
     vel_n_mps: Array | None = None
     vel_e_mps: Array | None = None
+    vel_acc_mps: Array | None = None
 
     @property
     def has_velocity(self) -> bool:
@@ -126,6 +131,7 @@ class GnssStream:
             "course_rad",
             "vel_n_mps",
             "vel_e_mps",
+            "vel_acc_mps",
         ):
             _len(f"GNSS {name}", getattr(self, name), n, src)
 
@@ -156,12 +162,16 @@ class HeadingStream:
 
     ``source`` says which (``"compass"``, ``"magnetometer"`` once calibrated,
     ``"gnss"``, ``"ahrs"``); an AHRS yaw uses the IMU's own gyros and is not
-    independent of it.
+    independent of it. ``true_north`` is True when the heading is referred to
+    true north (NMEA HDT, a GNSS heading, a ROS/PX4 orientation in a
+    geographic frame); False for a magnetic heading, to which the drive's
+    ``heading.declination_deg`` is added.
     """
 
     t: Array
     heading_rad: Array
     source: str = "compass"
+    true_north: bool = False
 
     def check(self, src: str) -> None:
         _len("heading", self.heading_rad, self.t.shape[0], src)
@@ -240,12 +250,31 @@ class VelocitySettings:
 class HeadingSettings:
     """Compass: ``deviation_deg`` bound after calibration (None: from the calibration's
     residual), ``declination_deg`` (east positive) added to magnetic headings,
-    ``calibration`` file of (measured, reference) pairs, ``noise_deg`` 1-sigma."""
+    ``calibration`` file of (measured, reference) pairs, ``noise_deg`` 1-sigma.
+
+    ``sensor``: what ``heading.csv``'s ``heading_deg`` comes from (``"compass"``,
+    ``"gnss"`` for a dual-antenna receiver, ``"ahrs"`` for a yaw that uses the
+    IMU's gyros); ``reference``: ``"magnetic"`` or ``"true"``, its north.
+    ``fit``: how the compass is calibrated (``"auto"``: the swing file if given,
+    else an ellipse fit of the raw magnetometer, else ``deviation_deg``;
+    ``"ellipse"``, ``"swing"``, ``"gnss-course"`` (explicit only: the heading
+    is then not independent of the GNSS) or ``"none"``).
+    ``alignment_deg``: bound on the constant heading offset that no
+    self-calibration can see (magnetometer yaw misalignment, rotational soft
+    iron); ``use``: which stream gives the heading (``"auto"``: an
+    independent heading stream, else the magnetometer, else an AHRS yaw;
+    ``"heading"``, ``"mag"``, ``"attitude"``).
+    """
 
     deviation_deg: float | None = None
     declination_deg: float = 0.0
     calibration: str | None = None
     noise_deg: float = 0.5
+    sensor: str = "compass"
+    reference: str = "magnetic"
+    fit: str = "auto"
+    alignment_deg: float = 0.0
+    use: str = "auto"
 
 
 @dataclass
@@ -301,11 +330,16 @@ class DriveSettings:
 
     ``imu_axes`` maps body axes (x forward, y left, z up) to signed IMU axes,
     e.g. ``("x", "-z", "y")``: body x is IMU x, body y is IMU -z, body z is IMU y.
+    ``mag_axes`` does the same for the magnetometer when it is mounted apart
+    from the IMU (None: it shares the IMU's axes and ``imu_axes``).
     ``assumed`` lists, in words, every setting that was not given and took its
-    documented default; outputs repeat it.
+    documented default; outputs repeat it. ``defaulted`` lists the same
+    settings as dotted keys (``"gnss.cep_m"``), so that a writer can leave them
+    out of ``drive.yaml`` and a reader lists them as assumed again.
     """
 
     imu_axes: tuple[str, str, str] = ("x", "y", "z")
+    mag_axes: tuple[str, str, str] | None = None
     imu: ImuSettings = field(default_factory=ImuSettings)
     gnss: GnssSettings = field(default_factory=GnssSettings)
     velocity: VelocitySettings = field(default_factory=VelocitySettings)
@@ -314,11 +348,19 @@ class DriveSettings:
     vehicle: VehicleSettings = field(default_factory=VehicleSettings)
     lever_arm_m: tuple[float, float, float] | None = None
     assumed: list[str] = field(default_factory=list)
+    defaulted: list[str] = field(default_factory=list)
 
 
 @dataclass
 class Drive:
-    """A drive log: sensor streams in SI on one clock, and the settings that bound them."""
+    """A drive log: sensor streams in SI on one clock, and the settings that bound them.
+
+    ``warnings`` are problems found in the input (each a one-line message, with
+    its count); ``counts`` holds the same counts by key (e.g. ``gnss_no_fix``,
+    ``heading_nan``) for outputs; ``notes`` are facts an output must repeat
+    (the mount rotation applied, a lever arm that is ignored, where a default
+    came from).
+    """
 
     imu: ImuStream | None = None
     gnss: GnssStream | None = None
@@ -332,6 +374,22 @@ class Drive:
     layout: str = "memory"
     warnings: list[str] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+
+    def warn(self, key: str, count: int, message: str) -> None:
+        """Record a counted warning: ``counts[key] += count`` and the message."""
+        if count <= 0:
+            return
+        self.counts[key] = self.counts.get(key, 0) + int(count)
+        self.warnings.append(message)
+
+    def time_range(self, name: str) -> tuple[float, float] | None:
+        """(first, last) time stamp of a stream in s, or None if it is absent or empty."""
+        s = getattr(self, name)
+        if s is None or s.t.size == 0:
+            return None
+        return float(s.t[0]), float(s.t[-1])
 
     def streams(self) -> list[str]:
         """Names of the streams present."""

@@ -1,8 +1,10 @@
-"""The generic drive-log layout: a directory of CSV (or Parquet) files on one clock.
+"""The generic drive-log layout: a directory of CSV, CSV.gz or Parquet tables on one clock.
 
 Every drive reader converts to this layout (``imubounds convert``) and
 ``imubounds dynamic DIR`` reads it directly. Files that are absent are simply
-not used; all times are ``time_s`` in seconds on one clock.
+not used; all times are ``time_s`` in seconds on one clock. Each table may be
+``NAME.csv``, ``NAME.csv.gz`` or ``NAME.parquet``. The layout is documented
+with a complete example in ``docs/drive-layout.md``.
 
 ``imu.csv``
     ``time_s`` and any of ``gyro_{x,y,z}_<unit>`` (``rads``, ``dps``, ...) and
@@ -11,38 +13,48 @@ not used; all times are ``time_s`` in seconds on one clock.
     z up).
 ``gnss.csv``
     ``time_s, lat_deg, lon_deg``; optional ``alt_m, hdop, h_acc_m`` (1-sigma
-    horizontal, m), ``fix`` (0 = no fix), ``speed_mps, course_deg`` (clockwise
-    from north), ``vel_n_mps, vel_e_mps``.
+    per horizontal axis, m), ``fix`` (0 = no fix), ``speed_mps, course_deg``
+    (clockwise from true north), ``vel_n_mps, vel_e_mps, vel_acc_mps``.
 ``velocity.csv``
     body-frame velocity of a DVL or wheel/CAN speed: ``time_s, u_mps``,
-    optional ``v_mps, w_mps``.
+    optional ``v_mps, w_mps`` and a text column ``kind`` (dvl, wheel, can,
+    odometry).
 ``heading.csv``
-    ``time_s, heading_deg`` (clockwise from north) and/or raw
-    ``mag_{x,y,z}_<unit>`` in the vehicle body axes.
+    ``time_s, heading_deg`` (clockwise from north; ``drive.yaml heading:
+    reference`` says magnetic or true, ``sensor`` compass, gnss or ahrs)
+    and/or raw ``mag_{x,y,z}_<unit>`` (``T``, ``uT``, ``nT``, ``gauss``,
+    ``raw``) in the IMU's axes (rotated by ``imu_axes``, or ``mag_axes``).
 ``attitude.csv``
     ``time_s, roll_deg, pitch_deg`` (optional ``yaw_deg``), roll positive right
-    side down, pitch positive nose up; or a quaternion ``qw, qx, qy, qz``
-    body (FLU) -> ENU.
+    side down, pitch positive nose up, yaw clockwise from north; or a
+    quaternion ``qw, qx, qy, qz`` body (FLU) -> ENU. The attitude of the
+    vehicle body (not of a rotated sensor).
 ``truth.csv`` (optional)
-    ``time_s`` with ``lat_deg, lon_deg`` or ``east_m, north_m``, optional
+    ``time_s`` with ``lat_deg, lon_deg`` or ``east_m, north_m`` (with
+    ``origin_lat_deg, origin_lon_deg``, optional ``origin_alt_m``), optional
     ``heading_deg, u_mps, v_mps``; any further column is kept by name.
 ``drive.yaml``
-    settings: ``imu_axes``, ``imu``, ``gnss``, ``velocity``, ``heading``,
-    ``attitude``, ``vehicle``, ``lever_arm_m`` (see :class:`DriveSettings`).
-    Unknown keys are an error naming the key.
+    settings: ``imu_axes``, ``mag_axes``, ``imu``, ``gnss``, ``velocity``,
+    ``heading``, ``attitude``, ``vehicle``, ``lever_arm_m`` (see
+    :class:`~imubounds.io.drive.DriveSettings`), and two informational keys,
+    ``converted_from`` and ``notes``. Unknown keys are an error naming the key;
+    values are range-checked; a key left out takes its documented default and
+    is listed as assumed.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from imubounds.errors import InputError
+from imubounds.errors import InputError, OptionError
+from imubounds.frames import axes_matrix, is_identity_axes, quaternion_to_rpy, rotate_axes
 from imubounds.io.drive import (
     AttitudeStream,
     Drive,
@@ -54,173 +66,74 @@ from imubounds.io.drive import (
     Truth,
     VelocityStream,
 )
+from imubounds.io.drive_validate import check_input_path, existing_file
 from imubounds.units import ACCEL_UNITS, GYRO_UNITS
+
+__all__ = [
+    "FILES",
+    "SETTINGS_FILE",
+    "SUFFIXES",
+    "TABLE_COLUMNS",
+    "axes_matrix",
+    "drive_from_tables",
+    "is_layout",
+    "parse_settings",
+    "quaternion_to_rpy_compass",
+    "read_layout",
+    "read_settings",
+    "settings_to_dict",
+    "write_layout",
+]
 
 FILES = ("imu", "gnss", "velocity", "heading", "attitude", "truth")
 SETTINGS_FILE = "drive.yaml"
+SUFFIXES = (".csv", ".csv.gz", ".parquet")
+FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "parquet": ".parquet"}
+
+#: The columns of each table (``<unit>`` columns by prefix); used for column maps.
+TABLE_COLUMNS: dict[str, tuple[str, ...]] = {
+    "imu": ("gyro_x_*", "gyro_y_*", "gyro_z_*", "accel_x_*", "accel_y_*", "accel_z_*"),
+    "gnss": (
+        "lat_deg",
+        "lon_deg",
+        "alt_m",
+        "hdop",
+        "h_acc_m",
+        "fix",
+        "speed_mps",
+        "course_deg",
+        "vel_n_mps",
+        "vel_e_mps",
+        "vel_acc_mps",
+    ),
+    "velocity": ("u_mps", "v_mps", "w_mps", "kind"),
+    "heading": ("heading_deg", "mag_x_*", "mag_y_*", "mag_z_*"),
+    "attitude": ("roll_deg", "pitch_deg", "yaw_deg", "qw", "qx", "qy", "qz"),
+    "truth": (
+        "lat_deg",
+        "lon_deg",
+        "east_m",
+        "north_m",
+        "origin_lat_deg",
+        "origin_lon_deg",
+        "origin_alt_m",
+        "heading_deg",
+        "u_mps",
+        "v_mps",
+    ),
+}
+
 _AXES = {"x": 0, "y": 1, "z": 2}
-
-
-# ----------------------------------------------------------------------------- mount
-
-
-def axes_matrix(imu_axes: tuple[str, str, str] | list[str]) -> np.ndarray:
-    """The 3x3 signed permutation taking IMU axes to body axes for an ``imu_axes`` mapping.
-
-    ``imu_axes[i]`` names the signed IMU axis that points along body axis i
-    (x forward, y left, z up): ``["x", "-z", "y"]`` means body x = IMU x,
-    body y = -IMU z, body z = IMU y. The result must be a proper rotation.
-    """
-    if len(imu_axes) != 3:
-        raise InputError(f"imu_axes must name 3 axes, e.g. [x, -z, y]; got {list(imu_axes)}")
-    m = np.zeros((3, 3))
-    for i, a in enumerate(imu_axes):
-        text = str(a).strip().lower()
-        sign = -1.0 if text.startswith("-") else 1.0
-        name = text.lstrip("+-")
-        if name not in _AXES:
-            raise InputError(f"imu_axes entry {a!r}: use x, y, z with an optional sign")
-        m[i, _AXES[name]] = sign
-    if not np.allclose(m @ m.T, np.eye(3)) or not math.isclose(np.linalg.det(m), 1.0):
-        raise InputError(
-            f"imu_axes {list(imu_axes)} is not a rotation (each IMU axis once, right-handed)"
-        )
-    return m
-
-
-# ----------------------------------------------------------------------------- settings
-
-
-def _section(cls: type, data: Any, where: str, assumed: list[str]) -> Any:
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise InputError(f"{where}: must be a mapping of settings")
-    names = {f.name for f in dataclasses.fields(cls)}
-    for k in data:
-        if k not in names:
-            raise InputError(f"{where}: unknown key {k!r}; known: {', '.join(sorted(names))}")
-    obj = cls(**data)
-    for f in dataclasses.fields(cls):
-        if f.name not in data:
-            assumed.append(f"{where}.{f.name} = {getattr(obj, f.name)!r} (default)")
-    return obj
-
-
-def parse_settings(data: Any, where: str = SETTINGS_FILE) -> DriveSettings:
-    """``drive.yaml`` contents -> :class:`DriveSettings`; unknown keys are an error."""
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise InputError(f"{where}: must be a mapping (key: value lines)")
-    known = {f.name for f in dataclasses.fields(DriveSettings) if f.name != "assumed"}
-    for k in data:
-        if k not in known:
-            raise InputError(f"{where}: unknown key {k!r}; known: {', '.join(sorted(known))}")
-    assumed: list[str] = []
-    kw: dict[str, Any] = {}
-    for f in dataclasses.fields(DriveSettings):
-        if f.name in ("assumed", "imu_axes", "lever_arm_m"):
-            continue
-        cls = type(getattr(DriveSettings(), f.name))
-        kw[f.name] = _section(cls, data.get(f.name), f"{where}: {f.name}", assumed)
-    axes = data.get("imu_axes", ["x", "y", "z"])
-    axes_matrix(axes)
-    kw["imu_axes"] = tuple(str(a) for a in axes)
-    if "imu_axes" not in data:
-        assumed.append(f"{where}: imu_axes = [x, y, z] (IMU axes are the body axes; default)")
-    lever = data.get("lever_arm_m")
-    if lever is not None:
-        try:
-            lv = tuple(float(x) for x in lever)
-        except (TypeError, ValueError) as err:
-            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m") from err
-        if len(lv) != 3:
-            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m")
-        kw["lever_arm_m"] = lv
-    return DriveSettings(**kw, assumed=assumed)
-
-
-def settings_to_dict(s: DriveSettings) -> dict[str, Any]:
-    """:class:`DriveSettings` -> a mapping ``drive.yaml`` can hold (no ``assumed``)."""
-    d = dataclasses.asdict(s)
-    d.pop("assumed", None)
-    d["imu_axes"] = list(s.imu_axes)
-    if s.lever_arm_m is None:
-        d.pop("lever_arm_m")
-    else:
-        d["lever_arm_m"] = list(s.lever_arm_m)
-    return d
-
-
-# ----------------------------------------------------------------------------- reading
-
-
-def _find(d: Path, stem: str) -> Path | None:
-    for suffix in (".csv", ".csv.gz", ".parquet"):
-        p = d / f"{stem}{suffix}"
-        if p.is_file():
-            return p
-    return None
-
-
-def _read_table(path: Path) -> pd.DataFrame:
-    try:
-        if path.suffix == ".parquet":
-            df = pd.read_parquet(path)
-        else:
-            df = pd.read_csv(path, comment="#")
-    except (OSError, ValueError, pd.errors.ParserError) as err:
-        raise InputError(f"{path}: cannot read as a table ({str(err).splitlines()[0]})") from err
-    df.columns = [str(c).strip() for c in df.columns]
-    if "time_s" not in df.columns:
-        raise InputError(f"{path}: no time_s column (found: {', '.join(df.columns[:12])})")
-    if df.shape[0] == 0:
-        raise InputError(f"{path}: no data rows")
-    return df
-
-
-def _col(df: pd.DataFrame, name: str, path: Path, required: bool = False) -> np.ndarray | None:
-    if name not in df.columns:
-        if required:
-            raise InputError(f"{path}: missing column {name} (found: {', '.join(df.columns[:12])})")
-        return None
-    v = pd.to_numeric(df[name], errors="coerce")
-    bad = v.isna() & df[name].notna()
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise InputError(f"{path}: column {name} row {i + 2}: {df[name].iloc[i]!r} is not a number")
-    return v.to_numpy(float)
-
-
-def _unit_columns(
-    df: pd.DataFrame, prefix: str, units: dict[str, float], path: Path
-) -> tuple[np.ndarray | None, str | None]:
-    """Columns ``<prefix>_{x,y,z}_<unit>`` -> (n, 3) SI array (NaN for absent axes) and unit."""
-    found: dict[int, tuple[str, str]] = {}
-    for c in df.columns:
-        for ax, i in _AXES.items():
-            head = f"{prefix}_{ax}_"
-            if c.lower().startswith(head):
-                found[i] = (c, c[len(head) :])
-    if not found:
-        return None, None
-    out = np.full((df.shape[0], 3), np.nan)
-    unit_seen = None
-    for i, (c, unit) in found.items():
-        key = unit.lower()
-        if key not in units:
-            raise InputError(
-                f"{path}: column {c}: unknown unit {unit!r}; use one of {', '.join(units)}"
-            )
-        out[:, i] = _col(df, c, path, required=True) * units[key]  # type: ignore[operator]
-        unit_seen = key
-    return out, unit_seen
-
-
-_GYRO_UNITS = {**GYRO_UNITS, "rad_s": 1.0, "deg_s": math.pi / 180.0}
+_GYRO_UNITS = {
+    **GYRO_UNITS,
+    "rad_s": 1.0,
+    "deg_s": math.pi / 180.0,
+    "deg_h": math.pi / 180.0 / 3600.0,
+    "mrad_s": 1e-3,
+}
 _ACCEL_UNITS = {**ACCEL_UNITS, "m_s2": 1.0}
-_MAG_UNITS = {
+#: Magnetometer units -> tesla ("raw": counts of unknown scale, kept as they are).
+MAG_UNITS = {
     "t": 1.0,
     "ut": 1e-6,
     "nt": 1e-9,
@@ -231,217 +144,684 @@ _MAG_UNITS = {
 }
 
 
-def read_layout(directory: str | Path, settings: DriveSettings | None = None) -> Drive:
-    """Read a drive-layout directory into a :class:`Drive` (SI, body frame FLU).
-
-    ``settings`` replaces ``drive.yaml`` when given (command-line overrides are
-    applied by the caller on the parsed settings).
-    """
-    d = Path(directory)
-    if not d.is_dir():
-        raise InputError(f"{d}: not a directory")
-    if settings is None:
-        settings = read_settings(d)
-    warnings: list[str] = []
-    drive = Drive(settings=settings, source=str(d), layout="generic", warnings=warnings)
-    rot = axes_matrix(settings.imu_axes)
-
-    p = _find(d, "imu")
-    if p is not None:
-        df = _read_table(p)
-        t = _col(df, "time_s", p, True)
-        gyro, gu = _unit_columns(df, "gyro", _GYRO_UNITS, p)
-        acc, au = _unit_columns(df, "accel", _ACCEL_UNITS, p)
-        if gyro is None and acc is None:
-            raise InputError(
-                f"{p}: no IMU columns; expected gyro_{{x,y,z}}_<unit> (rads, dps) and/or "
-                "accel_{x,y,z}_<unit> (mps2, g)"
-            )
-        n = df.shape[0]
-        gyro = np.full((n, 3), np.nan) if gyro is None else gyro
-        acc = np.full((n, 3), np.nan) if acc is None else acc
-        assert t is not None
-        drive.imu = ImuStream(
-            t=t,
-            accel=acc @ rot.T,
-            gyro=gyro @ rot.T,
-            input_units={"gyro": gu or "", "accel": au or ""},
-        )
-
-    p = _find(d, "gnss")
-    if p is not None:
-        df = _read_table(p)
-        course = _col(df, "course_deg", p)
-        fix = _col(df, "fix", p)
-        drive.gnss = GnssStream(
-            t=_col(df, "time_s", p, True),  # type: ignore[arg-type]
-            lat_deg=_col(df, "lat_deg", p, True),  # type: ignore[arg-type]
-            lon_deg=_col(df, "lon_deg", p, True),  # type: ignore[arg-type]
-            alt_m=_col(df, "alt_m", p),
-            hdop=_col(df, "hdop", p),
-            h_acc_m=_col(df, "h_acc_m", p),
-            fix=None if fix is None else (np.nan_to_num(fix, nan=0.0) != 0),
-            speed_mps=_col(df, "speed_mps", p),
-            course_rad=None if course is None else np.radians(course),
-            vel_n_mps=_col(df, "vel_n_mps", p),
-            vel_e_mps=_col(df, "vel_e_mps", p),
-        )
-
-    p = _find(d, "velocity")
-    if p is not None:
-        df = _read_table(p)
-        kind = str(df["kind"].iloc[0]) if "kind" in df.columns else "dvl"
-        drive.velocity = VelocityStream(
-            t=_col(df, "time_s", p, True),  # type: ignore[arg-type]
-            u_mps=_col(df, "u_mps", p, True),  # type: ignore[arg-type]
-            v_mps=_col(df, "v_mps", p),
-            w_mps=_col(df, "w_mps", p),
-            kind=kind,
-        )
-
-    p = _find(d, "heading")
-    if p is not None:
-        df = _read_table(p)
-        t = _col(df, "time_s", p, True)
-        assert t is not None
-        h = _col(df, "heading_deg", p)
-        mag, mu = _unit_columns(df, "mag", _MAG_UNITS, p)
-        if h is None and mag is None:
-            raise InputError(f"{p}: expected heading_deg and/or mag_{{x,y,z}}_<unit> columns")
-        if h is not None:
-            ok = np.isfinite(h)
-            drive.heading = HeadingStream(t=t[ok], heading_rad=np.radians(h[ok]) % (2 * math.pi))
-        if mag is not None:
-            drive.mag = MagStream(t=t, mag=mag, unit=mu or "unknown")
-
-    p = _find(d, "attitude")
-    if p is not None:
-        df = _read_table(p)
-        t = _col(df, "time_s", p, True)
-        assert t is not None
-        if "roll_deg" in df.columns:
-            yaw = _col(df, "yaw_deg", p)
-            drive.attitude = AttitudeStream(
-                t=t,
-                roll_rad=np.radians(_col(df, "roll_deg", p, True)),  # type: ignore[arg-type]
-                pitch_rad=np.radians(_col(df, "pitch_deg", p, True)),  # type: ignore[arg-type]
-                yaw_rad=None if yaw is None else np.radians(yaw) % (2 * math.pi),
-            )
-        elif "qw" in df.columns:
-            q = np.column_stack([_col(df, k, p, True) for k in ("qw", "qx", "qy", "qz")])
-            roll, pitch, yaw = quaternion_to_rpy_compass(q)
-            drive.attitude = AttitudeStream(t=t, roll_rad=roll, pitch_rad=pitch, yaw_rad=yaw)
-        else:
-            raise InputError(f"{p}: expected roll_deg, pitch_deg (or qw, qx, qy, qz) columns")
-
-    p = _find(d, "truth")
-    if p is not None:
-        drive.truth = _read_truth(p)
-    return drive
-
-
 def quaternion_to_rpy_compass(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Body (FLU) -> ENU quaternions (w, x, y, z) -> roll (right side down +), pitch (nose
-    up +) and yaw (compass, clockwise from north), rad."""
-    from scipy.spatial.transform import Rotation
-
-    r = Rotation.from_quat(np.column_stack([q[:, 1], q[:, 2], q[:, 3], q[:, 0]]))
-    m = r.as_matrix()  # columns: body axes (x fwd, y left, z up) in ENU
-    # nose up: body x has a +Up component; right side down: body y (left) points up
-    pitch = np.arcsin(np.clip(m[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(m[:, 2, 1], m[:, 2, 2])
-    yaw_enu = np.arctan2(m[:, 1, 0], m[:, 0, 0])
-    yaw = np.mod(0.5 * math.pi - yaw_enu, 2 * math.pi)
-    return roll, pitch, yaw
+    """Body (FLU) -> ENU quaternions (w, x, y, z) -> roll, pitch, compass yaw (rad)."""
+    return quaternion_to_rpy(q)
 
 
-def _read_truth(p: Path) -> Truth:
+# ----------------------------------------------------------------------------- settings
+
+# Allowed values of the text settings, and range checks of the numeric ones:
+# (lower bound, lower bound inclusive, upper bound or None).
+_CHOICES: dict[str, tuple[str, ...]] = {
+    "heading.sensor": ("compass", "gnss", "ahrs"),
+    "heading.reference": ("magnetic", "true"),
+    "heading.fit": ("auto", "ellipse", "swing", "gnss-course", "none"),
+    "heading.use": ("auto", "heading", "mag", "attitude"),
+    "vehicle.kind": ("ground", "marine", "air"),
+}
+_RANGES: dict[str, tuple[float, bool, float | None]] = {
+    "gnss.cep_m": (0.0, False, None),
+    "gnss.default_hdop": (0.0, False, None),
+    "gnss.vel_sigma_mps": (0.0, False, None),
+    "velocity.bound_mps": (0.0, True, None),
+    "velocity.scale": (0.0, True, 1.0),
+    "heading.deviation_deg": (0.0, True, 180.0),
+    "heading.declination_deg": (-180.0, True, 180.0),
+    "heading.noise_deg": (0.0, True, 90.0),
+    "heading.alignment_deg": (0.0, True, 180.0),
+    "attitude.bound_deg": (0.0, True, 90.0),
+    "vehicle.max_speed_mps": (0.0, False, None),
+    "vehicle.max_accel_mps2": (0.0, False, None),
+    "vehicle.max_jerk_mps3": (0.0, False, None),
+    "vehicle.max_yaw_rate_dps": (0.0, False, None),
+    "vehicle.max_tilt_deg": (0.0, True, 90.0),
+    "vehicle.lateral_speed_bound_mps": (0.0, True, None),
+    "imu.accel_nd": (0.0, True, None),
+    "imu.accel_bs": (0.0, True, None),
+    "imu.gyro_nd": (0.0, True, None),
+    "imu.gyro_bs": (0.0, True, None),
+    "imu.accel_turn_on_mps2": (0.0, True, None),
+    "imu.gyro_turn_on_dps": (0.0, True, None),
+    "imu.scale_factor": (0.0, True, 1.0),
+    "imu.misalignment_deg": (0.0, True, 90.0),
+}
+_PATH_KEYS = ("imu.noise_json", "heading.calibration")
+_INFO_KEYS = ("converted_from", "notes")
+
+
+def _check_value(key: str, value: Any, default: Any, where: str) -> Any:
+    if value is None:
+        return None
+    if key in _CHOICES:
+        text = str(value).strip().lower()
+        if text not in _CHOICES[key]:
+            raise InputError(
+                f"{where}: {key} is {value!r}; use one of {', '.join(_CHOICES[key])}"
+            )
+        return text
+    if key in _PATH_KEYS or key == "imu.preset":
+        if not isinstance(value, str) or not value.strip():
+            raise InputError(f"{where}: {key} must be a text (a file name or preset name)")
+        return value.strip()
+    if isinstance(default, float) or key in _RANGES:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise InputError(f"{where}: {key} must be a number, got {value!r}")
+        x = float(value)
+        lo, inclusive, hi = _RANGES.get(key, (-math.inf, True, None))
+        if not math.isfinite(x) or x < lo or (x == lo and not inclusive):
+            rel = ">=" if inclusive else ">"
+            raise InputError(f"{where}: {key} must be a finite number {rel} {lo:g}, got {value!r}")
+        if hi is not None and x > hi:
+            raise InputError(f"{where}: {key} must be at most {hi:g}, got {value!r}")
+        return x
+    return value
+
+
+def _section(
+    cls: type, data: Any, name: str, where: str, assumed: list[str], defaulted: list[str]
+) -> Any:
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise InputError(f"{where}: {name} must be a mapping of settings (key: value lines)")
+    proto = cls()
+    names = {f.name for f in dataclasses.fields(cls)}
+    for k in data:
+        if k not in names:
+            raise InputError(
+                f"{where}: unknown key {name}.{k}; known in {name}: {', '.join(sorted(names))}"
+            )
+    kw = {
+        k: _check_value(f"{name}.{k}", v, getattr(proto, k), where) for k, v in data.items()
+    }
+    obj = cls(**kw)
+    for f in dataclasses.fields(cls):
+        if f.name in data:
+            continue
+        defaulted.append(f"{name}.{f.name}")
+        value = getattr(obj, f.name)
+        if value is not None:
+            assumed.append(f"{name}.{f.name} = {value!r} (default)")
+    return obj
+
+
+def _axes(value: Any, key: str, where: str) -> tuple[str, str, str]:
+    if isinstance(value, str):
+        value = [v for v in value.replace(",", " ").split() if v]
+    if not isinstance(value, list | tuple):
+        raise InputError(f"{where}: {key} must be a list like [x, -z, y], got {value!r}")
+    try:
+        axes_matrix([str(a) for a in value])
+    except InputError as err:
+        raise InputError(f"{where}: {key}: {err}") from None
+    return tuple(str(a).strip() for a in value)  # type: ignore[return-value]
+
+
+def parse_settings(
+    data: Any, where: str = SETTINGS_FILE, base_dir: str | Path | None = None
+) -> DriveSettings:
+    """``drive.yaml`` contents -> :class:`DriveSettings`.
+
+    Unknown keys and out-of-range values are an :class:`InputError` naming the
+    key; keys left out take their documented default and are listed in
+    ``assumed`` (words) and ``defaulted`` (dotted keys). File names
+    (``imu.noise_json``, ``heading.calibration``) are resolved against
+    ``base_dir`` (the directory of the yaml) and must exist; ``imu.preset``
+    must be a known preset.
+    """
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise InputError(f"{where}: must be a mapping (key: value lines)")
+    known = {f.name for f in dataclasses.fields(DriveSettings)} - {"assumed", "defaulted"}
+    for k in data:
+        if k not in known and k not in _INFO_KEYS:
+            raise InputError(f"{where}: unknown key {k!r}; known: {', '.join(sorted(known))}")
+    assumed: list[str] = []
+    defaulted: list[str] = []
+    kw: dict[str, Any] = {}
+    for f in dataclasses.fields(DriveSettings):
+        if f.name in ("assumed", "defaulted", "imu_axes", "mag_axes", "lever_arm_m"):
+            continue
+        cls = type(getattr(DriveSettings(), f.name))
+        kw[f.name] = _section(cls, data.get(f.name), f.name, where, assumed, defaulted)
+    if "imu_axes" in data:
+        kw["imu_axes"] = _axes(data["imu_axes"], "imu_axes", where)
+    else:
+        defaulted.append("imu_axes")
+        assumed.append("imu_axes = [x, y, z] (the IMU's axes are the body axes; default)")
+    if data.get("mag_axes") is not None:
+        kw["mag_axes"] = _axes(data["mag_axes"], "mag_axes", where)
+    lever = data.get("lever_arm_m")
+    if lever is not None:
+        try:
+            lv = tuple(float(x) for x in lever)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m") from None
+        if len(lv) != 3 or not all(math.isfinite(x) for x in lv):
+            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m (finite numbers)")
+        kw["lever_arm_m"] = lv
+    s = DriveSettings(**kw, assumed=assumed, defaulted=defaulted)
+    _resolve_imu_noise(s, where, base_dir)
+    if s.heading.calibration is not None:
+        s.heading.calibration = _resolve(s.heading.calibration, "heading.calibration", where,
+                                         base_dir)
+    if s.heading.deviation_deg is None:
+        assumed.append("heading.deviation_deg: from the compass calibration's residual (default)")
+    return s
+
+
+def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> str:
+    p = Path(value)
+    if not p.is_absolute() and base_dir is not None:
+        p = Path(base_dir) / p
+    try:
+        check_input_path(p, key, directory=False)
+    except InputError as err:
+        raise InputError(f"{where}: {key}: {err}") from None
+    return str(p)
+
+
+def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None) -> None:
+    imu = s.imu
+    if imu.noise_json is not None and imu.preset is not None:
+        raise InputError(f"{where}: give imu.noise_json or imu.preset, not both")
+    if imu.noise_json is not None:
+        imu.noise_json = _resolve(imu.noise_json, "imu.noise_json", where, base_dir)
+    if imu.preset is not None:
+        from imubounds.presets import get_preset
+
+        try:
+            get_preset(imu.preset)
+        except OptionError as err:
+            raise InputError(f"{where}: imu.preset: {err}") from None
+    datasheet = ("accel_nd", "accel_bs", "gyro_nd", "gyro_bs")
+    if imu.noise_json is None and imu.preset is None and all(
+        getattr(imu, k) is None for k in datasheet
+    ):
+        s.assumed.append(
+            "imu: no noise_json, preset or datasheet figures: the estimator's default IMU applies"
+        )
+
+
+def settings_to_dict(s: DriveSettings, *, keep_defaults: bool = False) -> dict[str, Any]:
+    """:class:`DriveSettings` -> a mapping ``drive.yaml`` can hold.
+
+    Settings listed in ``defaulted`` are left out (unless ``keep_defaults``),
+    so that reading the file back lists them as assumed again; ``None`` values
+    are left out.
+    """
+    skip = set() if keep_defaults else set(s.defaulted)
+    out: dict[str, Any] = {}
+    if "imu_axes" not in skip:
+        out["imu_axes"] = list(s.imu_axes)
+    if s.mag_axes is not None:
+        out["mag_axes"] = list(s.mag_axes)
+    for f in dataclasses.fields(DriveSettings):
+        if f.name in ("assumed", "defaulted", "imu_axes", "mag_axes", "lever_arm_m"):
+            continue
+        sec = getattr(s, f.name)
+        d = {
+            k: v
+            for k, v in dataclasses.asdict(sec).items()
+            if v is not None and f"{f.name}.{k}" not in skip
+        }
+        if d:
+            out[f.name] = d
+    if s.lever_arm_m is not None:
+        out["lever_arm_m"] = list(s.lever_arm_m)
+    return out
+
+
+# ----------------------------------------------------------------------------- tables
+
+
+def _find(d: Path, stem: str) -> Path | None:
+    return existing_file(d, stem, SUFFIXES)
+
+
+def read_table(path: Path) -> pd.DataFrame:
+    """One layout table (CSV, CSV.gz or Parquet) with a ``time_s`` column and >= 1 row."""
+    check_input_path(path, "drive table", directory=False)
+    try:
+        if path.name.endswith(".parquet"):
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(path, comment="#", skipinitialspace=True)
+    except (OSError, ValueError, ImportError, pd.errors.ParserError) as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise InputError(f"{path}: cannot read as a table ({first})") from err
+    df.columns = [str(c).strip() for c in df.columns]
+    dup = sorted({c for c in df.columns if list(df.columns).count(c) > 1})
+    if dup:
+        raise InputError(f"{path}: column {dup[0]} appears twice; keep one")
+    if "time_s" not in df.columns:
+        raise InputError(
+            f"{path}: no time_s column (found: {', '.join(df.columns[:12]) or 'no columns'}); "
+            "the first column must be time_s, the time in seconds"
+        )
+    if df.shape[0] == 0:
+        raise InputError(f"{path}: no data rows (only a header)")
+    return df
+
+
+def _col(df: pd.DataFrame, name: str, where: str, required: bool = False) -> np.ndarray | None:
+    if name not in df.columns:
+        if required:
+            raise InputError(
+                f"{where}: missing column {name} (found: {', '.join(df.columns[:12])})"
+            )
+        return None
+    raw = df[name]
+    if pd.api.types.is_numeric_dtype(raw.dtype):  # parsed as numbers (or booleans) already
+        return raw.to_numpy(float)
+    v = pd.to_numeric(raw, errors="coerce")
+    bad = v.isna() & raw.notna() & (raw.astype(str).str.strip().str.lower() != "nan")
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise InputError(
+            f"{where}: column {name}, data row {i + 1}: {raw.iloc[i]!r} is not a number"
+        )
+    return v.to_numpy(float)
+
+
+def _req(df: pd.DataFrame, name: str, where: str) -> np.ndarray:
+    a = _col(df, name, where, required=True)
+    assert a is not None
+    return a
+
+
+def _time(df: pd.DataFrame, where: str) -> np.ndarray:
+    t = _req(df, "time_s", where)
+    if not np.all(np.isfinite(t)):
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputError(f"{where}: time_s is empty, NaN or infinite at data row {i + 1}")
+    return t
+
+
+def _unit_columns(
+    df: pd.DataFrame, prefix: str, units: Mapping[str, float], where: str
+) -> tuple[np.ndarray | None, str | None]:
+    """Columns ``<prefix>_{x,y,z}_<unit>`` -> (n, 3) SI array (NaN for absent axes) and unit."""
+    found: dict[int, tuple[str, str]] = {}
+    for c in df.columns:
+        for ax, i in _AXES.items():
+            head = f"{prefix}_{ax}_"
+            if c.lower().startswith(head):
+                if i in found:
+                    raise InputError(
+                        f"{where}: two columns for {prefix}_{ax} ({found[i][0]}, {c}); keep one"
+                    )
+                found[i] = (c, c[len(head) :])
+    if not found:
+        return None, None
+    out = np.full((df.shape[0], 3), np.nan)
+    units_seen = set()
+    for i, (c, unit) in found.items():
+        key = unit.lower()
+        if key not in units:
+            raise InputError(
+                f"{where}: column {c}: unknown unit {unit!r}; use one of {', '.join(units)}"
+            )
+        out[:, i] = _req(df, c, where) * units[key]
+        units_seen.add(key)
+    if len(units_seen) > 1:
+        raise InputError(
+            f"{where}: the {prefix} columns mix units ({', '.join(sorted(units_seen))}); "
+            "give every axis in one unit"
+        )
+    return out, units_seen.pop()
+
+
+def _rows_with_data(df: pd.DataFrame, table: str) -> pd.DataFrame:
+    """Rows of a wide table that carry at least one value of ``table``'s columns."""
+    cols = [c for c in df.columns if _belongs(c, table)]
+    if not cols:
+        return df.iloc[0:0]
+    keep = df[cols].notna().any(axis=1)
+    return df.loc[keep].reset_index(drop=True)
+
+
+def _belongs(col: str, table: str) -> bool:
+    for pat in TABLE_COLUMNS[table]:
+        if pat.endswith("*") and col.lower().startswith(pat[:-1]):
+            return True
+        if col == pat:
+            return True
+    return False
+
+
+def imu_from_table(df: pd.DataFrame, where: str, rot: np.ndarray) -> ImuStream:
+    """``imu`` table -> :class:`ImuStream` in the body frame (``rot``: sensor -> body)."""
+    t = _time(df, where)
+    gyro, gu = _unit_columns(df, "gyro", _GYRO_UNITS, where)
+    acc, au = _unit_columns(df, "accel", _ACCEL_UNITS, where)
+    if gyro is None and acc is None:
+        raise InputError(
+            f"{where}: no IMU columns; expected gyro_{{x,y,z}}_<unit> (rads, dps) and/or "
+            "accel_{x,y,z}_<unit> (mps2, g)"
+        )
+    n = df.shape[0]
+    gyro = np.full((n, 3), np.nan) if gyro is None else gyro
+    acc = np.full((n, 3), np.nan) if acc is None else acc
+    return ImuStream(
+        t=t,
+        accel=rotate_axes(acc, rot),
+        gyro=rotate_axes(gyro, rot),
+        input_units={"gyro": gu or "", "accel": au or ""},
+    )
+
+
+def gnss_from_table(df: pd.DataFrame, where: str) -> GnssStream:
+    """``gnss`` table -> :class:`GnssStream` (course in rad, ``fix`` as booleans)."""
+    if "lat_deg" not in df.columns or "lon_deg" not in df.columns:
+        raise InputError(
+            f"{where}: GNSS needs columns time_s, lat_deg, lon_deg (found: "
+            f"{', '.join(df.columns[:12])})"
+        )
+    course = _col(df, "course_deg", where)
+    fix = _col(df, "fix", where)
+    return GnssStream(
+        t=_time(df, where),
+        lat_deg=_req(df, "lat_deg", where),
+        lon_deg=_req(df, "lon_deg", where),
+        alt_m=_col(df, "alt_m", where),
+        hdop=_col(df, "hdop", where),
+        h_acc_m=_col(df, "h_acc_m", where),
+        fix=None if fix is None else (np.nan_to_num(fix, nan=0.0) != 0),
+        speed_mps=_col(df, "speed_mps", where),
+        course_rad=None if course is None else np.mod(np.radians(course), 2 * math.pi),
+        vel_n_mps=_col(df, "vel_n_mps", where),
+        vel_e_mps=_col(df, "vel_e_mps", where),
+        vel_acc_mps=_col(df, "vel_acc_mps", where),
+    )
+
+
+def velocity_from_table(df: pd.DataFrame, where: str) -> VelocityStream:
+    """``velocity`` table -> :class:`VelocityStream` (``kind`` column, default dvl)."""
+    kind = "dvl"
+    if "kind" in df.columns:
+        kinds = {str(k).strip().lower() for k in df["kind"].dropna()}
+        if len(kinds) > 1:
+            raise InputError(f"{where}: column kind holds several sensors ({', '.join(kinds)})")
+        if kinds:
+            kind = kinds.pop()
+        if kind not in ("dvl", "wheel", "can", "odometry"):
+            raise InputError(f"{where}: kind {kind!r}; use dvl, wheel, can or odometry")
+    if "u_mps" not in df.columns:
+        raise InputError(
+            f"{where}: a velocity sensor needs columns time_s, u_mps (optional v_mps, w_mps)"
+        )
+    return VelocityStream(
+        t=_time(df, where),
+        u_mps=_req(df, "u_mps", where),
+        v_mps=_col(df, "v_mps", where),
+        w_mps=_col(df, "w_mps", where),
+        kind=kind,
+    )
+
+
+def heading_from_table(
+    df: pd.DataFrame, where: str, settings: DriveSettings, mag_rot: np.ndarray, drive: Drive
+) -> tuple[HeadingStream | None, MagStream | None]:
+    """``heading`` table -> (heading stream, magnetometer stream); NaN rows are dropped
+    and counted in ``drive``."""
+    t = _time(df, where)
+    h = _col(df, "heading_deg", where)
+    mag, mu = _unit_columns(df, "mag", MAG_UNITS, where)
+    if h is None and mag is None:
+        raise InputError(
+            f"{where}: expected heading_deg and/or mag_{{x,y,z}}_<unit> columns (found: "
+            f"{', '.join(df.columns[:12])})"
+        )
+    hs = ms = None
+    if h is not None:
+        ok = np.isfinite(h)
+        nb = int((~ok).sum())
+        if nb and mag is None:
+            drive.warn("heading_nan", nb, f"{where}: {nb} row(s) with NaN heading_deg skipped")
+        elif nb and mag is not None:
+            # rows of the magnetometer only carry no heading; count the others
+            lost = int((~ok & ~np.isfinite(mag).any(axis=1)).sum())
+            drive.warn("heading_nan", lost, f"{where}: {lost} row(s) with neither heading_deg "
+                       "nor a magnetometer value skipped")
+        if ok.any():
+            hs = HeadingStream(
+                t=t[ok],
+                heading_rad=np.mod(np.radians(h[ok]), 2 * math.pi),
+                source=settings.heading.sensor,
+                true_north=settings.heading.reference == "true",
+            )
+        elif mag is None:
+            raise InputError(f"{where}: heading_deg has no finite value in {t.size} row(s)")
+    if mag is not None:
+        rows = np.ones(t.size, bool) if h is None else np.isfinite(mag).any(axis=1)
+        if rows.any():
+            ms = MagStream(
+                t=t[rows], mag=rotate_axes(mag[rows], mag_rot), unit="raw" if mu == "raw" else "T"
+            )
+        elif hs is None:
+            raise InputError(f"{where}: the magnetometer columns have no finite value")
+    return hs, ms
+
+
+def attitude_from_table(df: pd.DataFrame, where: str) -> AttitudeStream:
+    """``attitude`` table (degrees or a body->ENU quaternion) -> :class:`AttitudeStream`."""
+    t = _time(df, where)
+    if "roll_deg" in df.columns or "pitch_deg" in df.columns:
+        yaw = _col(df, "yaw_deg", where)
+        return AttitudeStream(
+            t=t,
+            roll_rad=np.radians(_req(df, "roll_deg", where)),
+            pitch_rad=np.radians(_req(df, "pitch_deg", where)),
+            yaw_rad=None if yaw is None else np.mod(np.radians(yaw), 2 * math.pi),
+        )
+    if "qw" in df.columns:
+        q = np.column_stack([_req(df, k, where) for k in ("qw", "qx", "qy", "qz")])
+        norm = np.linalg.norm(q, axis=1)
+        bad = ~(np.isfinite(norm) & (norm > 0.5) & (norm < 1.5))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{where}: quaternion at data row {i + 1} has norm {norm[i]:g}; expected unit "
+                "quaternions (qw, qx, qy, qz)"
+            )
+        roll, pitch, yaw = quaternion_to_rpy(q)
+        return AttitudeStream(t=t, roll_rad=roll, pitch_rad=pitch, yaw_rad=yaw)
+    raise InputError(f"{where}: expected roll_deg, pitch_deg (or qw, qx, qy, qz) columns")
+
+
+def truth_from_table(df: pd.DataFrame, where: str) -> Truth:
+    """``truth`` table -> :class:`Truth` (ENU of its origin; extra columns kept by name)."""
     from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 
-    df = _read_table(p)
-    t = _col(df, "time_s", p, True)
-    assert t is not None
+    t = _time(df, where)
     used = {"time_s"}
     if "east_m" in df.columns:
-        e, n = _col(df, "east_m", p, True), _col(df, "north_m", p, True)
-        olat = df.attrs.get("origin")  # parquet metadata, rarely present
-        origin = (
-            (float(df["origin_lat_deg"].iloc[0]), float(df["origin_lon_deg"].iloc[0]), 0.0)
-            if "origin_lat_deg" in df.columns
-            else (olat if isinstance(olat, tuple) else (math.nan, math.nan, 0.0))
-        )
-        used |= {"east_m", "north_m", "origin_lat_deg", "origin_lon_deg"}
+        e, n = _req(df, "east_m", where), _req(df, "north_m", where)
+        if "origin_lat_deg" in df.columns:
+            origin = (
+                float(_req(df, "origin_lat_deg", where)[0]),
+                float(_req(df, "origin_lon_deg", where)[0]),
+                float(_req(df, "origin_alt_m", where)[0]) if "origin_alt_m" in df.columns
+                else 0.0,
+            )
+        else:
+            origin = (math.nan, math.nan, 0.0)
+        used |= {"east_m", "north_m", "origin_lat_deg", "origin_lon_deg", "origin_alt_m"}
     elif "lat_deg" in df.columns:
-        lat, lon = _col(df, "lat_deg", p, True), _col(df, "lon_deg", p, True)
-        e, n, origin = geodetic_to_enu(lat, lon, None)
+        lat, lon = _req(df, "lat_deg", where), _req(df, "lon_deg", where)
+        e, n, org = geodetic_to_enu(lat, lon, None)
+        origin = (float(org[0]), float(org[1]), float(org[2]))
         used |= {"lat_deg", "lon_deg"}
     else:
-        raise InputError(f"{p}: truth needs lat_deg, lon_deg or east_m, north_m")
-    hd = _col(df, "heading_deg", p)
+        raise InputError(f"{where}: truth needs lat_deg, lon_deg or east_m, north_m")
+    hd = _col(df, "heading_deg", where)
     used |= {"heading_deg", "u_mps", "v_mps"}
-    extra = {c: _col(df, c, p) for c in df.columns if c not in used}
+    extra = {c: _col(df, c, where) for c in df.columns if c not in used}
     return Truth(
         t=t,
-        east_m=e,  # type: ignore[arg-type]
-        north_m=n,  # type: ignore[arg-type]
-        origin=tuple(origin),  # type: ignore[arg-type]
-        heading_rad=None if hd is None else np.radians(hd),
-        u_mps=_col(df, "u_mps", p),
-        v_mps=_col(df, "v_mps", p),
+        east_m=e,
+        north_m=n,
+        origin=origin,
+        heading_rad=None if hd is None else np.mod(np.radians(hd), 2 * math.pi),
+        u_mps=_col(df, "u_mps", where),
+        v_mps=_col(df, "v_mps", where),
         extra={k: v for k, v in extra.items() if v is not None},
     )
 
 
-def read_settings(d: Path) -> DriveSettings:
-    """``d/drive.yaml`` -> :class:`DriveSettings` (defaults, listed as assumed, if absent)."""
+def drive_from_tables(
+    tables: Mapping[str, tuple[pd.DataFrame, str]],
+    settings: DriveSettings,
+    *,
+    source: str,
+    layout: str,
+    wide: bool = False,
+) -> Drive:
+    """Build a :class:`Drive` from layout tables ``{name: (frame, where)}``.
+
+    The IMU (and the magnetometer) are rotated into the body frame by
+    ``settings.imu_axes`` (``mag_axes``) before anything else. ``wide``: the
+    tables are one wide log, so each keeps only the rows that carry its columns.
+    """
+    drive = Drive(settings=settings, source=source, layout=layout)
+    rot = axes_matrix(settings.imu_axes)
+    mag_rot = axes_matrix(settings.mag_axes) if settings.mag_axes is not None else rot
+    files: dict[str, str] = {}
+    for name, (df, where) in tables.items():
+        if name not in FILES:
+            raise InputError(f"{where}: unknown drive table {name!r}; use {', '.join(FILES)}")
+        if wide:
+            df = _rows_with_data(df, name)
+            if df.shape[0] == 0:
+                continue
+        files[name] = where
+        if name == "imu":
+            drive.imu = imu_from_table(df, where, rot)
+        elif name == "gnss":
+            drive.gnss = gnss_from_table(df, where)
+        elif name == "velocity":
+            drive.velocity = velocity_from_table(df, where)
+        elif name == "heading":
+            drive.heading, drive.mag = heading_from_table(df, where, settings, mag_rot, drive)
+        elif name == "attitude":
+            drive.attitude = attitude_from_table(df, where)
+        else:
+            drive.truth = truth_from_table(df, where)
+    drive.meta["files"] = files
+    if not is_identity_axes(settings.imu_axes):
+        drive.notes.append(
+            f"IMU mount: imu_axes {list(settings.imu_axes)} applied (sensor axes rotated into "
+            "the body frame x forward, y left, z up)"
+        )
+    return drive
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def read_layout(directory: str | Path, settings: DriveSettings | None = None) -> Drive:
+    """Read a drive-layout directory into a :class:`Drive` (SI, body frame FLU).
+
+    ``settings`` replaces ``drive.yaml`` when given (command-line overrides are
+    applied by the caller on the parsed settings). The drive is not validated
+    here: :func:`imubounds.io.read_drive` validates it.
+    """
+    d = check_input_path(directory, "drive-layout directory", directory=True)
+    info: dict[str, Any] = {}
+    if settings is None:
+        settings, info = read_settings_with_info(d)
+    tables: dict[str, tuple[pd.DataFrame, str]] = {}
+    for name in FILES:
+        p = _find(d, name)
+        if p is not None:
+            tables[name] = (read_table(p), str(p))
+    if not tables:
+        raise InputError(
+            f"{d}: no drive table; expected imu.csv (time_s, gyro_{{x,y,z}}_<unit>, "
+            "accel_{x,y,z}_<unit>) and at least one of gnss.csv, velocity.csv, heading.csv"
+        )
+    drive = drive_from_tables(tables, settings, source=str(d), layout="generic")
+    if info.get("notes"):
+        drive.notes[:0] = [str(n) for n in info["notes"]]
+    if info.get("converted_from"):
+        drive.meta["converted_from"] = str(info["converted_from"])
+    return drive
+
+
+def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
+    """``d/drive.yaml`` -> (settings, informational keys ``converted_from`` and ``notes``)."""
     p = d / SETTINGS_FILE
-    if not p.is_file():
+    if not p.exists():
         s = parse_settings({}, str(p))
         s.assumed.insert(0, f"{p} is absent: every setting is its documented default")
-        return s
+        return s, {}
+    check_input_path(p, "drive settings", directory=False)
     import yaml
 
     try:
-        data = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as err:
-        raise InputError(f"{p}: cannot read ({str(err).splitlines()[0]})") from err
-    return parse_settings(data, str(p))
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise InputError(f"{p}: cannot read ({first})") from err
+    info: dict[str, Any] = {}
+    if isinstance(data, dict):
+        for k in _INFO_KEYS:
+            if k in data:
+                info[k] = data.pop(k)
+        if "notes" in info and not isinstance(info["notes"], list):
+            raise InputError(f"{p}: notes must be a list of texts")
+    return parse_settings(data, str(p), base_dir=d), info
+
+
+def read_settings(d: Path) -> DriveSettings:
+    """``d/drive.yaml`` -> :class:`DriveSettings` (defaults, listed as assumed, if absent)."""
+    return read_settings_with_info(Path(d))[0]
 
 
 def is_layout(d: Path) -> bool:
-    """True if ``d`` looks like a drive-layout directory (``imu.csv`` or ``drive.yaml``)."""
-    return d.is_dir() and (_find(d, "imu") is not None or (d / SETTINGS_FILE).is_file())
+    """True if ``d`` looks like a drive-layout directory (an ``imu`` table or ``drive.yaml``)."""
+    if not d.is_dir() or (d / "scenario.json").is_file() and (d / "gps.csv").is_file():
+        return False
+    return any((d / f"imu{s}").exists() for s in SUFFIXES) or (d / SETTINGS_FILE).is_file()
 
 
 # ----------------------------------------------------------------------------- writing
 
 
 def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
-    """Write ``drive`` as a drive-layout directory (IMU in body axes: ``imu_axes`` = x, y, z).
+    """Write ``drive`` as a drive-layout directory (``fmt``: csv, csv.gz or parquet).
 
-    The directory must not exist or be empty; the caller handles atomic
-    replacement (see :mod:`imubounds.io.outputs`).
+    The IMU is written in body axes, so ``drive.yaml`` says ``imu_axes: [x, y,
+    z]`` and the notes record the mount that was applied. Settings that took
+    their default are left out of ``drive.yaml`` (they stay assumed). The
+    caller handles atomic placement (see :mod:`imubounds.io.outputs`).
     """
     import yaml
 
+    if fmt not in FORMATS:
+        raise OptionError(f"format {fmt!r}: use one of {', '.join(FORMATS)}")
+    suffix = FORMATS[fmt]
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
 
     def put(name: str, cols: dict[str, Any]) -> None:
         df = pd.DataFrame({k: v for k, v in cols.items() if v is not None})
+        path = d / f"{name}{suffix}"
         if fmt == "parquet":
-            df.to_parquet(d / f"{name}.parquet", index=False)
+            df.to_parquet(path, index=False)
         else:
-            df.to_csv(d / f"{name}.csv", index=False, float_format="%.12g")
+            df.to_csv(path, index=False)  # shortest repr: reads back bit for bit
 
     if drive.imu is not None:
         cols: dict[str, Any] = {"time_s": drive.imu.t}
-        for i, ax in enumerate("xyz"):
-            if np.any(np.isfinite(drive.imu.gyro[:, i])):
-                cols[f"gyro_{ax}_rads"] = drive.imu.gyro[:, i]
-        for i, ax in enumerate("xyz"):
-            if np.any(np.isfinite(drive.imu.accel[:, i])):
-                cols[f"accel_{ax}_mps2"] = drive.imu.accel[:, i]
+        for kind, arr, unit in (("gyro", drive.imu.gyro, "rads"), ("accel", drive.imu.accel,
+                                                                     "mps2")):
+            for i, ax in enumerate("xyz"):
+                if np.any(np.isfinite(arr[:, i])):
+                    cols[f"{kind}_{ax}_{unit}"] = arr[:, i]
         put("imu", cols)
     g = drive.gnss
     if g is not None:
@@ -459,32 +839,30 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
                 "course_deg": None if g.course_rad is None else np.degrees(g.course_rad),
                 "vel_n_mps": g.vel_n_mps,
                 "vel_e_mps": g.vel_e_mps,
+                "vel_acc_mps": g.vel_acc_mps,
             },
         )
     v = drive.velocity
     if v is not None:
-        put("velocity", {"time_s": v.t, "u_mps": v.u_mps, "v_mps": v.v_mps, "w_mps": v.w_mps})
+        put(
+            "velocity",
+            {
+                "time_s": v.t,
+                "u_mps": v.u_mps,
+                "v_mps": v.v_mps,
+                "w_mps": v.w_mps,
+                "kind": np.full(v.t.size, v.kind),
+            },
+        )
+    settings = dataclasses.replace(
+        drive.settings,
+        imu_axes=("x", "y", "z"),
+        mag_axes=None,
+        heading=dataclasses.replace(drive.settings.heading),
+        defaulted=list(drive.settings.defaulted),
+    )
     if drive.heading is not None or drive.mag is not None:
-        h, m = drive.heading, drive.mag
-        if h is not None and m is not None and not np.array_equal(h.t, m.t):
-            t = np.union1d(h.t, m.t)
-            hh = np.full(t.size, np.nan)
-            hh[np.searchsorted(t, h.t)] = np.degrees(h.heading_rad)
-            mm = np.full((t.size, 3), np.nan)
-            mm[np.searchsorted(t, m.t)] = m.mag
-        else:
-            t = h.t if h is not None else m.t  # type: ignore[union-attr]
-            hh = None if h is None else np.degrees(h.heading_rad)
-            mm = None if m is None else m.mag
-        cols = {"time_s": t, "heading_deg": hh}
-        if mm is not None:
-            unit = {"t": "T", "ut": "uT", "nt": "nT", "gauss": "gauss"}.get(
-                (m.unit if m else "").lower(), "raw"
-            )
-            factor = _MAG_UNITS.get(unit.lower(), 1.0)
-            for i, ax in enumerate("xyz"):
-                cols[f"mag_{ax}_{unit}"] = mm[:, i] / factor
-        put("heading", cols)
+        _put_heading(drive, put, settings)
     a = drive.attitude
     if a is not None:
         put(
@@ -504,12 +882,53 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
             "north_m": tr.north_m,
             "origin_lat_deg": np.full(tr.t.size, tr.origin[0]),
             "origin_lon_deg": np.full(tr.t.size, tr.origin[1]),
+            "origin_alt_m": np.full(tr.t.size, tr.origin[2]),
             "heading_deg": None if tr.heading_rad is None else np.degrees(tr.heading_rad),
             "u_mps": tr.u_mps,
             "v_mps": tr.v_mps,
         }
         cols.update(tr.extra)
         put("truth", cols)
-    s = dataclasses.replace(drive.settings, imu_axes=("x", "y", "z"))
-    (d / SETTINGS_FILE).write_text(yaml.safe_dump(settings_to_dict(s), sort_keys=False))
+    doc = settings_to_dict(settings)
+    doc["converted_from"] = drive.meta.get("converted_from", drive.source)
+    notes = [*drive.notes, *(f"when converted: {w}" for w in drive.warnings
+                             if f"when converted: {w}" not in drive.notes)]
+    if notes:
+        doc["notes"] = notes
+    header = (
+        "# drive settings (imubounds drive layout, docs/drive-layout.md); settings left out\n"
+        "# take their documented default and are listed as assumed by every output\n"
+    )
+    (d / SETTINGS_FILE).write_text(
+        header + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8"
+    )
     return d
+
+
+def _put_heading(drive: Drive, put: Any, settings: DriveSettings) -> None:
+    h, m = drive.heading, drive.mag
+    if h is not None:
+        # say what the heading column is when it is not the default (a magnetic compass)
+        sensor = h.source if h.source in ("compass", "gnss", "ahrs") else "compass"
+        reference = "true" if h.true_north else "magnetic"
+        for key, value, default in (("sensor", sensor, "compass"),
+                                    ("reference", reference, "magnetic")):
+            setattr(settings.heading, key, value)
+            if value != default and f"heading.{key}" in settings.defaulted:
+                settings.defaulted.remove(f"heading.{key}")
+    if h is not None and m is not None and not np.array_equal(h.t, m.t):
+        t = np.union1d(h.t, m.t)
+        hh: np.ndarray | None = np.full(t.size, np.nan)
+        hh[np.searchsorted(t, h.t)] = np.degrees(h.heading_rad)  # type: ignore[index]
+        mm: np.ndarray | None = np.full((t.size, 3), np.nan)
+        mm[np.searchsorted(t, m.t)] = m.mag  # type: ignore[index]
+    else:
+        t = h.t if h is not None else m.t  # type: ignore[union-attr]
+        hh = None if h is None else np.degrees(h.heading_rad)
+        mm = None if m is None else m.mag
+    cols: dict[str, Any] = {"time_s": t, "heading_deg": hh}
+    if mm is not None:
+        unit = "raw" if m is not None and m.unit.lower() == "raw" else "T"
+        for i, ax in enumerate("xyz"):
+            cols[f"mag_{ax}_{unit}"] = mm[:, i]
+    put("heading", cols)

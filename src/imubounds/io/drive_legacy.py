@@ -1,4 +1,12 @@
-"""The drive-log model: IMU, GPS fixes, compass heading / magnetometer, optional truth.
+"""The legacy drive-log model (``DriveLog``) of the per-step estimator: a transition module.
+
+Every reader now produces a :class:`imubounds.io.drive.Drive`
+(:func:`imubounds.io.read_drive`). This module keeps what the per-step
+estimator on ``main`` still consumes until it reads a ``Drive``:
+:func:`read_drive_log` (a ``Drive`` converted by :func:`from_drive`), the
+simulator's old directory (``scenario.json`` + ``imu.csv``/``gps.csv``/
+``compass.csv``, :func:`read_sim`) and :func:`to_drive` (DriveLog -> Drive,
+which passes a ``Drive`` through unchanged). Delete it when nothing uses it.
 
 Frames and units (SI throughout):
 
@@ -21,7 +29,10 @@ Frames and units (SI throughout):
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -120,16 +131,19 @@ class DriveLog:
             )
 
 
-def to_drive(log: DriveLog) -> Any:
+def to_drive(log: Any) -> Any:
     """A legacy :class:`DriveLog` as a :class:`imubounds.io.drive.Drive` (transition helper).
 
     Truth in the legacy form (``east``/``north``/``psi`` model heading, ``u``, ``v``)
     becomes :class:`imubounds.io.drive.Truth` with a compass heading; other truth
-    columns go to ``Truth.extra``.
+    columns go to ``Truth.extra``. A ``Drive`` is returned unchanged, so that
+    ``to_drive(read_drive(...))`` works before and after the readers switched.
     """
-    import math
-
     from imubounds.frames import model_to_compass
+    from imubounds.io.drive import Drive as _Drive
+
+    if isinstance(log, _Drive):
+        return log
     from imubounds.io.drive import (
         Drive,
         GnssStream,
@@ -152,7 +166,7 @@ def to_drive(log: DriveLog) -> Any:
         source=log.source,
         layout=log.layout,
         warnings=list(log.warnings),
-        meta={"legacy_settings": log.settings},
+        meta={"legacy_settings": log.settings, "files": _legacy_files(log)},
     )
     if log.heading is not None and log.heading_t is not None:
         d.heading = HeadingStream(t=log.heading_t, heading_rad=log.heading)
@@ -172,10 +186,173 @@ def to_drive(log: DriveLog) -> Any:
             t=tr["t"],
             east_m=e,
             north_m=n,
-            origin=tuple(origin),  # type: ignore[arg-type]
+            origin=tuple(origin),
             heading_rad=np.asarray(model_to_compass(tr["psi"])) if "psi" in tr else None,
             u_mps=tr.get("u"),
             v_mps=tr.get("v"),
             extra={k: v for k, v in tr.items() if k not in used},
         )
     return d
+
+
+def _legacy_files(log: DriveLog) -> dict[str, str]:
+    if log.layout != "sim":
+        return {}
+    d = Path(log.source)
+    return {"imu": str(d / "imu.csv"), "gnss": str(d / "gps.csv"),
+            "heading": str(d / "compass.csv")}
+
+
+def _need(df: Any, cols: list[str], path: Path) -> None:
+    missing = [c for c in cols if c not in df.columns]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)}")
+
+
+def _read_csv(path: Path) -> Any:
+    import pandas as pd
+
+    from imubounds.io.drive_validate import check_input_path
+
+    check_input_path(path, "simulator table", directory=False)
+    try:
+        return pd.read_csv(path)
+    except (OSError, ValueError, pd.errors.ParserError) as err:
+        raise InputError(f"{path}: cannot read CSV ({err})") from err
+
+
+def _numeric(df: Any, col: str, path: Path) -> np.ndarray:
+    import pandas as pd
+
+    v = pd.to_numeric(df[col], errors="coerce")
+    bad = v.isna() & df[col].notna()
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise InputError(f"{path}: column {col}, data row {i + 1}: {df[col].iloc[i]!r} "
+                         "is not a number")
+    return v.to_numpy(float)
+
+
+def read_sim(d: Path) -> DriveLog:
+    """Read the simulator's old output directory (``scenario.json``, ``imu.csv`` with ``t``)."""
+    try:
+        settings = json.loads((d / "scenario.json").read_text())
+    except (OSError, ValueError) as err:
+        raise InputError(f"{d / 'scenario.json'}: cannot read ({err})") from err
+    imu = _read_csv(d / "imu.csv")
+    cols = ["t", "accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"]
+    _need(imu, cols, d / "imu.csv")
+    gps = _read_csv(d / "gps.csv")
+    _need(gps, ["t", "lat", "lon", "alt", "hdop", "fix"], d / "gps.csv")
+    comp = _read_csv(d / "compass.csv")
+    _need(comp, ["t", "heading_deg"], d / "compass.csv")
+    truth = None
+    if (d / "truth.csv").is_file():
+        tr = _read_csv(d / "truth.csv")
+        truth = {c: _numeric(tr, c, d / "truth.csv") for c in tr.columns}
+    ip, gp, cp = d / "imu.csv", d / "gps.csv", d / "compass.csv"
+    return DriveLog(
+        imu_t=_numeric(imu, "t", ip),
+        accel=np.column_stack([_numeric(imu, c, ip) for c in cols[1:4]]),
+        gyro=np.column_stack([_numeric(imu, c, ip) for c in cols[4:7]]),
+        gps_t=_numeric(gps, "t", gp),
+        lat=_numeric(gps, "lat", gp),
+        lon=_numeric(gps, "lon", gp),
+        alt=_numeric(gps, "alt", gp),
+        hdop=_numeric(gps, "hdop", gp),
+        fix=np.nan_to_num(_numeric(gps, "fix", gp), nan=0.0) != 0,
+        heading_t=_numeric(comp, "t", cp),
+        heading=np.radians(_numeric(comp, "heading_deg", cp)),
+        truth=truth,
+        source=str(d),
+        layout="sim",
+        settings=settings,
+    )
+
+
+def is_sim_dir(d: Path) -> bool:
+    """True for the simulator's old output directory."""
+    return d.is_dir() and (d / "scenario.json").is_file() and (d / "gps.csv").is_file()
+
+
+def from_drive(drive: Any) -> DriveLog:
+    """A :class:`~imubounds.io.drive.Drive` as a legacy :class:`DriveLog` (for the per-step
+    estimator until it reads a Drive).
+
+    The heading is the drive's heading stream, else its attitude yaw (an AHRS),
+    else none (the estimator then levels the magnetometer). A GNSS ``h_acc_m``
+    becomes the HDOP that gives the same DRMS under the drive's CEP.
+    """
+    from imubounds.dynamic.aiding.geodesy import enu_to_geodetic
+    from imubounds.dynamic.aiding.gps import cep_to_drms
+    from imubounds.frames import compass_to_model
+
+    if drive.imu is None or drive.gnss is None:
+        missing = "an IMU" if drive.imu is None else "GPS fixes"
+        raise InputError(f"{drive.source}: the per-step estimator needs {missing}")
+    g = drive.gnss
+    n = g.t.size
+    hdop = np.full(n, np.nan) if g.hdop is None else np.asarray(g.hdop, float).copy()
+    if g.h_acc_m is not None:
+        eq = math.sqrt(2.0) * g.h_acc_m / cep_to_drms(drive.settings.gnss.cep_m)
+        hdop = np.where(np.isfinite(hdop), hdop, eq)
+    heading_t = heading = None
+    if drive.heading is not None:
+        heading_t, heading = drive.heading.t, drive.heading.heading_rad
+    elif drive.attitude is not None and drive.attitude.yaw_rad is not None:
+        heading_t, heading = drive.attitude.t, drive.attitude.yaw_rad
+    truth = truth_origin = None
+    tr = drive.truth
+    if tr is not None:
+        truth = {"t": tr.t, "east": tr.east_m, "north": tr.north_m}
+        if all(math.isfinite(x) for x in tr.origin[:2]):
+            truth["lat"], truth["lon"] = enu_to_geodetic(tr.east_m, tr.north_m, tr.origin)
+            truth_origin = tr.origin
+        if tr.heading_rad is not None:
+            truth["psi"] = np.unwrap(np.asarray(compass_to_model(tr.heading_rad)))
+        if tr.u_mps is not None:
+            truth["u"] = tr.u_mps
+        if tr.v_mps is not None:
+            truth["v"] = tr.v_mps
+        truth.update(tr.extra)
+        if not {"psi", "u", "v"} <= set(truth):
+            truth = None  # the per-step estimator compares all three
+    return DriveLog(
+        imu_t=drive.imu.t,
+        accel=drive.imu.accel,
+        gyro=drive.imu.gyro,
+        gps_t=g.t,
+        lat=g.lat_deg,
+        lon=g.lon_deg,
+        alt=np.full(n, np.nan) if g.alt_m is None else g.alt_m,
+        hdop=hdop,
+        fix=g.usable(),
+        heading_t=heading_t,
+        heading=heading,
+        mag_t=None if drive.mag is None else drive.mag.t,
+        mag=None if drive.mag is None else drive.mag.mag,
+        truth=truth,
+        truth_origin=truth_origin,
+        source=drive.source,
+        layout=drive.layout,
+        frame="FLU",
+        settings={"imu_axes": list(drive.settings.imu_axes)},
+        warnings=[*drive.warnings, *drive.notes],
+    )
+
+
+def read_drive_log(paths: list[str] | str, mount: str = "auto", **options: Any) -> DriveLog:
+    """The per-step estimator's reader: any drive input as a validated :class:`DriveLog`.
+
+    The simulator's old directory is read as it is; everything else goes
+    through :func:`imubounds.io.read_drive` and :func:`from_drive`.
+    """
+    from imubounds.io.drive_readers import read_drive
+
+    ps = [paths] if isinstance(paths, str) else list(paths)
+    if len(ps) == 1 and is_sim_dir(Path(ps[0])):
+        log = read_sim(Path(ps[0]))
+    else:
+        log = from_drive(read_drive(ps, mount=mount, **options))
+    log.validate()
+    return log

@@ -13,7 +13,9 @@ Sentences used:
 ``GGA``
     latitude, longitude (deg), altitude (m), fix quality (0 = no fix), HDOP.
 ``RMC``
-    course over ground (deg clockwise from true north), speed, status, date.
+    course over ground (deg clockwise from true north), speed (knots), status, date.
+``VTG``
+    course over ground (true) and speed (km/h, else knots); no time of its own.
 ``HDT``
     true heading (deg clockwise from north).
 ``HDG``
@@ -36,16 +38,26 @@ import re
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from imubounds.errors import InputError, OptionError
 from imubounds.frames import FRD_TO_FLU
-from imubounds.io.drive_legacy import DriveLog
+from imubounds.io.drive import (
+    AttitudeStream,
+    Drive,
+    DriveSettings,
+    GnssStream,
+    HeadingStream,
+    ImuStream,
+    MagStream,
+)
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
 
+KNOT = 1852.0 / 3600.0  #: one knot in m/s
 _PREFIX = re.compile(r"^\s*([+-]?\d+(?:\.\d*)?)[,;\s]+(?=[$!])")
 
 
@@ -169,15 +181,16 @@ def _utc_seconds(d: date, t: time) -> float:
 
 def read_drive_nmea(
     nmea_path: str | Path,
-    imu_path: str | Path,
+    imu_path: str | Path | None = None,
     *,
+    settings: DriveSettings | None = None,
     imu_frame: str = "FLU",
     date_utc: str | None = None,
     time_offset_s: float = 0.0,
     on_bad_checksum: str = "error",
     imu_options: ReadOptions | None = None,
-) -> DriveLog:
-    """A drive log from an NMEA capture (GGA/RMC/HDT/HDG) and an IMU log, merged by time.
+) -> Drive:
+    """A drive from an NMEA capture (GGA, RMC, VTG, HDT/HDG) and an IMU log, merged by time.
 
     Parameters
     ----------
@@ -187,6 +200,10 @@ def read_drive_nmea(
         Any IMU log :func:`imubounds.io.read_imu` reads (CSV, Parquet,
         bag, ULog, HDF5); its time must be on the same clock as the NMEA time
         (host stamps, or Unix UTC seconds) after adding ``time_offset_s``.
+        ``None``: the IMU comes from the capture's own ``$VNYMR`` sentences
+        (with their yaw/pitch/roll as attitude and their magnetometer).
+    settings:
+        The drive's settings (mount, bounds); defaults if None.
     imu_frame:
         Body frame of the IMU file when the format does not say: ``"FLU"``
         (kept) or ``"FRD"`` (y and z negated).
@@ -199,16 +216,21 @@ def read_drive_nmea(
 
     Returns
     -------
-    DriveLog
-        GPS fixes from GGA (RMC positions when there is no GGA), heading in
-        rad clockwise from north from HDT (else HDG), IMU in FLU.
+    Drive
+        GNSS fixes from GGA (RMC positions when there is no GGA) with speed and
+        course over ground from RMC or VTG of the same epoch, heading in rad
+        clockwise from north from HDT (true) else HDG (magnetic; true when every
+        HDG carries the variation), IMU in FLU.
     """
     import pynmea2
 
     from imubounds.io import read_imu
+    from imubounds.io.drive_readers import apply_mount, match_times
 
     if imu_frame not in ("FLU", "FRD"):
         raise OptionError(f"imu_frame must be FLU or FRD, got {imu_frame!r}")
+    if not math.isfinite(time_offset_s):
+        raise OptionError(f"time offset must be a finite number of seconds, got {time_offset_s}")
     cap = scan_nmea(nmea_path, on_bad_checksum=on_bad_checksum)
     p = cap.path
     the_date: date | None = None
@@ -225,7 +247,7 @@ def read_drive_nmea(
             continue  # unknown or proprietary sentence types are not used here
         parsed.append((s, msg))
         if the_date is None and s.kind.endswith("RMC") and getattr(msg, "datestamp", None):
-            the_date = msg.datestamp  # type: ignore[attr-defined]
+            the_date = msg.datestamp
     use_host = all(s.host_t is not None for s, _ in parsed)
     if not use_host and the_date is None:
         raise InputError(
@@ -233,8 +255,9 @@ def read_drive_nmea(
         )
     gga: list[tuple[float, ...]] = []
     rmc: list[tuple[float, ...]] = []
+    vtg: list[tuple[float, ...]] = []
     hdt: list[tuple[float, float]] = []
-    hdg: list[tuple[float, float]] = []
+    hdg: list[tuple[float, float, float]] = []
     last_t = math.nan
     for s, msg in parsed:
         stamp = getattr(msg, "timestamp", None)
@@ -250,70 +273,131 @@ def read_drive_nmea(
             continue
         last_t = t
         typ = s.kind[-3:]
-        if typ == "GGA":
-            q = _f(msg.gps_qual)  # type: ignore[attr-defined]
-            lat = msg.latitude if msg.lat else math.nan  # type: ignore[attr-defined]
-            lon = msg.longitude if msg.lon else math.nan  # type: ignore[attr-defined]
-            gga.append((t, lat, lon, _f(msg.altitude), _f(msg.horizontal_dil), q))  # type: ignore[attr-defined]
-        elif typ == "RMC":
-            ok = 1.0 if msg.status == "A" else 0.0  # type: ignore[attr-defined]
-            lat = msg.latitude if msg.lat else math.nan  # type: ignore[attr-defined]
-            lon = msg.longitude if msg.lon else math.nan  # type: ignore[attr-defined]
-            rmc.append((t, lat, lon, _f(msg.true_course), ok))  # type: ignore[attr-defined]
-        elif typ == "HDT":
-            hdt.append((t, _f(msg.heading)))  # type: ignore[attr-defined]
-        elif typ == "HDG":
-            h = _f(msg.heading)  # type: ignore[attr-defined]
-            var = _f(msg.variation)  # type: ignore[attr-defined]
-            if math.isfinite(var):
-                h += var if msg.var_dir == "E" else -var  # type: ignore[attr-defined]
-            hdg.append((t, h))
-    warnings = list(cap.notes)
+        m: Any = msg
+        try:
+            if typ == "GGA":
+                lat = m.latitude if m.lat else math.nan
+                lon = m.longitude if m.lon else math.nan
+                gga.append((t, lat, lon, _f(m.altitude), _f(m.horizontal_dil), _f(m.gps_qual)))
+            elif typ == "RMC":
+                lat = m.latitude if m.lat else math.nan
+                lon = m.longitude if m.lon else math.nan
+                rmc.append((t, lat, lon, _f(m.true_course), 1.0 if m.status == "A" else 0.0,
+                            _f(m.spd_over_grnd) * KNOT))
+            elif typ == "VTG":
+                kmh = _f(m.spd_over_grnd_kmph)
+                spd = kmh / 3.6 if math.isfinite(kmh) else _f(m.spd_over_grnd_kts) * KNOT
+                vtg.append((t, _f(m.true_track), spd))
+            elif typ == "HDT":
+                hdt.append((t, _f(m.heading)))
+            elif typ == "HDG":
+                h = _f(m.heading)
+                dev = _f(m.deviation)
+                if math.isfinite(dev):
+                    h += dev if m.dev_dir == "E" else -dev
+                var = _f(m.variation)
+                var = (var if m.var_dir == "E" else -var) if math.isfinite(var) else math.nan
+                hdg.append((t, h, var))
+        except (ValueError, TypeError, AttributeError) as err:
+            raise InputError(f"{p}, line {s.line}: malformed {typ} sentence ({err})") from err
+    s_ = settings if settings is not None else DriveSettings()
+    drive = Drive(settings=s_, source=f"{p}" + (f" + {imu_path}" if imu_path else ""),
+                  layout="nmea")
+    drive.warnings.extend(cap.notes)
+    files: dict[str, str] = {"gnss": str(p)}
+    off = time_offset_s
     if gga:
         g = _dedupe(np.asarray(gga, dtype=float))
-        g_t, lat, lon, alt, hdop = g[:, 0], g[:, 1], g[:, 2], g[:, 3], g[:, 4]
-        fix = np.isfinite(g[:, 5]) & (g[:, 5] > 0) & np.isfinite(lat) & np.isfinite(lon)
+        gs = GnssStream(
+            t=g[:, 0] + off, lat_deg=g[:, 1], lon_deg=g[:, 2], alt_m=g[:, 3], hdop=g[:, 4],
+            fix=np.isfinite(g[:, 5]) & (g[:, 5] > 0),
+        )
     elif rmc:
         r = _dedupe(np.asarray(rmc, dtype=float))
-        g_t, lat, lon = r[:, 0], r[:, 1], r[:, 2]
-        alt = np.full(g_t.shape, np.nan)
-        hdop = np.full(g_t.shape, np.nan)
-        fix = (r[:, 4] > 0) & np.isfinite(lat) & np.isfinite(lon)
-        warnings.append(f"{p}: no GGA sentences: positions from RMC, default HDOP")
+        gs = GnssStream(t=r[:, 0] + off, lat_deg=r[:, 1], lon_deg=r[:, 2], fix=r[:, 4] > 0)
+        drive.warnings.append(f"{p}: no GGA sentences: positions from RMC, default HDOP")
     else:
-        raise InputError(f"{p}: no GGA or RMC sentence: no GPS fixes in the capture")
-    heads = hdt or hdg
-    head_t = head = None
-    if heads:
-        h = _dedupe(np.asarray(heads, dtype=float))
-        h = h[np.isfinite(h[:, 1])]
-        head_t, head = h[:, 0] + time_offset_s, np.mod(np.radians(h[:, 1]), 2 * math.pi)
-        if not hdt:
-            warnings.append(f"{p}: heading from HDG (magnetic, variation applied where given)")
-    settings: dict[str, object] = {"heading_source": "HDT" if hdt else ("HDG" if hdg else "none"),
-                                   "nmea_time": "host stamps" if use_host else "UTC",
-                                   "time_offset_s": time_offset_s, "imu_frame_in": imu_frame}
-    if rmc:
-        r = _dedupe(np.asarray(rmc, dtype=float))
-        settings["rmc_course_deg"] = {"t": (r[:, 0] + time_offset_s).tolist(),
-                                      "course": r[:, 3].tolist()}
-    imu = read_imu(imu_path, on_gap="ignore") if imu_options is None else _read(imu_path,
-                                                                                imu_options)
-    warnings += imu.warnings
-    acc = np.column_stack([imu.channels[f"accel_{a}"] for a in "xyz"])
-    gyr = np.column_stack([imu.channels[f"gyro_{a}"] for a in "xyz"])
-    frame_in = imu.frame if imu.frame in ("FLU", "FRD") else imu_frame
-    if frame_in == "FRD":
-        acc, gyr = acc * FRD_TO_FLU, gyr * FRD_TO_FLU
-        warnings.append(f"{imu_path}: FRD body axes converted to FLU (y and z negated)")
-    log = DriveLog(
-        imu_t=imu.t, accel=acc, gyro=gyr,
-        gps_t=g_t + time_offset_s, lat=lat, lon=lon, alt=alt, hdop=hdop, fix=fix,
-        heading_t=head_t, heading=head, source=f"{p} + {imu_path}", layout="nmea",
-        frame="FLU", warnings=warnings, settings=settings,
+        gs = None
+    if gs is not None:
+        vel = rmc or vtg
+        if vel:
+            v = _dedupe(np.asarray([(r[0], r[3], r[5]) for r in rmc] if rmc else vtg, float))
+            k, near = match_times(v[:, 0] + off, gs.t)
+            gs.speed_mps = np.where(near, v[k, 2], np.nan)
+            gs.course_rad = np.where(near, np.mod(np.radians(v[k, 1]), 2 * math.pi), np.nan)
+        drive.gnss = gs
+    if hdt:
+        hh = _dedupe(np.asarray(hdt, dtype=float))
+        hh = hh[np.isfinite(hh[:, 1])]
+        drive.heading = HeadingStream(t=hh[:, 0] + off, heading_rad=np.mod(np.radians(hh[:, 1]),
+                                      2 * math.pi), source="compass", true_north=True)
+    elif hdg:
+        hh = _dedupe(np.asarray(hdg, dtype=float))
+        hh = hh[np.isfinite(hh[:, 1])]
+        true = bool(np.all(np.isfinite(hh[:, 2])))
+        deg = hh[:, 1] + (hh[:, 2] if true else 0.0)
+        drive.heading = HeadingStream(t=hh[:, 0] + off, heading_rad=np.mod(np.radians(deg),
+                                      2 * math.pi), source="compass", true_north=true)
+        drive.notes.append(
+            f"{p}: heading from HDG (magnetic" + (", variation applied: true north)" if true else
+                                                  "; the drive's declination applies)")
+        )
+    if drive.heading is not None:
+        files["heading"] = str(p)
+    if imu_path is None:
+        _imu_from_vnymr(cap, drive, files, off)
+    else:
+        imu = read_imu(imu_path, on_gap="ignore") if imu_options is None else _read(
+            imu_path, imu_options)
+        drive.warnings.extend(imu.warnings)
+        nan = np.full(imu.t.size, np.nan)
+        acc = np.column_stack([imu.channels.get(f"accel_{a}", nan) for a in "xyz"])
+        gyr = np.column_stack([imu.channels.get(f"gyro_{a}", nan) for a in "xyz"])
+        frame_in = imu.frame if imu.frame in ("FLU", "FRD") else imu_frame
+        if frame_in == "FRD":
+            acc, gyr = acc * FRD_TO_FLU, gyr * FRD_TO_FLU
+            drive.notes.append(f"{imu_path}: FRD body axes converted to FLU (y and z negated)")
+        drive.imu = ImuStream(t=imu.t, accel=acc, gyro=gyr,
+                              input_units={"gyro": "rad/s", "accel": "m/s^2"})
+        files["imu"] = str(imu_path)
+    drive.meta["files"] = files
+    drive.meta["nmea_time"] = "host stamps" if use_host else "UTC"
+    apply_mount(drive, attitude_of_sensor=True)
+    return drive
+
+
+def _imu_from_vnymr(cap: NmeaCapture, drive: Drive, files: dict[str, str], off: float) -> None:
+    rows: list[tuple[float, ...]] = []
+    for s in cap.sentences:
+        if s.kind != "VNYMR" or s.host_t is None:
+            continue
+        parts = s.text.split("*")[0].split(",")
+        if len(parts) < 13:
+            raise InputError(f"{cap.path}, line {s.line}: VNYMR sentence has {len(parts) - 1} "
+                             "fields, expected 12")
+        rows.append((s.host_t, *(_f(x) for x in parts[1:13])))
+    if not rows:
+        kinds = sorted({s.kind for s in cap.sentences})
+        raise InputError(
+            f"{cap.path}: no IMU: the capture holds {', '.join(kinds)} but no host-stamped "
+            "$VNYMR IMU sentences; give an IMU log with it (time_s, gyro_{x,y,z}_<unit>, "
+            "accel_{x,y,z}_<unit>)"
+        )
+    a = _dedupe(np.asarray(rows, dtype=float))
+    t = a[:, 0] + off
+    # yaw, pitch, roll (deg); mag (gauss); accel (m/s^2); gyro (rad/s); FRD axes
+    drive.imu = ImuStream(t=t, accel=a[:, 7:10] * FRD_TO_FLU, gyro=a[:, 10:13] * FRD_TO_FLU,
+                          input_units={"gyro": "rad/s", "accel": "m/s^2"})
+    drive.mag = MagStream(t=t, mag=a[:, 4:7] * FRD_TO_FLU * 1e-4, unit="T")
+    ok = np.isfinite(a[:, 1:4]).all(axis=1)
+    drive.attitude = AttitudeStream(
+        t=t[ok], roll_rad=np.radians(a[ok, 3]), pitch_rad=np.radians(a[ok, 2]),
+        yaw_rad=np.mod(np.radians(a[ok, 1]), 2 * math.pi), source="ahrs",
     )
-    log.validate()
-    return log
+    files["imu"] = files["attitude"] = str(cap.path)
+    files.setdefault("heading", str(cap.path))
+    drive.notes.append(f"{cap.path}: IMU, magnetometer and attitude from the $VNYMR sentences "
+                       "(VectorNav FRD axes converted to FLU)")
 
 
 def _read(path: str | Path, opts: ReadOptions) -> ImuLog:

@@ -26,8 +26,17 @@ from typing import Any
 import numpy as np
 
 from imubounds.errors import ImuboundsError, InputError
-from imubounds.frames import enu_yaw_to_heading, quaternion_yaw_enu
-from imubounds.io.drive_legacy import DriveLog
+from imubounds.frames import enu_yaw_to_heading, quaternion_to_rpy, quaternion_yaw_enu
+from imubounds.io.drive import (
+    AttitudeStream,
+    Drive,
+    DriveSettings,
+    GnssStream,
+    HeadingStream,
+    ImuStream,
+    MagStream,
+    VelocityStream,
+)
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
@@ -35,13 +44,18 @@ from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
 IMU_TYPE = "sensor_msgs/msg/Imu"
 NAVSAT_TYPE = "sensor_msgs/msg/NavSatFix"
 MAG_TYPE = "sensor_msgs/msg/MagneticField"
-#: Heading topic types accepted (orientation in ENU, or a yaw/heading number).
+#: Heading topic types accepted (an orientation in a geographic ENU frame).
 HEADING_TYPES = (
     "geometry_msgs/msg/QuaternionStamped",
     "geometry_msgs/msg/PoseStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
     "nav_msgs/msg/Odometry",
 )
+#: Velocity topic types: a twist (body frame, or ENU for a GNSS receiver's velocity).
+TWIST_TYPES = ("geometry_msgs/msg/TwistWithCovarianceStamped", "geometry_msgs/msg/TwistStamped")
+ODOM_TYPE = "nav_msgs/msg/Odometry"
+#: Header frame ids taken as a geographic (ENU) frame; anything else is a body frame.
+GEOGRAPHIC_FRAMES = ("enu", "map", "world", "earth", "utm", "gps", "gnss", "navsat", "ublox")
 ROS1_MAGIC = b"#ROSBAG V2.0"
 MCAP_MAGIC = b"\x89MCAP"
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -234,128 +248,236 @@ def read_rosbag(path: Path, opts: ReadOptions) -> list[ImuLog]:
     )
 
 
-def covariance_hdop(cov_en: np.ndarray, gps_cep_m: float) -> np.ndarray:
-    """HDOP equivalent of an ENU position covariance, for the CEP-based GPS model.
+def _geographic(frame_id: str) -> bool:
+    f = frame_id.strip().lstrip("/").lower()
+    return any(f == g or f.startswith(g + "_") or f.endswith("_" + g) for g in GEOGRAPHIC_FRAMES)
 
-    The estimator's box half-width is ``HDOP · DRMS(CEP) · factor``; with
-    ``HDOP = sqrt(var_e + var_n) / DRMS(CEP)`` it becomes the covariance's
-    own DRMS times the same factor. NaN where the covariance is unknown.
-    """
-    from imubounds.dynamic.aiding.gps import cep_to_drms
 
-    cov = np.asarray(cov_en, dtype=float)
-    drms = np.sqrt(cov[:, 0] + cov[:, 1])
-    out = drms / cep_to_drms(gps_cep_m)
-    out[~np.isfinite(out) | (out <= 0)] = np.nan
-    return out
+def _twist(msg: Any) -> Any:
+    tw = msg.twist
+    return tw.twist if hasattr(tw, "twist") else tw
 
 
 def read_drive_rosbag(
     path: str | Path,
     *,
-    imu_topic: str | None = None,
-    gps_topic: str | None = None,
-    mag_topic: str | None = None,
-    heading_topic: str | None = None,
-    gps_cep_m: float = 3.0,
-) -> DriveLog:
-    """Read a drive log (IMU, NavSatFix, MagneticField and/or heading) from a bag.
+    settings: DriveSettings | None = None,
+    topics: dict[str, str] | Any | None = None,
+) -> Drive:
+    """Read a drive from a ROS 1 bag, a ROS 2 bag (directory or ``.db3``) or an MCAP file.
 
-    Parameters
-    ----------
-    path:
-        ROS 1 bag, ROS 2 bag directory or MCAP file.
-    imu_topic, gps_topic, mag_topic, heading_topic:
-        Topics; by default the busiest topic of each type. A heading topic is
-        ``geometry_msgs/QuaternionStamped``, ``PoseStamped``,
-        ``PoseWithCovarianceStamped`` or ``nav_msgs/Odometry`` (ENU orientation).
-    gps_cep_m:
-        CEP (m) of the estimator's GPS model, used to turn each fix's ENU
-        position covariance into an equivalent HDOP (see :func:`covariance_hdop`).
+    Topics are auto-detected (the busiest of each type) unless ``topics``
+    names them (keys ``imu``, ``gnss``, ``mag``, ``heading``, ``velocity``,
+    ``gnss_velocity``, ``attitude``):
 
-    Returns
-    -------
-    DriveLog
-        IMU in FLU (REP-103, unchanged), GPS geodetic with ``fix`` from
-        ``status.status >= 0``, heading clockwise from north in rad, the
-        magnetometer in FLU (tesla).
+    * ``sensor_msgs/Imu`` -> the IMU (FLU per REP-103, SI); its orientation,
+      when given (covariance[0] != -1), -> the attitude stream (an AHRS of the
+      same unit: not independent of the IMU);
+    * ``sensor_msgs/NavSatFix`` -> GNSS (fix from ``status.status >= 0``,
+      ``h_acc_m`` from the east/north position covariance);
+    * ``sensor_msgs/MagneticField`` -> magnetometer (tesla, IMU axes);
+    * ``TwistWithCovarianceStamped``/``TwistStamped`` in a geographic frame
+      (``enu``, ``map``, ``gps``, ... see :data:`GEOGRAPHIC_FRAMES`) -> GNSS
+      velocity (east, north) at the fixes; in any other frame -> body velocity;
+    * ``nav_msgs/Odometry`` twist -> body velocity (``kind`` odometry); its
+      orientation -> heading when its frame is geographic;
+    * ``QuaternionStamped``/``PoseStamped``/``PoseWithCovarianceStamped`` ->
+      heading (ENU orientation, true north).
+
+    Time: header stamps (the bag's receive time when every stamp is zero).
     """
     p = Path(path)
     if not p.exists():
         raise InputError(f"no such file or directory: {p}")
-    warnings: list[str] = []
-    imu = read_rosbag(p, ReadOptions(on_gap="ignore", extra={"topic": imu_topic}).validated())[0]
-    warnings += imu.warnings
-    with _Bag(p) as bag:
-        g_topic = bag.pick(gps_topic, (NAVSAT_TYPE,), "GPS", "--gps-topic")
-        assert g_topic is not None
-        m_topic = bag.pick(mag_topic, (MAG_TYPE,), "magnetometer", "--mag-topic", required=False)
-        h_topic = bag.pick(heading_topic, HEADING_TYPES, "heading", "--heading-topic",
-                           required=False)
-        st: list[int] = []
-        rc: list[int] = []
-        rows: list[tuple[float, ...]] = []
-        for t_ns, msg in bag.messages(g_topic):
-            st.append(_stamp_ns(msg))
-            rc.append(t_ns)
-            cov = msg.position_covariance
-            known = int(msg.position_covariance_type) > 0
-            rows.append((msg.latitude, msg.longitude, msg.altitude, float(msg.status.status),
-                         cov[0] if known else math.nan, cov[4] if known else math.nan))
-        if not rows:
-            raise InputError(f"{p}: GPS topic {g_topic!r} holds no messages")
-        g = np.asarray(rows, dtype=float)
-        g_t = _times(p, g_topic, st, rc, warnings) * 1e-9
-        mag_t = mag = None
-        if m_topic is not None:
-            st, rc, mv = [], [], []
-            for t_ns, msg in bag.messages(m_topic):
-                st.append(_stamp_ns(msg))
-                rc.append(t_ns)
-                f = msg.magnetic_field
-                mv.append((f.x, f.y, f.z))
-            if mv:
-                mag_t = _times(p, m_topic, st, rc, warnings) * 1e-9
-                mag = np.asarray(mv, dtype=float)
-        head_t = head = None
-        if h_topic is not None:
-            st, rc, qv = [], [], []
-            for t_ns, msg in bag.messages(h_topic):
-                st.append(_stamp_ns(msg))
-                rc.append(t_ns)
-                q = _orientation(msg)
-                qv.append((q.x, q.y, q.z, q.w))
-            if qv:
-                qa = np.asarray(qv, dtype=float)
-                head_t = _times(p, h_topic, st, rc, warnings) * 1e-9
-                head = enu_yaw_to_heading(quaternion_yaw_enu(*qa.T))
-    hdop = covariance_hdop(g[:, 4:6], gps_cep_m)
-    if np.all(np.isnan(hdop)):
-        warnings.append(
-            f"{p}: {g_topic!r} carries no position covariance; the default HDOP is used"
+    tp = dict(topics or {})
+    unknown = sorted(set(tp) - {"imu", "gnss", "mag", "heading", "velocity", "gnss_velocity",
+                                "attitude"})
+    if unknown:
+        raise InputError(
+            f"{p}: unknown topic role(s) {', '.join(unknown)}; use imu, gnss, mag, heading, "
+            "velocity, gnss_velocity, attitude"
         )
-    log = DriveLog(
-        imu_t=imu.t,
-        accel=np.column_stack([imu.channels[f"accel_{a}"] for a in "xyz"]),
-        gyro=np.column_stack([imu.channels[f"gyro_{a}"] for a in "xyz"]),
-        gps_t=g_t, lat=g[:, 0], lon=g[:, 1], alt=g[:, 2], hdop=hdop,
-        fix=(g[:, 3] >= 0) & np.isfinite(g[:, 0]) & np.isfinite(g[:, 1]),
-        heading_t=head_t, heading=head, mag_t=mag_t, mag=mag,
-        source=str(p), layout="rosbag", frame="FLU", warnings=warnings,
-        settings={
-            "imu_topic": imu.source.rsplit(":", 1)[-1], "gps_topic": g_topic,
-            "mag_topic": m_topic, "heading_topic": h_topic,
-            "heading_source": "heading-topic" if head is not None else "magnetometer",
-            "hdop_from_covariance_cep_m": gps_cep_m,
-        },
+    s = settings if settings is not None else DriveSettings()
+    drive = Drive(settings=s, source=str(p), layout="rosbag")
+    opts = ReadOptions(on_gap="ignore", extra={"topic": tp.get("imu")}).validated()
+    imu = read_rosbag(p, opts)[0]
+    drive.warnings.extend(imu.warnings)
+    nan = np.full(imu.t.size, np.nan)
+    drive.imu = ImuStream(
+        t=imu.t,
+        accel=np.column_stack([imu.channels.get(f"accel_{a}", nan) for a in "xyz"]),
+        gyro=np.column_stack([imu.channels.get(f"gyro_{a}", nan) for a in "xyz"]),
+        input_units={"gyro": "rad/s", "accel": "m/s^2"},
     )
-    log.validate()
-    return log
+    imu_topic = imu.source.rsplit(":", 1)[-1]
+    used: dict[str, str | None] = {"imu": imu_topic}
+    with _Bag(p) as bag:
+        g_topic = bag.pick(tp.get("gnss"), (NAVSAT_TYPE,), "GNSS", "--topic gnss=...",
+                           required=False)
+        m_topic = bag.pick(tp.get("mag"), (MAG_TYPE,), "magnetometer", "--topic mag=...",
+                           required=False)
+        h_topic = bag.pick(tp.get("heading"), HEADING_TYPES, "heading", "--topic heading=...",
+                           required=False)
+        if h_topic is not None and tp.get("heading") is None and bag.topics()[h_topic][0] == (
+            ODOM_TYPE
+        ):
+            h_topic = None  # odometry is a velocity source; its orientation only if geographic
+        used.update(gnss=g_topic, mag=m_topic, heading=h_topic)
+        if g_topic is not None:
+            drive.gnss = _navsat(bag, p, g_topic, drive.warnings)
+        if m_topic is not None:
+            t, v = _vectors(bag, p, m_topic, lambda m: m.magnetic_field, drive.warnings)
+            if t.size:
+                drive.mag = MagStream(t=t, mag=v, unit="T")
+        if h_topic is not None:
+            t, q = _quats(bag, p, h_topic, drive.warnings)
+            if t.size:
+                drive.heading = HeadingStream(
+                    t=t, heading_rad=enu_yaw_to_heading(quaternion_yaw_enu(*q.T)),
+                    source="compass", true_north=True,
+                )
+        _imu_orientation(bag, p, imu_topic, drive)
+        _velocities(bag, p, tp, drive, used)
+        att = tp.get("attitude")
+        if att is not None:
+            t, q = _quats(bag, p, bag.pick(att, (*HEADING_TYPES, IMU_TYPE), "attitude",
+                                           "--topic attitude=...") or att, drive.warnings)
+            r, pt, y = quaternion_to_rpy(q[:, [3, 0, 1, 2]])
+            drive.attitude = AttitudeStream(t=t, roll_rad=r, pitch_rad=pt, yaw_rad=y)
+            used["attitude"] = att
+    drive.meta["topics"] = {k: v for k, v in used.items() if v is not None}
+    drive.meta["files"] = {k: f"{p}:{v}" for k, v in drive.meta["topics"].items()}
+    from imubounds.io.drive_readers import apply_mount
+
+    apply_mount(drive, attitude_of_sensor=drive.meta.get("attitude_from") == "imu")
+    return drive
+
+
+def _collect(bag: _Bag, topic: str, get: Any, path: Path,
+             warnings: list[str]) -> tuple[np.ndarray, list[Any]]:
+    st: list[int] = []
+    rc: list[int] = []
+    vals: list[Any] = []
+    for t_ns, msg in bag.messages(topic):
+        st.append(_stamp_ns(msg))
+        rc.append(t_ns)
+        vals.append(get(msg))
+    if not vals:
+        return np.zeros(0), []
+    t = _times(path, topic, st, rc, warnings) * 1e-9
+    order = np.argsort(t, kind="stable")
+    keep = np.concatenate(([True], np.diff(t[order]) > 0))
+    idx = order[keep]
+    return t[idx], [vals[i] for i in idx]
+
+
+def _vectors(bag: _Bag, path: Path, topic: str, get: Any,
+             warnings: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    t, vals = _collect(bag, topic, get, path, warnings)
+    return t, np.asarray([(v.x, v.y, v.z) for v in vals], dtype=float).reshape(-1, 3)
+
+
+def _quats(bag: _Bag, path: Path, topic: str,
+           warnings: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    t, vals = _collect(bag, topic, _orientation, path, warnings)
+    return t, np.asarray([(q.x, q.y, q.z, q.w) for q in vals], dtype=float).reshape(-1, 4)
+
+
+def _navsat(bag: _Bag, path: Path, topic: str, warnings: list[str]) -> GnssStream:
+    def row(msg: Any) -> tuple[float, ...]:
+        cov = msg.position_covariance
+        known = int(msg.position_covariance_type) > 0
+        return (msg.latitude, msg.longitude, msg.altitude, float(msg.status.status),
+                cov[0] if known else math.nan, cov[4] if known else math.nan)
+
+    t, rows = _collect(bag, topic, row, path, warnings)
+    if not rows:
+        raise InputError(f"{path}: GNSS topic {topic!r} holds no messages")
+    g = np.asarray(rows, dtype=float)
+    var = 0.5 * (g[:, 4] + g[:, 5])
+    h_acc = np.where(np.isfinite(var) & (var > 0), np.sqrt(np.abs(var)), np.nan)
+    if np.all(np.isnan(h_acc)):
+        warnings.append(f"{path}: {topic!r} carries no position covariance; the default HDOP "
+                        "and CEP are used")
+    return GnssStream(t=t, lat_deg=g[:, 0], lon_deg=g[:, 1], alt_m=g[:, 2],
+                      fix=g[:, 3] >= 0, h_acc_m=h_acc)
+
+
+def _imu_orientation(bag: _Bag, path: Path, topic: str, drive: Drive) -> None:
+    def get(msg: Any) -> tuple[float, ...]:
+        q = msg.orientation
+        given = msg.orientation_covariance[0] != -1 and (q.x, q.y, q.z, q.w) != (0, 0, 0, 0)
+        return (q.w, q.x, q.y, q.z, 1.0 if given else 0.0)
+
+    t, vals = _collect(bag, topic, get, path, [])
+    a = np.asarray(vals, dtype=float).reshape(-1, 5)
+    ok = a[:, 4] > 0
+    if t.size and ok.all():
+        r, pt, y = quaternion_to_rpy(a[:, :4])
+        drive.attitude = AttitudeStream(t=t, roll_rad=r, pitch_rad=pt, yaw_rad=y, source="ahrs")
+        drive.meta["attitude_from"] = "imu"
+
+
+def _velocities(bag: _Bag, path: Path, tp: dict[str, Any], drive: Drive,
+                used: dict[str, str | None]) -> None:
+    topics = bag.topics()
+    twists = [tn for tn, (ty, _) in topics.items() if ty in TWIST_TYPES]
+    odoms = [tn for tn, (ty, _) in topics.items() if ty == ODOM_TYPE]
+    frames: dict[str, str] = {}
+    for tn in twists + odoms:
+        for _, msg in bag.messages(tn):
+            frames[tn] = str(msg.header.frame_id)
+            break
+    gv = tp.get("gnss_velocity")
+    if gv is None:
+        geo = [tn for tn in twists if _geographic(frames.get(tn, ""))]
+        gv = max(geo, key=lambda tn: topics[tn][1]) if geo else None
+    else:
+        bag.pick(gv, TWIST_TYPES, "GNSS velocity", "--topic gnss_velocity=...")
+    bv = tp.get("velocity")
+    if bv is None:
+        body = odoms + [tn for tn in twists if not _geographic(frames.get(tn, "")) and tn != gv]
+        bv = max(body, key=lambda tn: topics[tn][1]) if body else None
+    else:
+        bag.pick(bv, (*TWIST_TYPES, ODOM_TYPE), "velocity", "--topic velocity=...")
+    if gv is not None and drive.gnss is not None:
+        t, v = _vectors(bag, path, gv, lambda m: _twist(m).linear, drive.warnings)
+        if t.size:
+            from imubounds.io.drive_readers import match_times
+
+            g = drive.gnss
+            k, near = match_times(t, g.t)
+            g.vel_e_mps = np.where(near, v[k, 0], np.nan)
+            g.vel_n_mps = np.where(near, v[k, 1], np.nan)
+            used["gnss_velocity"] = gv
+    elif gv is not None:
+        drive.warnings.append(f"{path}: GNSS velocity topic {gv!r} ignored: no NavSatFix topic")
+    if bv is not None:
+        t, v = _vectors(bag, path, bv, lambda m: _twist(m).linear, drive.warnings)
+        if t.size:
+            drive.velocity = VelocityStream(t=t, u_mps=v[:, 0], v_mps=v[:, 1], w_mps=v[:, 2],
+                                            kind="odometry")
+            used["velocity"] = bv
+        if topics[bv][0] == ODOM_TYPE and drive.heading is None:
+            if _geographic(frames.get(bv, "")):
+                t, q = _quats(bag, path, bv, drive.warnings)
+                drive.heading = HeadingStream(
+                    t=t, heading_rad=enu_yaw_to_heading(quaternion_yaw_enu(*q.T)),
+                    source="compass", true_north=True,
+                )
+                used["heading"] = bv
+            else:
+                drive.notes.append(
+                    f"{bv}: odometry orientation in frame {frames.get(bv, '')!r} (not "
+                    "geographic) is not used as a heading"
+                )
 
 
 def _orientation(msg: Any) -> Any:
     if hasattr(msg, "quaternion"):
         return msg.quaternion
+    if hasattr(msg, "orientation"):
+        return msg.orientation
     pose = msg.pose
     if hasattr(pose, "pose"):  # PoseWithCovariance / Odometry
         pose = pose.pose

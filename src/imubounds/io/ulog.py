@@ -28,8 +28,16 @@ from typing import Any
 import numpy as np
 
 from imubounds.errors import ImuboundsError, InputError
-from imubounds.frames import FRD_TO_FLU
-from imubounds.io.drive_legacy import DriveLog
+from imubounds.frames import FRD_TO_FLU, ned_quaternion_to_rpy
+from imubounds.io.drive import (
+    AttitudeStream,
+    Drive,
+    DriveSettings,
+    GnssStream,
+    HeadingStream,
+    ImuStream,
+    MagStream,
+)
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
@@ -160,79 +168,101 @@ def read_ulog(path: Path, opts: ReadOptions) -> list[ImuLog]:
 
 
 def quaternion_ned_heading(q: np.ndarray) -> np.ndarray:
-    """Heading (rad, clockwise from north, [0, 2π)) of PX4 FRD->NED quaternions (w, x, y, z)."""
-    w, x, y, z = (np.asarray(q[:, k], dtype=float) for k in range(4))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    h = np.mod(yaw, 2.0 * math.pi)
-    return np.where(h >= 2.0 * math.pi, 0.0, h)  # mod of -tiny is 2*pi
+    """Heading (rad, clockwise from north, [0, 2pi)) of PX4 FRD->NED quaternions (w, x, y, z)."""
+    return ned_quaternion_to_rpy(q)[2]
 
 
-def read_drive_ulog(path: str | Path, *, gps_cep_m: float = 3.0) -> DriveLog:
-    """Read a PX4 ULog as a drive log: IMU, ``vehicle_gps_position``, magnetometer, heading.
+GPS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 
-    Parameters
-    ----------
-    path:
-        ``.ulg`` file.
-    gps_cep_m:
-        CEP (m) of the estimator's GPS model; used only when a fix has no
-        ``hdop`` field, to turn ``eph`` (m) into an equivalent HDOP.
 
-    Returns
-    -------
-    DriveLog
-        IMU and magnetometer in FLU (from FRD), GPS in degrees/metres with
-        ``fix`` from ``fix_type >= 2``, heading from ``vehicle_attitude``
-        (NED yaw = clockwise from north) when logged.
+def read_drive_ulog(path: str | Path, *, settings: DriveSettings | None = None) -> Drive:
+    """Read a PX4 ULog as a drive: IMU, GNSS (position, velocity, accuracy, dual-antenna
+    heading), magnetometer and attitude.
+
+    * ``sensor_combined`` (or ``vehicle_imu``) -> the IMU, FRD -> FLU;
+    * ``vehicle_gps_position`` (or ``sensor_gps``) -> GNSS: ``latitude_deg``/
+      ``longitude_deg`` (or ``lat``/``lon`` in 1e-7 deg), ``fix_type >= 2`` as
+      the fix, ``hdop``, ``eph`` as ``h_acc_m``, ``vel_n_m_s``/``vel_e_m_s``
+      (where ``vel_ned_valid``), ``s_variance_m_s`` as the velocity accuracy,
+      and a finite ``heading`` (dual antenna, true north) as a heading stream;
+    * ``vehicle_magnetometer`` -> magnetometer (gauss -> tesla, FRD -> FLU);
+    * ``vehicle_attitude`` -> attitude (roll, pitch, yaw of the FRD/NED
+      quaternion: an EKF that uses the IMU, not an independent heading).
+
+    Times are PX4's time since boot (µs -> s) for every topic.
     """
-    from imubounds.dynamic.aiding.gps import cep_to_drms
-
     p = Path(path)
     if not p.exists():
         raise InputError(f"no such file: {p}")
+    s = settings if settings is not None else DriveSettings()
+    drive = Drive(settings=s, source=str(p), layout="ulog")
     imu = read_ulog(p, ReadOptions(on_gap="ignore").validated())[0]
-    gps_names = ["vehicle_gps_position", "sensor_gps"]
-    ulog = _load(p, [*gps_names, "vehicle_magnetometer", "vehicle_attitude"])
-    g = next((d for d in (_dataset(ulog, n) for n in gps_names) if d is not None), None)
-    if g is None:
-        raise InputError(f"{p}: no vehicle_gps_position (or sensor_gps) topic in the ULog")
-    warnings = list(imu.warnings)
-    g_t = _field(p, g, "timestamp").astype(np.float64) * 1e-6
+    drive.warnings.extend(imu.warnings)
+    nan = np.full(imu.t.size, np.nan)
+    drive.imu = ImuStream(
+        t=imu.t,
+        accel=np.column_stack([imu.channels.get(f"accel_{c}", nan) for c in "xyz"]),
+        gyro=np.column_stack([imu.channels.get(f"gyro_{c}", nan) for c in "xyz"]),
+        input_units={"gyro": "rad/s", "accel": "m/s^2"},
+    )
+    ulog = _load(p, [*GPS_TOPICS, "vehicle_magnetometer", "vehicle_attitude"])
+    files = {"imu": f"{p}:{imu.source.rsplit(':', 1)[-1]}"}
+    g = next((d for d in (_dataset(ulog, n) for n in GPS_TOPICS) if d is not None), None)
+    if g is not None:
+        drive.gnss, heading = _gnss(p, g)
+        files["gnss"] = f"{p}:{g.name}"
+        if heading is not None:
+            drive.heading = heading
+            files["heading"] = f"{p}:{g.name}.heading"
+    m = _dataset(ulog, "vehicle_magnetometer")
+    if m is not None:
+        mt = _field(p, m, "timestamp").astype(np.float64) * 1e-6
+        mv = np.column_stack([_field(p, m, f"magnetometer_ga[{k}]") for k in range(3)])
+        drive.mag = MagStream(t=mt, mag=mv.astype(float) * FRD_TO_FLU * 1e-4, unit="T")
+        files.setdefault("heading", f"{p}:vehicle_magnetometer")
+    a = _dataset(ulog, "vehicle_attitude")
+    if a is not None:
+        at = _field(p, a, "timestamp").astype(np.float64) * 1e-6
+        q = np.column_stack([_field(p, a, f"q[{k}]") for k in range(4)]).astype(float)
+        r, pt, y = ned_quaternion_to_rpy(q)
+        drive.attitude = AttitudeStream(t=at, roll_rad=r, pitch_rad=pt, yaw_rad=y, source="ahrs")
+        files["attitude"] = f"{p}:vehicle_attitude"
+    drive.meta["files"] = files
+    from imubounds.io.drive_readers import apply_mount
+
+    apply_mount(drive)
+    return drive
+
+
+def _gnss(p: Path, g: Any) -> tuple[GnssStream, HeadingStream | None]:
+    t = _field(p, g, "timestamp").astype(np.float64) * 1e-6
     if "latitude_deg" in g.data:
         lat = _field(p, g, "latitude_deg").astype(float)
         lon = _field(p, g, "longitude_deg").astype(float)
-        alt = _field(p, g, "altitude_msl_m").astype(float)
+        alt = _field(p, g, "altitude_msl_m").astype(float) if "altitude_msl_m" in g.data else None
     else:  # older PX4: int32 1e-7 degrees and mm
         lat = _field(p, g, "lat").astype(float) * 1e-7
         lon = _field(p, g, "lon").astype(float) * 1e-7
-        alt = _field(p, g, "alt").astype(float) * 1e-3
-    if "hdop" in g.data:
-        hdop = _field(p, g, "hdop").astype(float)
-    else:
-        hdop = _field(p, g, "eph").astype(float) / cep_to_drms(gps_cep_m)
-        warnings.append(f"{p}: no hdop field; HDOP taken as eph / DRMS(CEP {gps_cep_m:g} m)")
-    fix = _field(p, g, "fix_type").astype(int) >= 2 if "fix_type" in g.data else np.isfinite(lat)
-    mag_t = mag = None
-    m = _dataset(ulog, "vehicle_magnetometer")
-    if m is not None:
-        mag_t = _field(p, m, "timestamp").astype(np.float64) * 1e-6
-        mag = np.column_stack(
-            [_field(p, m, f"magnetometer_ga[{k}]") for k in range(3)]
-        ).astype(float) * FRD_TO_FLU * 1e-4  # gauss -> tesla, FRD -> FLU
-    head_t = head = None
-    a = _dataset(ulog, "vehicle_attitude")
-    if a is not None:
-        head_t = _field(p, a, "timestamp").astype(np.float64) * 1e-6
-        head = quaternion_ned_heading(np.column_stack([_field(p, a, f"q[{k}]") for k in range(4)]))
-    log = DriveLog(
-        imu_t=imu.t,
-        accel=np.column_stack([imu.channels[f"accel_{c}"] for c in "xyz"]),
-        gyro=np.column_stack([imu.channels[f"gyro_{c}"] for c in "xyz"]),
-        gps_t=g_t, lat=lat, lon=lon, alt=alt, hdop=hdop, fix=fix,
-        heading_t=head_t, heading=head, mag_t=mag_t, mag=mag,
-        source=str(p), layout="ulog", frame="FLU", warnings=warnings,
-        settings={"gps_topic": g.name,
-                  "heading_source": "vehicle_attitude" if head is not None else "magnetometer"},
+        alt = _field(p, g, "alt").astype(float) * 1e-3 if "alt" in g.data else None
+
+    def opt(name: str) -> np.ndarray | None:
+        return _field(p, g, name).astype(float) if name in g.data else None
+
+    fix = _field(p, g, "fix_type").astype(int) >= 2 if "fix_type" in g.data else None
+    vn, ve = opt("vel_n_m_s"), opt("vel_e_m_s")
+    if vn is not None and ve is not None and "vel_ned_valid" in g.data:
+        valid = _field(p, g, "vel_ned_valid").astype(bool)
+        vn, ve = np.where(valid, vn, np.nan), np.where(valid, ve, np.nan)
+    gs = GnssStream(
+        t=t, lat_deg=lat, lon_deg=lon, alt_m=alt, hdop=opt("hdop"), h_acc_m=opt("eph"), fix=fix,
+        vel_n_mps=vn if ve is not None else None, vel_e_mps=ve if vn is not None else None,
+        vel_acc_mps=opt("s_variance_m_s") if vn is not None and ve is not None else None,
     )
-    log.validate()
-    return log
+    head = opt("heading")
+    hs = None
+    if head is not None:
+        ok = np.isfinite(head)
+        if ok.any():
+            hs = HeadingStream(t=t[ok], heading_rad=np.mod(head[ok], 2 * math.pi), source="gnss",
+                               true_north=True)
+    return gs, hs

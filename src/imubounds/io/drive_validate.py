@@ -1,0 +1,635 @@
+"""Validation of drive inputs: every problem is a one-line error or a counted warning.
+
+:func:`check_input_path` refuses special files (named pipes, devices, sockets)
+*before* anything opens them, so a pipe given as a log cannot block a run.
+:func:`validate_drive` checks a :class:`~imubounds.io.drive.Drive` that a
+reader produced, in SI, after the mount rotation:
+
+========================  =====================================================
+IMU samples               NaN or infinite values: error naming the row and time
+gyro units                beyond any MEMS range, or turning 57x (or 1/57x) the
+                          heading/course rate: :class:`UnitsError` (deg/s named
+                          rad/s, or the reverse); turning against the heading:
+                          error (mount or ``imu_axes`` wrong)
+accelerometer units       median |a| near 1 (g named m/s^2) or near 96 (m/s^2
+                          named g): :class:`UnitsError`
+GNSS positions            no finite latitude; degrees x 1e7 integers; out of
+                          range; latitude/longitude swapped; radians given as
+                          degrees: errors. Rows without a fix or with NaN
+                          positions: skipped and counted
+HDOP / h_acc_m            <= 0 or NaN: counted, treated as not reported (the
+                          drive's default HDOP / CEP then applies)
+speeds                    beyond ``vehicle.max_speed_mps`` (``--max-speed``):
+                          the sample is dropped and counted; position jumps
+                          faster than that are counted
+heading, attitude, mag    NaN rows dropped and counted; angles out of range and
+                          radians given as degrees: errors
+time ranges               an aiding stream that does not overlap the IMU at
+                          all: error naming both ranges
+========================  =====================================================
+
+Generic sample checks (finite values, monotonic time) are written here for the
+drive streams; the generic IMU-stream validation of the static readers lives
+in its own module, and both are meant to share one layer.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+from pathlib import Path
+
+import numpy as np
+
+from imubounds.errors import InputError, UnitsError
+from imubounds.io.drive import Drive
+
+#: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
+GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
+RAD_PER_DEG = math.pi / 180.0
+
+
+# ----------------------------------------------------------------------------- paths
+
+
+def _kind_of(mode: int) -> str | None:
+    if stat.S_ISFIFO(mode):
+        return "a named pipe"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return None
+
+
+def check_input_path(
+    path: str | os.PathLike[str], what: str = "input", *, directory: bool | None = None
+) -> Path:
+    """``path`` as a :class:`Path` if it is a regular file or a directory, else an error.
+
+    Named pipes, devices and sockets are refused without opening them (opening
+    a pipe blocks until a writer appears). ``directory=True`` requires a
+    directory, ``False`` a regular file, ``None`` accepts either.
+    """
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise InputError(f"{p}: no such file or directory ({what})") from None
+    except OSError as err:
+        raise InputError(f"{p}: cannot access ({err.strerror}) ({what})") from err
+    kind = _kind_of(st.st_mode)
+    if kind is not None:
+        raise InputError(f"{p} is {kind}, not a file: give the {what} as a regular file")
+    is_dir = stat.S_ISDIR(st.st_mode)
+    if directory is True and not is_dir:
+        raise InputError(f"{p}: not a directory ({what})")
+    if directory is False and is_dir:
+        raise InputError(f"{p} is a directory; give the {what} as a file")
+    if not is_dir and not os.access(p, os.R_OK):
+        raise InputError(f"{p}: permission denied ({what})")
+    return p
+
+
+def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:
+    """The first ``d/stem+suffix`` that exists, checked with :func:`check_input_path`.
+
+    Unlike ``Path.is_file`` this does not silently skip a named pipe called
+    ``imu.csv``: a special file is refused with an error.
+    """
+    for suffix in suffixes:
+        p = d / f"{stem}{suffix}"
+        if os.path.lexists(p):
+            return check_input_path(p, f"the drive's {stem} table", directory=False)
+    return None
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _file(drive: Drive, name: str) -> str:
+    files = drive.meta.get("files", {})
+    return str(files.get(name, f"{drive.source} ({name})"))
+
+
+def _where(t: np.ndarray, i: int) -> str:
+    return f"data row {i + 1} (t={t[i]:.3f} s)"
+
+
+def _unwrapped_reference_heading(drive: Drive) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """A heading (t, unwrapped compass heading rad, label) to check the gyro against."""
+    if drive.heading is not None and drive.heading.t.size >= 3:
+        return drive.heading.t, np.unwrap(drive.heading.heading_rad), "heading"
+    a = drive.attitude
+    if a is not None and a.yaw_rad is not None and a.t.size >= 3:
+        return a.t, np.unwrap(a.yaw_rad), "attitude yaw"
+    g = drive.gnss
+    if g is not None:
+        course = _position_course(drive)
+        if course is not None and course[0].size >= 5:
+            return course[0], np.unwrap(course[1]), "GNSS course over ground"
+    return None
+
+
+def _position_course(drive: Drive, min_speed: float = 3.0) -> tuple[np.ndarray, ...] | None:
+    """(t_mid, course rad clockwise from north, speed m/s) between usable consecutive fixes
+    moving at least ``min_speed`` (from positions only)."""
+    g = drive.gnss
+    if g is None:
+        return None
+    ok = g.usable()
+    if ok.sum() < 3:
+        return None
+    lat, lon, t = g.lat_deg[ok], g.lon_deg[ok], g.t[ok]
+    if np.max(np.abs(lat)) > 90 or np.max(np.abs(lon)) > 180:
+        return None
+    e, n = _local_en(lat, lon)
+    de, dn, dt = np.diff(e), np.diff(n), np.diff(t)
+    speed = np.hypot(de, dn) / dt
+    keep = np.isfinite(speed) & (speed >= min_speed)
+    tm = 0.5 * (t[1:] + t[:-1])
+    return tm[keep], np.mod(np.arctan2(de, dn), 2 * math.pi)[keep], speed[keep]
+
+
+def _local_en(lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Equirectangular east/north metres about the first point (enough for checks)."""
+    r = 6_371_000.0
+    lat0 = math.radians(float(lat[0]))
+    e = np.radians(lon - lon[0]) * r * math.cos(lat0)
+    n = np.radians(lat - lat[0]) * r
+    return e, n
+
+
+# ----------------------------------------------------------------------------- IMU
+
+
+def _check_imu(drive: Drive) -> None:
+    imu = drive.imu
+    assert imu is not None
+    f = _file(drive, "imu")
+    t = imu.t
+    if t.size < 2:
+        raise InputError(f"{f}: the IMU has {t.size} sample(s); at least 2 are needed")
+    for kind, arr in (("gyro", imu.gyro), ("accel", imu.accel)):
+        for j, ax in enumerate("xyz"):
+            col = arr[:, j]
+            fin = np.isfinite(col)
+            if not fin.any() or fin.all():
+                continue  # an absent axis is all NaN; a present one must be finite
+            i = int(np.flatnonzero(~fin)[0])
+            n_bad = int((~fin).sum())
+            raise InputError(
+                f"{f}: {kind}_{ax} (body axes) is {col[i]} at {_where(t, i)}"
+                f"{f' and {n_bad - 1} more row(s)' if n_bad > 1 else ''}; "
+                "repair or remove these rows (an IMU sample cannot be skipped)"
+            )
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    gaps = np.flatnonzero(dt > 5.0 * med)
+    if gaps.size:
+        k = int(gaps[np.argmax(dt[gaps])])
+        drive.warn(
+            "imu_gaps",
+            int(gaps.size),
+            f"{f}: {gaps.size} gap(s) in the IMU time stamps longer than 5 sample periods "
+            f"(largest {dt[k]:.3f} s after t={t[k]:.3f} s)",
+        )
+    _check_gyro_units(drive, f)
+    _check_accel_units(drive, f)
+
+
+def _check_gyro_units(drive: Drive, f: str) -> None:
+    imu = drive.imu
+    assert imu is not None
+    g = imu.gyro
+    present = [j for j in range(3) if np.isfinite(g[:, j]).all()]
+    if not present:
+        return
+    mag = np.abs(g[:, present])
+    top = float(np.percentile(mag, 99.9))
+    unit = imu.input_units.get("gyro", "") or "rad/s"
+    if top > GYRO_FULL_SCALE_RADS:
+        raise UnitsError(
+            f"{f}: gyro values reach {top:.1f} rad/s ({math.degrees(top):.0f} deg/s), beyond "
+            f"any MEMS gyro's range (2000 deg/s): the columns (read as {unit}) are probably in "
+            "deg/s; name them gyro_*_dps"
+        )
+    if 2 not in present:
+        return
+    ref = _unwrapped_reference_heading(drive)
+    if ref is None:
+        return
+    slope, r2, turned = _rate_slope(imu.t, -g[:, 2], *ref[:2])
+    if slope is None or r2 < 0.5 or turned < math.radians(90.0):
+        return
+    deg = 180.0 / math.pi
+    if 0.6 * deg < slope < 1.5 * deg:
+        raise UnitsError(
+            f"{f}: gyro_z turns {slope:.0f}x faster than the {ref[2]} (about 57x): the gyro "
+            f"columns (read as {unit}) are in deg/s; name them gyro_*_dps"
+        )
+    if 0.6 / deg < slope < 1.5 / deg:
+        raise UnitsError(
+            f"{f}: gyro_z turns {1 / slope:.0f}x slower than the {ref[2]} (about 1/57): the gyro "
+            f"columns (read as {unit}) are in rad/s; name them gyro_*_rads"
+        )
+    if -1.5 < slope < -0.6:
+        raise InputError(
+            f"{f}: gyro_z turns against the {ref[2]} (rate ratio {slope:.2f}): the body z axis "
+            "points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit)"
+        )
+    drive.meta["gyro_heading_rate_ratio"] = slope
+
+
+def _rate_slope(
+    t_imu: np.ndarray, rate: np.ndarray, t_ref: np.ndarray, psi_ref: np.ndarray
+) -> tuple[float | None, float, float]:
+    """Slope (through the origin) of the IMU's clockwise rate against a reference heading's
+    rate over intervals of at least 0.5 s, the fit's R^2, and the total turn (rad) of the
+    reference. A constant gyro bias only perturbs the slope."""
+    lo, hi = max(t_imu[0], t_ref[0]), min(t_imu[-1], t_ref[-1])
+    if hi - lo < 5.0:
+        return None, 0.0, 0.0
+    step = max(0.5, float(np.median(np.diff(t_ref))))
+    grid = np.arange(lo, hi, step)
+    if grid.size < 6:
+        return None, 0.0, 0.0
+    psi = np.interp(grid, t_ref, psi_ref)
+    ref_rate = np.diff(psi) / step
+    cum = np.concatenate(([0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t_imu))))
+    imu_rate = np.diff(np.interp(grid, t_imu, cum)) / step
+    turned = float(np.sum(np.abs(np.diff(psi))))
+    den = float(np.sum(ref_rate**2))
+    tot = float(np.sum(imu_rate**2))
+    if den == 0 or tot == 0:
+        return None, 0.0, turned
+    slope = float(np.sum(ref_rate * imu_rate) / den)
+    r2 = 1.0 - float(np.sum((imu_rate - slope * ref_rate) ** 2)) / tot
+    return slope, r2, turned
+
+
+def _check_accel_units(drive: Drive, f: str) -> None:
+    imu = drive.imu
+    assert imu is not None
+    a = imu.accel
+    if not np.isfinite(a).all():
+        return
+    norm = float(np.median(np.linalg.norm(a, axis=1)))
+    unit = imu.input_units.get("accel", "") or "m/s^2"
+    if 0.5 < norm < 2.0:
+        raise UnitsError(
+            f"{f}: the median |acceleration| is {norm:.2f} (read as {unit}) where gravity alone "
+            "gives 9.8 m/s^2: the columns are in g; name them accel_*_g"
+        )
+    if 50.0 < norm < 200.0:
+        raise UnitsError(
+            f"{f}: the median |acceleration| is {norm:.1f} m/s^2 (read as {unit}); the columns "
+            "are in m/s^2, not g: name them accel_*_mps2"
+        )
+    if not 4.0 < norm < 25.0:
+        drive.warn(
+            "accel_implausible",
+            1,
+            f"{f}: the median |acceleration| is {norm:.3g} m/s^2, far from gravity (9.8); "
+            "check the accelerometer unit",
+        )
+
+
+# ----------------------------------------------------------------------------- GNSS
+
+
+def _check_gnss(drive: Drive, max_speed: float) -> None:
+    g = drive.gnss
+    assert g is not None
+    f = _file(drive, "gnss")
+    t = g.t
+    n = t.size
+    lat, lon = g.lat_deg, g.lon_deg
+    fin = np.isfinite(lat) & np.isfinite(lon)
+    if not fin.any():
+        raise InputError(
+            f"{f}: lat_deg/lon_deg have no finite value in {n} row(s): no usable GPS fix; "
+            "check the position columns"
+        )
+    big = np.nanmax(np.abs(np.concatenate([lat[fin], lon[fin]])))
+    if big > 1000.0:
+        raise UnitsError(
+            f"{f}: positions reach {big:.0f}: these look like degrees x 1e7 (integer "
+            "latitude/longitude of PX4 or u-blox); divide lat/lon by 1e7"
+        )
+    bad_lat = fin & (np.abs(lat) > 90.0)
+    bad_lon = fin & (np.abs(lon) > 180.0)
+    if bad_lat.any():
+        i = int(np.flatnonzero(bad_lat)[0])
+        if np.all(np.abs(lon[fin]) <= 90.0) and np.all(np.abs(lat[fin]) <= 180.0):
+            raise InputError(
+                f"{f}: lat_deg is {lat[i]:g} at {_where(t, i)} (beyond +-90) while every "
+                "lon_deg is within +-90: latitude and longitude are swapped"
+            )
+        raise InputError(f"{f}: lat_deg is {lat[i]:g} at {_where(t, i)}, outside -90..90")
+    if bad_lon.any():
+        i = int(np.flatnonzero(bad_lon)[0])
+        raise InputError(f"{f}: lon_deg is {lon[i]:g} at {_where(t, i)}, outside -180..180")
+    if g.fix is not None:
+        nofix = int((~g.fix.astype(bool)).sum())
+        if nofix == n:
+            raise InputError(f"{f}: none of the {n} rows has a fix (fix = 0): no usable GPS fix")
+        drive.warn(
+            "gnss_no_fix", nofix, f"{f}: {nofix} of {n} row(s) without a fix (fix = 0) skipped"
+        )
+    with_fix = g.fix.astype(bool) if g.fix is not None else np.ones(n, bool)
+    nan_rows = int((with_fix & ~fin).sum())
+    drive.warn(
+        "gnss_nan_position",
+        nan_rows,
+        f"{f}: {nan_rows} row(s) with a fix but no latitude/longitude (NaN) skipped",
+    )
+    usable = g.usable()
+    for name in ("hdop", "h_acc_m"):
+        v = getattr(g, name)
+        if v is None:
+            continue
+        bad = usable & ~(np.isfinite(v) & (v > 0))
+        nb = int(bad.sum())
+        if nb:
+            i = int(np.flatnonzero(bad)[0])
+            what = "HDOP" if name == "hdop" else "h_acc_m"
+            drive.warn(
+                f"gnss_{name}_invalid",
+                nb,
+                f"{f}: {nb} fix(es) with {what} <= 0 or missing (first {v[i]:g} at "
+                f"{_where(t, i)}): treated as not reported (the drive's default applies)",
+            )
+            v = v.astype(float, copy=True)
+            v[~(np.isfinite(v) & (v > 0))] = np.nan
+            setattr(g, name, v)
+    _check_gnss_speed(drive, f, max_speed)
+    _check_gnss_consistency(drive, f)
+
+
+def _check_gnss_speed(drive: Drive, f: str, max_speed: float) -> None:
+    g = drive.gnss
+    assert g is not None
+    if g.speed_mps is not None:
+        s = g.speed_mps
+        bad = np.isfinite(s) & ((s > max_speed) | (s < 0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            drive.warn(
+                "gnss_speed_beyond_max",
+                int(bad.sum()),
+                f"{f}: {int(bad.sum())} GNSS speed(s) negative or beyond the vehicle's maximum "
+                f"{max_speed:g} m/s (first {s[i]:g} m/s at {_where(g.t, i)}) dropped",
+            )
+            g.speed_mps = np.where(bad, np.nan, s)
+            if g.course_rad is not None:
+                g.course_rad = np.where(bad, np.nan, g.course_rad)
+    if g.vel_n_mps is not None and g.vel_e_mps is not None:
+        sp = np.hypot(g.vel_n_mps, g.vel_e_mps)
+        bad = np.isfinite(sp) & (sp > max_speed)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            drive.warn(
+                "gnss_velocity_beyond_max",
+                int(bad.sum()),
+                f"{f}: {int(bad.sum())} GNSS velocity sample(s) beyond the vehicle's maximum "
+                f"{max_speed:g} m/s (first {sp[i]:g} m/s at {_where(g.t, i)}) dropped",
+            )
+            g.vel_n_mps = np.where(bad, np.nan, g.vel_n_mps)
+            g.vel_e_mps = np.where(bad, np.nan, g.vel_e_mps)
+    ok = g.usable()
+    if ok.sum() >= 2:
+        e, n = _local_en(g.lat_deg[ok], g.lon_deg[ok])
+        dt = np.diff(g.t[ok])
+        jump = np.hypot(np.diff(e), np.diff(n)) / dt
+        fast = np.flatnonzero(jump > max_speed)
+        if fast.size:
+            k = int(fast[0])
+            drive.warn(
+                "gnss_position_jumps",
+                int(fast.size),
+                f"{f}: {fast.size} jump(s) between consecutive fixes faster than the vehicle's "
+                f"maximum {max_speed:g} m/s (first {jump[k]:.0f} m/s after "
+                f"t={g.t[ok][k]:.3f} s): kept (outliers for the estimator)",
+            )
+
+
+def _check_gnss_consistency(drive: Drive, f: str) -> None:
+    """Radians given as degrees and swapped coordinates, from positions against velocities."""
+    g = drive.gnss
+    assert g is not None
+    ok = g.usable()
+    if ok.sum() < 5:
+        return
+    pc = _position_course(drive, min_speed=0.0)
+    assert pc is not None
+    t_mid, course_pos, speed_pos = pc
+    # reported speed: GNSS speed/velocity, else the body-velocity sensor
+    rep_t: np.ndarray | None = None
+    rep_speed: np.ndarray | None = None
+    ne = g.velocity_ne()
+    if ne is not None:
+        rep_t, rep_speed = g.t, np.hypot(*ne)
+    elif drive.velocity is not None:
+        rep_t, rep_speed = drive.velocity.t, np.abs(drive.velocity.u_mps)
+    if rep_t is not None and rep_speed is not None:
+        good = np.isfinite(rep_speed)
+        if good.sum() >= 3:
+            rs = np.interp(t_mid, rep_t[good], rep_speed[good])
+            moving = rs > 2.0
+            if moving.sum() >= 3:
+                ratio = float(np.median(speed_pos[moving] / rs[moving]))
+                if 0.6 / 57.3 < ratio < 1.5 / 57.3:
+                    raise UnitsError(
+                        f"{f}: the fixes move {1 / ratio:.0f}x slower than the measured speed: "
+                        "lat/lon are in radians; convert them to degrees"
+                    )
+    lat, lon = g.lat_deg[ok], g.lon_deg[ok]
+    if rep_t is None and np.all(np.abs(lat) <= math.pi / 2) and np.all(np.abs(lon) <= math.pi):
+        drive.warn(
+            "gnss_near_null_island",
+            1,
+            f"{f}: every fix lies within 3.2 deg of 0N 0E: if lat/lon are in radians, "
+            "convert them to degrees",
+        )
+    if g.course_rad is not None and g.speed_mps is not None:
+        c = g.course_rad
+        fin = np.isfinite(c) & np.isfinite(g.speed_mps) & (g.speed_mps > 3.0)
+        pc3 = _position_course(drive, min_speed=3.0)
+        if fin.sum() >= 5 and pc3 is not None and pc3[0].size >= 5:
+            span = float(np.ptp(np.unwrap(pc3[1])))
+            if span > math.radians(60.0) and np.nanmax(np.abs(np.degrees(c[fin]))) <= 6.3:
+                raise UnitsError(
+                    f"{f}: course_deg stays within 0..6.3 while the track turns "
+                    f"{math.degrees(span):.0f} deg: the course is in radians; convert it to degrees"
+                )
+            rep = np.interp(pc3[0], g.t[fin], np.unwrap(c[fin]))
+            d = np.abs(np.angle(np.exp(1j * (rep - pc3[1]))))
+            if np.median(d) > math.radians(45.0):
+                # swapped lat/lon mirror the track about the NE diagonal: course -> 90 deg - course
+                mirrored = np.abs(np.angle(np.exp(1j * (rep - (0.5 * math.pi - pc3[1])))))
+                if np.median(mirrored) < math.radians(20.0):
+                    raise InputError(
+                        f"{f}: the track of the fixes is the mirror image of the reported course "
+                        "(north and east exchanged): latitude and longitude are swapped"
+                    )
+                drive.warn(
+                    "gnss_course_mismatch",
+                    int((d > math.radians(45.0)).sum()),
+                    f"{f}: the reported course differs from the track of the fixes by a median "
+                    f"{math.degrees(float(np.median(d))):.0f} deg; check course_deg",
+                )
+
+
+# ----------------------------------------------------------------------------- others
+
+
+def _check_velocity(drive: Drive, max_speed: float) -> None:
+    v = drive.velocity
+    assert v is not None
+    f = _file(drive, "velocity")
+    for name in ("u_mps", "v_mps", "w_mps"):
+        a = getattr(v, name)
+        if a is None:
+            continue
+        bad = np.isfinite(a) & (np.abs(a) > max_speed)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            drive.warn(
+                "velocity_beyond_max",
+                int(bad.sum()),
+                f"{f}: {int(bad.sum())} {name} sample(s) beyond the vehicle's maximum "
+                f"{max_speed:g} m/s (first {a[i]:g} at {_where(v.t, i)}) dropped",
+            )
+            setattr(v, name, np.where(bad, np.nan, a))
+    keep = np.isfinite(v.u_mps)
+    nb = int((~keep).sum())
+    if nb == v.t.size:
+        beyond = drive.counts.get("velocity_beyond_max", 0)
+        why = f" ({beyond} beyond the maximum speed {max_speed:g} m/s)" if beyond else ""
+        raise InputError(f"{f}: u_mps has no usable value in {v.t.size} row(s){why}")
+    if nb:
+        drive.warn("velocity_nan", nb, f"{f}: {nb} row(s) with NaN u_mps skipped")
+        v.t = v.t[keep]
+        v.u_mps = v.u_mps[keep]
+        v.v_mps = None if v.v_mps is None else v.v_mps[keep]
+        v.w_mps = None if v.w_mps is None else v.w_mps[keep]
+
+
+def _check_heading(drive: Drive) -> None:
+    h = drive.heading
+    assert h is not None
+    f = _file(drive, "heading")
+    if h.t.size == 0:
+        raise InputError(f"{f}: heading_deg has no finite value")
+    ref = _position_course(drive, min_speed=3.0)
+    if ref is not None and ref[0].size >= 5:
+        span = float(np.ptp(np.unwrap(ref[1])))
+        spread = float(np.max(np.abs(np.angle(np.exp(1j * h.heading_rad)))))
+        if span > math.radians(60.0) and spread <= math.radians(6.3):
+            raise UnitsError(
+                f"{f}: heading_deg stays within +-6.3 while the GNSS track turns "
+                f"{math.degrees(span):.0f} deg: the heading is in radians; convert it to degrees"
+            )
+
+
+def _check_attitude(drive: Drive) -> None:
+    a = drive.attitude
+    assert a is not None
+    f = _file(drive, "attitude")
+    keep = np.isfinite(a.roll_rad) & np.isfinite(a.pitch_rad)
+    nb = int((~keep).sum())
+    if nb == a.t.size:
+        raise InputError(f"{f}: roll/pitch have no finite value")
+    if nb:
+        drive.warn("attitude_nan", nb, f"{f}: {nb} row(s) with NaN roll or pitch skipped")
+        a.t, a.roll_rad, a.pitch_rad = a.t[keep], a.roll_rad[keep], a.pitch_rad[keep]
+        a.yaw_rad = None if a.yaw_rad is None else a.yaw_rad[keep]
+    if np.any(np.abs(a.pitch_rad) > math.pi / 2 + 1e-9):
+        i = int(np.flatnonzero(np.abs(a.pitch_rad) > math.pi / 2)[0])
+        raise InputError(
+            f"{f}: pitch {math.degrees(a.pitch_rad[i]):g} deg at {_where(a.t, i)} is beyond "
+            "+-90 deg; check the attitude columns and their unit (degrees)"
+        )
+    if np.any(np.abs(a.roll_rad) > math.pi + 1e-9):
+        i = int(np.flatnonzero(np.abs(a.roll_rad) > math.pi)[0])
+        raise InputError(
+            f"{f}: roll {math.degrees(a.roll_rad[i]):g} deg at {_where(a.t, i)} is beyond "
+            "+-180 deg; check the attitude columns and their unit (degrees)"
+        )
+
+
+def _check_mag(drive: Drive) -> None:
+    m = drive.mag
+    assert m is not None
+    f = _file(drive, "heading")
+    keep = np.isfinite(m.mag).all(axis=1)
+    nb = int((~keep).sum())
+    if nb == m.t.size:
+        raise InputError(f"{f}: the magnetometer columns have no finite row")
+    if nb:
+        drive.warn("mag_nan", nb, f"{f}: {nb} magnetometer row(s) with NaN or inf skipped")
+        m.t, m.mag = m.t[keep], m.mag[keep]
+    if not np.any(np.linalg.norm(m.mag, axis=1) > 0):
+        raise InputError(f"{f}: the magnetometer reads zero in every row")
+
+
+def _check_overlap(drive: Drive) -> None:
+    imu = drive.time_range("imu")
+    assert imu is not None
+    lo, hi = imu
+    for name in ("gnss", "velocity", "heading", "mag", "attitude"):
+        r = drive.time_range(name)
+        if r is None:
+            continue
+        a, b = r
+        if b < lo or a > hi:
+            raise InputError(
+                f"{_file(drive, name)}: the {name} stream ({a:.3f}..{b:.3f} s) does not overlap "
+                f"the IMU ({lo:.3f}..{hi:.3f} s) at all: the sensors are on different clocks; "
+                "give the time offset or convert the times"
+            )
+        covered = (min(b, hi) - max(a, lo)) / max(hi - lo, 1e-12)
+        if covered < 0.5:
+            drive.notes.append(
+                f"the {name} stream covers {100 * covered:.0f} % of the IMU's time range"
+            )
+
+
+def validate_drive(drive: Drive, *, max_speed_mps: float | None = None) -> Drive:
+    """Check every stream of ``drive`` (in place) and return it.
+
+    Errors (:class:`InputError`, :class:`UnitsError`) name the file, the row
+    and time, and what to do; fixable problems are dropped or neutralised and
+    counted (``drive.counts``, ``drive.warnings``). ``max_speed_mps`` overrides
+    the drive's ``vehicle.max_speed_mps``.
+    """
+    drive.check()
+    max_speed = (
+        float(max_speed_mps)
+        if max_speed_mps is not None
+        else float(drive.settings.vehicle.max_speed_mps)
+    )
+    if not (math.isfinite(max_speed) and max_speed > 0):
+        raise InputError(f"the maximum speed must be a positive number of m/s, got {max_speed}")
+    if drive.gnss is not None:
+        _check_gnss(drive, max_speed)
+    if drive.velocity is not None:
+        _check_velocity(drive, max_speed)
+    if drive.heading is not None:
+        _check_heading(drive)
+    if drive.attitude is not None:
+        _check_attitude(drive)
+    if drive.mag is not None:
+        _check_mag(drive)
+    _check_imu(drive)
+    _check_overlap(drive)
+    if drive.settings.lever_arm_m is not None and any(drive.settings.lever_arm_m):
+        note = (
+            f"lever arm {list(drive.settings.lever_arm_m)} m (GNSS antenna from the IMU) is "
+            "ignored: positions are taken at the IMU"
+        )
+        if note not in drive.notes:
+            drive.notes.append(note)
+    return drive
