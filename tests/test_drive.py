@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 
 from imubounds.dynamic.aiding.compass import course_over_ground
-from imubounds.frames import wrap_pi
 from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import InputError
+from imubounds.frames import wrap_pi
 from imubounds.io.drive_readers import detect_layout, read_drive
 
 
@@ -31,7 +31,9 @@ def comma_dir(shared_data: Path) -> Path:
 @pytest.fixture(scope="module")
 def sim_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("sim") / "run"
-    write_scenario(simulate(ScenarioConfig(duration_s=120, distance_m=1200, seed=4)), d)
+    write_scenario(
+        simulate(ScenarioConfig(duration_s=120, distance_m=1200, seed=4, rate_hz=1.0)), d
+    )
     return d
 
 

@@ -3,7 +3,10 @@
 Layouts recognised by :func:`read_drive` (see :func:`detect_layout`):
 
 ``sim``
-    A directory written by ``imubounds simulate``: ``scenario.json``,
+    A directory written by ``imubounds simulate``: ``scenario.json`` with the
+    generic drive layout (``drive.yaml``, ``imu.csv``, ``gnss.csv``,
+    ``heading.csv``, ``truth.csv``; read by
+    :func:`imubounds.io.drive_layout.read_layout`), or the older layout:
     ``imu.csv`` (t, accel_x..z, gyro_x..z; FLU, SI), ``gps.csv`` (t, lat, lon,
     alt, hdop, fix), ``compass.csv`` (t, heading_deg clockwise from north),
     optional ``truth.csv`` (t, lat, lon, east, north, psi, u, v, accel_x,
@@ -118,11 +121,14 @@ def _read_csv(path: Path) -> pd.DataFrame:
 
 
 def read_sim(d: Path) -> DriveLog:
-    """Read a simulator output directory."""
+    """Read a simulator output directory (the generic drive layout with ``scenario.json``,
+    or the older layout with ``gps.csv`` and ``compass.csv``)."""
     try:
         settings = json.loads((d / "scenario.json").read_text())
     except (OSError, ValueError) as err:
         raise InputError(f"{d / 'scenario.json'}: cannot read ({err})") from err
+    if (d / "drive.yaml").is_file():
+        return _sim_layout_to_log(d, settings)
     imu = _read_csv(d / "imu.csv")
     cols = ["t", "accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"]
     _need(imu, cols, d / "imu.csv")
@@ -147,6 +153,57 @@ def read_sim(d: Path) -> DriveLog:
         heading_t=comp["t"].to_numpy(float),
         heading=np.radians(comp["heading_deg"].to_numpy(float)),
         truth=truth,
+        source=str(d),
+        layout="sim",
+        settings=settings,
+    )
+
+
+def _sim_layout_to_log(d: Path, settings: dict[str, object]) -> DriveLog:
+    """A simulator directory in the generic drive layout as a legacy :class:`DriveLog`
+    (transition helper until the per-step estimator reads a Drive)."""
+    from imubounds.frames import compass_to_model
+    from imubounds.io.drive_layout import read_layout
+
+    drive = read_layout(d)
+    if drive.imu is None or drive.gnss is None:
+        raise InputError(f"{d}: the per-step estimator needs imu.csv and gnss.csv")
+    g = drive.gnss
+    m = g.t.size
+    truth = None
+    tr = drive.truth
+    if tr is not None:
+        import pymap3d
+
+        # geodetic truth: the per-step estimator puts it in its own frame (first fix)
+        up = tr.extra.get("up_m", np.zeros(tr.t.size))
+        lat, lon, _ = pymap3d.enu2geodetic(tr.east_m, tr.north_m, up, *tr.origin)
+        truth = {"t": tr.t, "east": tr.east_m, "north": tr.north_m, "lat": lat, "lon": lon}
+        if tr.heading_rad is not None:
+            truth["psi"] = np.unwrap(np.asarray(compass_to_model(tr.heading_rad)))
+        truth["u"] = tr.u_mps if tr.u_mps is not None else np.zeros(tr.t.size)
+        truth["v"] = tr.v_mps if tr.v_mps is not None else np.zeros(tr.t.size)
+        for name, key in (("accel_x", "accel_x"), ("accel_y", "accel_y"), ("r", "gyro_z")):
+            if key in tr.extra:
+                truth[name] = tr.extra[key]
+    h = drive.heading
+    mag = drive.mag
+    return DriveLog(
+        imu_t=drive.imu.t,
+        accel=drive.imu.accel,
+        gyro=drive.imu.gyro,
+        gps_t=g.t,
+        lat=g.lat_deg,
+        lon=g.lon_deg,
+        alt=g.alt_m if g.alt_m is not None else np.zeros(m),
+        hdop=g.hdop if g.hdop is not None else np.full(m, np.nan),
+        fix=g.fix if g.fix is not None else np.ones(m, dtype=bool),
+        heading_t=None if h is None else h.t,
+        heading=None if h is None else h.heading_rad,
+        mag_t=None if mag is None else mag.t,
+        mag=None if mag is None else mag.mag,
+        truth=truth,
+        truth_origin=None if tr is None else tr.origin,
         source=str(d),
         layout="sim",
         settings=settings,
