@@ -107,7 +107,9 @@ def register(sub: Any) -> None:
     )
     g.add_argument("--imu-preset", metavar="NAME", help="IMU datasheet preset (mtx)")
     g.add_argument(
-        "--noise-scale", type=positive_float, help="multiply the IMU noise and biases (1)"
+        "--noise-scale",
+        type=nonneg_float,
+        help="multiply the IMU noise and biases (1; 0: noiseless IMU)",
     )
     g.add_argument(
         "--no-bias",

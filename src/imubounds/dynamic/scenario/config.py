@@ -160,7 +160,7 @@ class ScenarioConfig:
     aiding: tuple[str, ...] = DEFAULT_AIDING
     # IMU
     imu_preset: str = "mtx"
-    noise_scale: float = 1.0  # multiplies N, B, K and the turn-on bias
+    noise_scale: float = 1.0  # multiplies N, B, K and the turn-on bias (0: noiseless IMU)
     imu_bias: bool = True  # turn-on bias and in-run bias instability
     turn_on_scale: float = 1.0  # turn-on sigma = this x (preset turn-on bias, else B)
     bias_tau_range_s: tuple[float, float] = (1.0, 1000.0)  # flicker range of B
@@ -233,13 +233,13 @@ class ScenarioConfig:
             "aspect",
             "max_lateral_accel_mps2",
             "max_long_accel_mps2",
-            "noise_scale",
             "ramp_s",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise OptionError(f"--{name.replace('_', '-')} must be a positive number, got {v}")
         for name in (
+            "noise_scale",
             "hill_amplitude_m",
             "bank_deg",
             "roll_gain_deg_per_mps2",

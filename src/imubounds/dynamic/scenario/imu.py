@@ -16,8 +16,8 @@ Every term is a Gaussian (or flicker) draw: nothing is bounded unless
 The bounds stated for them (``drive.yaml``: imu, and the record), at a whole-trip
 risk ``alpha`` per stream with ``k(n) = Phi^-1(1 - alpha/(2n))``:
 
-* white noise per sample: ``k(n_samples) N / sqrt(dt)`` (the estimator derives it
-  from ``accel_nd``/``gyro_nd``);
+* white noise per sample: ``k(6 n) N / sqrt(dt)`` over the n samples of the six
+  channels (the estimator derives it from ``accel_nd``/``gyro_nd``);
 * turn-on bias: ``k(6) sigma_turn_on`` (``accel_turn_on_mps2``, ``gyro_turn_on_dps``);
 * bias drift: the wander averaged over any window of at least ``tau_lo`` (the
   lower end of the flicker range, 1 s) stays within
@@ -240,7 +240,7 @@ def simulate_errors(
     rng = np.random.default_rng(seeds["imu_static"])
     wseeds = seeds["imu_white"].spawn(6)
     dseeds = seeds["imu_drift"].spawn(6)
-    kw = k_level(cfg.alpha, n)
+    kw = k_level(cfg.alpha, 6 * n)
     for j, kind in enumerate(kinds):
         N = fig.N[kind]
         if cfg.bounded:
@@ -331,10 +331,11 @@ def imu_checks(cfg: ScenarioConfig, t: Array, err: ImuErrors, epoch_times: Array
     dt = 1.0 / cfg.rate_hz
     fig = err.figures
     a = cfg.alpha
-    k_s = k_level(a, n)
+    # k over the six channels' samples: one level for the whole IMU stream
+    k_s = k_level(a, 6 * n)
     eidx = epoch_indices(t, epoch_times)
     wins = octave_windows(n, 1, cfg.duration_s / 4, dt)
-    k_w = k_level(a, sum(w for _, w in wins))
+    k_w = k_level(a, 6 * sum(w for _, w in wins))
     dwins = octave_windows(n, int(round(fig.drift_window_s / dt)), cfg.duration_s / 4, dt)
     out: list[Check] = []
     for j, ch in enumerate(CHANNELS):
@@ -356,7 +357,7 @@ def imu_checks(cfg: ScenarioConfig, t: Array, err: ImuErrors, epoch_times: Array
         )
         if eidx.size >= 2:
             sums, dur, ends = white_interval_sums(w, dt, eidx)
-            k_m = k_level(a, sums.size)
+            k_m = k_level(a, 6 * sums.size)
             out.append(
                 check(
                     f"imu.{ch}.white_interval",

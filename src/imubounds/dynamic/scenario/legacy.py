@@ -114,7 +114,7 @@ def estimator_block(
             }
             for kind in ("accel", "gyro")
         },
-        "k_sigma": k_level(cfg.alpha, n),
+        "k_sigma": k_level(cfg.alpha, 6 * n),
         "t_avg_s": cfg.duration_s,
         "gps_cep_m": cfg.gps_cep_m,
         "gps_box": f"p={1.0 - cfg.alpha / max(n_gnss, 1)!r}",

@@ -5,17 +5,18 @@ Each :class:`Check` compares one error of one stream with the bound that
 per stream with ``k(n) = Phi^-1(1 - alpha/(2n))`` over the ``n`` samples (or
 windows) checked. The definitions (each :class:`Check` carries its own text):
 
-IMU, per channel (error terms as in :mod:`.imu`):
+IMU, per channel (error terms as in :mod:`.imu`; the IMU's k counts the six
+channels together):
 
 ``white_sample``
-    ``|w_k| <= k(n) N/sqrt(dt)`` for every sample (n samples of the channel).
+    ``|w_k| <= k(6n) N/sqrt(dt)`` for every sample (n samples per channel).
 ``white_interval``
     the white noise integrated between consecutive aiding epochs (the union of
-    every aiding stream's time stamps), ``|sum w_k dt| <= k(m) N sqrt(Delta)``
+    every aiding stream's time stamps), ``|sum w_k dt| <= k(6m) N sqrt(Delta)``
     over the m intervals.
 ``white_window``
     the white noise averaged over the non-overlapping octave windows from one
-    sample to a quarter of the trip, ``|mean w| <= k(M) N/sqrt(tau)`` (M windows
+    sample to a quarter of the trip, ``|mean w| <= k(6M) N/sqrt(tau)`` (M windows
     over all octaves).
 ``turn_on``
     ``|b| <=`` the stated turn-on bound.
@@ -43,10 +44,12 @@ Aiding streams:
 ``attitude``
     ``|roll error|, |pitch error| <= bound_deg``.
 
-The k of a stream counts its epochs, not its components, and uses the whole
-``alpha`` for the stream: an estimator that counts each component, or splits
-``alpha`` between streams, uses a larger k, so a clean record means every
-input lies within its bounds. GNSS outliers and sensor faults are always
+The k of an aiding stream counts its epochs, not its components, and uses the
+whole ``alpha`` for the stream: an estimator that counts each component, or
+splits ``alpha`` between streams, uses a larger k, so a clean record means every
+aiding input lies within its bounds. The IMU's k counts its six channels: an
+estimator must count them too (Sidak over every bounded IMU quantity) for a
+clean record to imply its white-noise bounds. GNSS outliers and sensor faults are always
 recorded; a record is :attr:`Record.clean` when no check has a sample outside
 and there is no outlier and no fault.
 """
