@@ -36,7 +36,9 @@ from imubounds.io.drive_legacy import read_drive_log as read_drive
 
 
 def make_inputs(n_steps: int, tmpdir: str) -> tuple[np.ndarray, ...]:
-    sc = simulate(ScenarioConfig(seed=1, truth_model="full", bounded=True))
+    sc = simulate(
+        ScenarioConfig(seed=1, truth_model="full", bounded=True, rate_hz=1.0, imu_bias=False)
+    )
     write_scenario(sc, f"{tmpdir}/sim")
     log = read_drive(f"{tmpdir}/sim")
     cfg = config_for_log(log, mode="full")

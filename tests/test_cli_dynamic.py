@@ -58,6 +58,10 @@ def test_simulate_then_dynamic(main, tmp_path: Path, capsys: pytest.CaptureFixtu
                 "--bounded",
                 "--gps-cep",
                 "0.5",
+                # the per-step estimator: a 1 Hz IMU without bias, as before
+                "--rate",
+                "1",
+                "--no-bias",
             ]
         )
         == 0
@@ -113,7 +117,9 @@ def test_dynamic_comma(main, shared_data: Path, tmp_path: Path) -> None:  # type
 
 def test_dynamic_static_json(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     sim = tmp_path / "sim"
-    main(["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q"])
+    main(
+        ["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q", "--rate", "1"]
+    )
     noise = {
         "channels": {
             ch: {"stationary": {"N": n, "B": b}}
@@ -152,7 +158,9 @@ def test_bad_inputs(main, shared_data: Path, tmp_path: Path, capsys: pytest.Capt
     assert "no usable GPS fix" in capsys.readouterr().err
     # bad options
     sim = tmp_path / "sim"
-    main(["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q"])
+    main(
+        ["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q", "--rate", "1"]
+    )
     assert main(["dynamic", str(sim), "-o", str(tmp_path / "o"), "--gps-box", "p=2"]) == 2
     assert "--gps-box" in capsys.readouterr().err
     assert main(["dynamic", str(sim), "-o", str(tmp_path / "o"), "--imu-spec", "x=1"]) == 2

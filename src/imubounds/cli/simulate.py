@@ -1,4 +1,4 @@
-"""``imubounds simulate``: the paper's drive as a simulator directory for ``dynamic``."""
+"""``imubounds simulate``: a trip with ground truth, written in the generic drive layout."""
 
 from __future__ import annotations
 
@@ -6,119 +6,252 @@ import argparse
 import sys
 from typing import Any
 
-from imubounds.cli._common import add_force_option
+from imubounds.cli._common import (
+    add_force_option,
+    nonneg_float,
+    nonneg_int,
+    positive_float,
+    positive_int,
+    probability,
+)
+
+
+def _fraction(text: str) -> float:
+    """A number in [0, 1)."""
+    x = nonneg_float(text)
+    if not x < 1:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 1), got {text}")
+    return x
+
+
+def _fault(text: str) -> Any:
+    from imubounds.dynamic.scenario import parse_fault
+    from imubounds.errors import OptionError
+
+    try:
+        return parse_fault(text)
+    except OptionError as err:
+        raise argparse.ArgumentTypeError(str(err).replace(f"--fault {text!r}: ", "")) from None
+
+
+def _aiding(text: str) -> tuple[str, ...]:
+    from imubounds.dynamic.scenario import AIDING_STREAMS
+
+    names = tuple(s.strip().lower() for s in text.split(",") if s.strip())
+    if not names:
+        raise argparse.ArgumentTypeError("give at least one stream, e.g. gnss,compass")
+    for s in names:
+        if s not in AIDING_STREAMS:
+            raise argparse.ArgumentTypeError(
+                f"unknown stream {s!r}; use any of {', '.join(AIDING_STREAMS)}"
+            )
+    return names
 
 
 def register(sub: Any) -> None:
+    from imubounds.dynamic.scenario import AIDING_STREAMS, DEFAULT_AIDING, VARIANTS
+
+    variants = "; ".join(f"{k}: {v[1]}" for k, v in VARIANTS.items())
     p = sub.add_parser(
         "simulate",
-        help="simulate a drive (IMU, GPS, compass, truth) for 'imubounds dynamic'",
-        description="Simulate the paper's experiment (closed 9.4 km / 792 s trip, MTx-grade IMU, "
-        "GPS CEP 3 m at HDOP ~0.8, compass with hard-iron deviation) or a variant, and write a "
-        "directory that 'imubounds dynamic DIR' reads: imu.csv, gps.csv, compass.csv, "
-        "compass_cal.csv, truth.csv, scenario.json.",
+        help="simulate a trip with ground truth (IMU, GNSS, compass, ...) in the drive layout",
+        description="Simulate the paper's experiment (closed 9.4 km / 792 s trip, Xsens MTx-grade "
+        "IMU at 100 Hz with turn-on bias, bias drift and white noise, GNSS CEP 3 m at HDOP ~0.8, "
+        "compass with a one-cycle deviation) or a variant, with 3-D rigid-body truth, and write "
+        "it in the generic drive layout: imu.csv, gnss.csv, velocity.csv, heading.csv, "
+        "attitude.csv, truth.csv, drive.yaml (every bound the data were drawn against), "
+        "compass_cal.csv and scenario.json (settings, seed, every true error term, and the "
+        "record of inputs that fell outside their stated bounds). Variants: " + variants + ".",
     )
     p.add_argument("--scenario", choices=("paper",), default="paper", help="base scenario")
+    p.add_argument(
+        "--variant", choices=tuple(VARIANTS), default="paper", help="variant (default paper)"
+    )
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
     add_force_option(p)
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
-    p.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="IMU rate (1 Hz)")
-    p.add_argument("--gps-rate", type=float, metavar="HZ", help="GPS rate (1 Hz)")
-    p.add_argument("--compass-rate", type=float, metavar="HZ", help="compass rate (1 Hz)")
-    p.add_argument("--duration", type=float, default=792.0, metavar="S", help="trip length, s")
-    p.add_argument("--distance", type=float, default=9400.0, metavar="M", help="trip length, m")
-    p.add_argument("--laps", type=int, default=1, help="laps of the loop (more turns)")
-    p.add_argument(
+    p.add_argument("--seed", type=nonneg_int, default=0, help="random seed (0)")
+    g = p.add_argument_group("trip")
+    g.add_argument("--duration", type=positive_float, metavar="S", help="trip length, s (792)")
+    g.add_argument(
+        "--distance", type=positive_float, metavar="M", help="horizontal path length, m (9400)"
+    )
+    g.add_argument("--laps", type=positive_int, help="laps of the loop (1; more turns)")
+    g.add_argument(
         "--corner-length",
-        type=float,
-        default=150.0,
+        type=positive_float,
         metavar="M",
-        help="arc length of each 90-degree corner (shorter = sharper turns)",
+        help="arc length of each right-angle corner (150 m; shorter = sharper, the vehicle slows)",
     )
-    p.add_argument("--noise-scale", type=float, default=1.0, help="multiply the IMU noise")
-    p.add_argument("--gps-cep", type=float, default=3.0, metavar="M", help="GPS CEP (3 m)")
-    p.add_argument("--hdop", type=float, default=0.8, help="mean HDOP (0.8)")
-    p.add_argument(
-        "--gps-outliers",
-        type=float,
-        default=0.0,
+    g.add_argument(
+        "--hill-amplitude", type=nonneg_float, metavar="M", help="hills: altitude amplitude (0)"
+    )
+    g = p.add_argument_group("sensors")
+    g.add_argument(
+        "--aiding",
+        type=_aiding,
+        metavar="LIST",
+        help=f"aiding streams, comma-separated from {','.join(AIDING_STREAMS)} "
+        f"(default {','.join(DEFAULT_AIDING)}, or the variant's)",
+    )
+    g.add_argument("--rate", type=positive_float, metavar="HZ", help="IMU rate (100 Hz)")
+    g.add_argument("--gps-rate", type=positive_float, metavar="HZ", help="GNSS rate (1 Hz)")
+    g.add_argument(
+        "--compass-rate", type=positive_float, metavar="HZ", help="compass/magnetometer rate (1 Hz)"
+    )
+    g.add_argument(
+        "--velocity-rate", type=positive_float, metavar="HZ", help="DVL/wheel rate (10 Hz)"
+    )
+    g.add_argument("--attitude-rate", type=positive_float, metavar="HZ", help="attitude (10 Hz)")
+    g.add_argument(
+        "--truth-rate", type=positive_float, metavar="HZ", help="rows of truth.csv (10 Hz)"
+    )
+    g.add_argument("--imu-preset", metavar="NAME", help="IMU datasheet preset (mtx)")
+    g.add_argument(
+        "--noise-scale",
+        type=nonneg_float,
+        help="multiply the IMU noise and biases (1; 0: noiseless IMU)",
+    )
+    g.add_argument(
+        "--no-bias",
+        action="store_true",
+        help="IMU without turn-on bias and bias drift (white noise only)",
+    )
+    g.add_argument(
+        "--scale-error",
+        type=nonneg_float,
         metavar="FRACTION",
-        help="share of GPS fixes with an outlier jump",
+        help="1-sigma scale-factor error per IMU channel (0)",
     )
-    p.add_argument(
-        "--outlier-size",
-        type=float,
-        default=40.0,
-        metavar="M",
-        help="size of an outlier jump (40 m)",
+    g.add_argument(
+        "--misalignment", type=nonneg_float, metavar="DEG", help="1-sigma misalignment (0)"
     )
-    p.add_argument(
+    g.add_argument(
+        "--fault",
+        type=_fault,
+        action="append",
+        metavar="CH:KIND=VALUE[@T0]",
+        help="inject an IMU fault from T0 s: CHANNEL:bias=VALUE (m/s^2 or rad/s) or "
+        "CHANNEL:scale=VALUE (fraction); repeatable, e.g. accel_x:bias=0.3@396",
+    )
+    g.add_argument("--gps-cep", type=positive_float, metavar="M", help="GNSS CEP (3 m)")
+    g.add_argument("--hdop", type=positive_float, help="mean HDOP (0.8)")
+    g.add_argument(
+        "--gps-vel-sigma",
+        type=nonneg_float,
+        metavar="MPS",
+        help="GNSS velocity 1-sigma per component (0.1 m/s)",
+    )
+    g.add_argument(
+        "--gps-outliers",
+        type=_fraction,
+        metavar="FRACTION",
+        help="share of GNSS fixes with a gross outlier, in [0, 1) (0)",
+    )
+    g.add_argument(
+        "--outlier-size", type=positive_float, metavar="M", help="size of an outlier jump (40 m)"
+    )
+    g.add_argument(
         "--compass-noise",
-        type=float,
-        default=0.3,
+        type=nonneg_float,
         metavar="DEG",
         help="compass noise standard deviation (0.3 deg)",
     )
-    p.add_argument(
+    g.add_argument(
+        "--alpha",
+        type=probability,
+        help="whole-trip risk of every stated bound, per stream (0.01)",
+    )
+    g = p.add_argument_group("legacy (the per-step paper-mode estimator's tests)")
+    g.add_argument(
         "--truth-model",
         choices=("continuous", "paper", "full"),
-        default="continuous",
-        help="continuous trajectory, or truth following the estimator's discrete "
-        "model of that mode exactly",
+        help="continuous 3-D truth (default), or planar truth following the per-step "
+        "estimator's discrete model of that mode exactly (needs equal IMU/GNSS/compass rates)",
     )
-    p.add_argument(
+    g.add_argument(
         "--bounded",
         action="store_true",
-        help="draw every noise sample inside the bounds handed to the estimator",
+        help="draw every error inside its stated bound (the record is then clean "
+        "unless there are outliers or faults)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    from imubounds.dynamic.scenario import ScenarioConfig, closure_error, simulate, write_scenario
+_OPTIONS = {
+    "duration": "duration_s",
+    "distance": "distance_m",
+    "laps": "laps",
+    "corner_length": "corner_length_m",
+    "hill_amplitude": "hill_amplitude_m",
+    "aiding": "aiding",
+    "rate": "rate_hz",
+    "gps_rate": "gps_rate_hz",
+    "compass_rate": "compass_rate_hz",
+    "velocity_rate": "velocity_rate_hz",
+    "attitude_rate": "attitude_rate_hz",
+    "truth_rate": "truth_rate_hz",
+    "imu_preset": "imu_preset",
+    "noise_scale": "noise_scale",
+    "scale_error": "scale_error",
+    "misalignment": "misalignment_deg",
+    "gps_cep": "gps_cep_m",
+    "hdop": "hdop_mean",
+    "gps_vel_sigma": "gps_vel_sigma_mps",
+    "gps_outliers": "gps_outlier_fraction",
+    "outlier_size": "gps_outlier_m",
+    "compass_noise": "compass_noise_deg",
+    "alpha": "alpha",
+    "truth_model": "truth_model",
+}
 
-    cfg = ScenarioConfig(
-        scenario=args.scenario,
-        seed=args.seed,
-        duration_s=args.duration,
-        distance_m=args.distance,
-        rate_hz=args.rate,
-        gps_rate_hz=args.gps_rate
-        if args.gps_rate
-        else args.rate
-        if args.truth_model != "continuous"
-        else 1.0,
-        compass_rate_hz=args.compass_rate
-        if args.compass_rate
-        else args.rate
-        if args.truth_model != "continuous"
-        else 1.0,
-        laps=args.laps,
-        corner_length_m=args.corner_length,
-        noise_scale=args.noise_scale,
-        gps_cep_m=args.gps_cep,
-        hdop_mean=args.hdop,
-        gps_outlier_fraction=args.gps_outliers,
-        gps_outlier_m=args.outlier_size,
-        compass_noise_deg=args.compass_noise,
-        truth_model=args.truth_model,
-        bounded=args.bounded,
-    )
+
+def config_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`ScenarioConfig` the options describe (variant first, then each option)."""
+    from imubounds.dynamic.scenario import ScenarioConfig
+
+    kw: dict[str, Any] = {
+        field: getattr(args, opt)
+        for opt, field in _OPTIONS.items()
+        if getattr(args, opt, None) is not None
+    }
+    if args.truth_model not in (None, "continuous"):
+        # a discrete truth needs every stream at the IMU rate: follow --rate unless given
+        r = kw.get("rate_hz", 1.0)
+        kw.setdefault("rate_hz", r)
+        for name in ("gps_rate_hz", "compass_rate_hz"):
+            kw.setdefault(name, r)
+    if args.no_bias:
+        kw["imu_bias"] = False
+    if args.bounded:
+        kw["bounded"] = True
+    if args.fault:
+        kw["faults"] = tuple(args.fault)
+    kw["scenario"] = args.scenario
+    kw["seed"] = args.seed
+    return ScenarioConfig.for_variant(args.variant, **kw)
+
+
+def run(args: argparse.Namespace) -> int:
+    from imubounds.dynamic.scenario import OUTPUT_FILES, simulate, write_scenario
     from imubounds.io.outputs import OutputSet
 
+    cfg = config_from_args(args)
+    cfg.check()
     with OutputSet(args.out, force=args.force) as outset:
-        outset.check(["imu.csv", "gps.csv", "compass.csv", "truth.csv", "scenario.json"])
-        sc = simulate(cfg)
-        write_scenario(sc, outset.staging)
+        outset.check(OUTPUT_FILES)
+        res = simulate(cfg)
+        write_scenario(res, outset.staging)
         outset.record(getattr(args, "argv", None), command_name="simulate")
-    out = args.out
     if not args.quiet:
-        tr = sc.truth
+        d = res.drive
+        assert d.imu is not None
         print(
-            f"simulated {cfg.scenario}: {sc.t.size} IMU samples at {cfg.rate_hz:g} Hz, "
-            f"{sc.gps_t.size} GPS fixes, closure {closure_error(sc):.2e} m, max speed "
-            f"{tr['u'].max():.1f} m/s -> {out}",
+            f"simulated {cfg.variant} (seed {cfg.seed}): {d.imu.t.size} IMU samples at "
+            f"{cfg.rate_hz:g} Hz, streams {', '.join(d.streams())}; closure "
+            f"{res.closure_error_m():.2e} m, max speed {res.truth['speed'].max():.1f} m/s -> "
+            f"{args.out}",
             file=sys.stderr,
         )
+        print(res.record.summary(), file=sys.stderr)
     return 0

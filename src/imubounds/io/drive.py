@@ -310,6 +310,13 @@ class ImuSettings:
     m/s^2/sqrt(Hz), ``accel_bs`` m/s^2 (in-run bias stability), ``gyro_nd``
     deg/s/sqrt(Hz), ``gyro_bs`` deg/s; optional turn-on bias, scale factor and
     misalignment.
+
+    ``accel_bias_drift_mps2`` / ``gyro_bias_drift_dps`` bound the in-run bias
+    wander (the bias minus its turn-on value) averaged over any window of at least
+    ``bias_drift_window_s`` over the whole trip; with the turn-on bound they bound
+    the bias: ``|b| <= turn_on + drift``. ``sample_time`` says which instant of its
+    averaging period an IMU sample's ``time_s`` marks: ``"end"`` (the sample is the
+    mean over ``[t - dt, t]``), ``"centre"`` or ``"start"``; None: not stated.
     """
 
     noise_json: str | None = None
@@ -322,6 +329,10 @@ class ImuSettings:
     gyro_turn_on_dps: float | None = None
     scale_factor: float | None = None
     misalignment_deg: float | None = None
+    accel_bias_drift_mps2: float | None = None
+    gyro_bias_drift_dps: float | None = None
+    bias_drift_window_s: float | None = None
+    sample_time: str | None = None
 
 
 @dataclass

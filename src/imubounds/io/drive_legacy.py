@@ -270,6 +270,57 @@ def read_sim(d: Path) -> DriveLog:
     )
 
 
+def read_sim_layout(d: Path, settings: dict[str, object]) -> DriveLog:
+    """A simulator directory in the generic drive layout as a legacy :class:`DriveLog`
+    (transition helper until the per-step estimator reads a Drive)."""
+    from imubounds.frames import compass_to_model
+    from imubounds.io.drive_layout import read_layout
+
+    drive = read_layout(d)
+    if drive.imu is None or drive.gnss is None:
+        raise InputError(f"{d}: the per-step estimator needs imu.csv and gnss.csv")
+    g = drive.gnss
+    m = g.t.size
+    truth = None
+    tr = drive.truth
+    if tr is not None:
+        import pymap3d
+
+        # geodetic truth: the per-step estimator puts it in its own frame (first fix)
+        up = tr.extra.get("up_m", np.zeros(tr.t.size))
+        lat, lon, _ = pymap3d.enu2geodetic(tr.east_m, tr.north_m, up, *tr.origin)
+        truth = {"t": tr.t, "east": tr.east_m, "north": tr.north_m, "lat": lat, "lon": lon}
+        if tr.heading_rad is not None:
+            truth["psi"] = np.unwrap(np.asarray(compass_to_model(tr.heading_rad)))
+        truth["u"] = tr.u_mps if tr.u_mps is not None else np.zeros(tr.t.size)
+        truth["v"] = tr.v_mps if tr.v_mps is not None else np.zeros(tr.t.size)
+        for name, key in (("accel_x", "accel_x"), ("accel_y", "accel_y"), ("r", "gyro_z")):
+            if key in tr.extra:
+                truth[name] = tr.extra[key]
+    h = drive.heading
+    mag = drive.mag
+    return DriveLog(
+        imu_t=drive.imu.t,
+        accel=drive.imu.accel,
+        gyro=drive.imu.gyro,
+        gps_t=g.t,
+        lat=g.lat_deg,
+        lon=g.lon_deg,
+        alt=g.alt_m if g.alt_m is not None else np.zeros(m),
+        hdop=g.hdop if g.hdop is not None else np.full(m, np.nan),
+        fix=g.fix if g.fix is not None else np.ones(m, dtype=bool),
+        heading_t=None if h is None else h.t,
+        heading=None if h is None else h.heading_rad,
+        mag_t=None if mag is None else mag.t,
+        mag=None if mag is None else mag.mag,
+        truth=truth,
+        truth_origin=None if tr is None else tr.origin,
+        source=str(d),
+        layout="sim",
+        settings=settings,
+    )
+
+
 def is_sim_dir(d: Path) -> bool:
     """True for the simulator's old output directory."""
     return d.is_dir() and (d / "scenario.json").is_file() and (d / "gps.csv").is_file()
@@ -352,6 +403,14 @@ def read_drive_log(paths: list[str] | str, mount: str = "auto", **options: Any) 
     ps = [paths] if isinstance(paths, str) else list(paths)
     if len(ps) == 1 and is_sim_dir(Path(ps[0])):
         log = read_sim(Path(ps[0]))
+    elif len(ps) == 1 and (Path(ps[0]) / "scenario.json").is_file():
+        # the simulator's directory in the generic layout, with its estimator settings
+        sd = Path(ps[0])
+        try:
+            settings = json.loads((sd / "scenario.json").read_text())
+        except (OSError, ValueError) as err:
+            raise InputError(f"{sd / 'scenario.json'}: cannot read ({err})") from err
+        log = read_sim_layout(sd, settings)
     else:
         log = from_drive(read_drive(ps, mount=mount, **options))
     log.validate()
