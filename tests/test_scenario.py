@@ -345,7 +345,9 @@ def test_record_counts_match_an_independent_recount() -> None:
     radius = (
         d.gnss.hdop * cep_to_drms(d.settings.gnss.cep_m) * math.sqrt(math.log(d.gnss.t.size / 0.01))
     )
-    np.testing.assert_allclose(d.gnss.h_acc_m, d.gnss.hdop * cep_to_drms(3.0), rtol=1e-12)
+    np.testing.assert_allclose(
+        d.gnss.h_acc_m * math.sqrt(2.0), d.gnss.hdop * cep_to_drms(3.0), rtol=1e-12
+    )
     assert res.record.get("gnss.position").count == int(np.sum(r > radius))
     assert res.record.get("gnss.position").worst_excess == pytest.approx(
         float(np.max(r - radius)), abs=1e-6

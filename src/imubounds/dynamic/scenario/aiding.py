@@ -5,7 +5,8 @@ truth at its time stamp (instantaneous, no lever arm: every sensor sits at the
 body origin).
 
 * GNSS position: per-axis Gaussian error of deviation DRMS_i/sqrt(2), DRMS_i =
-  HDOP_i CEP/sqrt(ln 2) (METHOD.md 2.2); ``h_acc_m`` = DRMS_i; outliers add a
+  HDOP_i CEP/sqrt(ln 2) (METHOD.md 2.2); ``h_acc_m`` = DRMS_i/sqrt(2), the 1-sigma of each
+  horizontal axis (as :class:`imubounds.io.drive.GnssStream` defines it); outliers add a
   jump of ``gps_outlier_m`` in a random direction. Altitude error 1.5 x the
   horizontal per-axis deviation (not bounded).
 * GNSS velocity (``gnss-vel``): north and east, Gaussian per component.
@@ -152,7 +153,7 @@ def _gnss(
         lon_deg=np.asarray(lon, dtype=float),
         alt_m=np.asarray(alt, dtype=float),
         hdop=hdop,
-        h_acc_m=drms.copy() if cfg.gps_h_acc else None,
+        h_acc_m=sig.copy() if cfg.gps_h_acc else None,  # 1-sigma per axis (io.drive)
         fix=np.ones(m, dtype=bool),
     )
     out.checks.append(

@@ -32,7 +32,7 @@ Aiding streams:
 ``gnss.position``
     horizontal error radius ``<= D = DRMS_i sqrt(ln(n/alpha))`` (the radius of
     probability ``1 - alpha/n``, METHOD.md 2.2 and 4.1; DRMS_i = HDOP_i CEP /
-    sqrt(ln 2) = ``h_acc_m``), n fixes; a box of half-width D holds whatever
+    sqrt(ln 2) = sqrt(2) ``h_acc_m``), n fixes; a box of half-width D holds whatever
     this circle holds.
 ``gnss.velocity``
     each component ``|e| <= k(n) vel_sigma_mps`` with n the number of fixes.
