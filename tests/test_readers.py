@@ -172,7 +172,7 @@ def test_units_override_and_assumed(tmp_path: Path) -> None:
     log = read_imu(p)
     assert log.channels["gyro_x"][0] == 1.0
     assert any("assumed rad/s" in w for w in log.warnings)
-    assert any("probably in g" in w for w in log.warnings)
+    assert any("look like g (use --accel-unit g)" in w for w in log.warnings)
     log = read_imu(p, gyro_unit="deg/s", accel_unit="g")
     assert log.channels["gyro_y"][0] == pytest.approx(2 * DEG)
     assert log.channels["accel_z"][0] == G0
