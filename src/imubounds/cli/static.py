@@ -106,6 +106,8 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
         "gyro_unit": args.gyro_unit,
         "accel_unit": args.accel_unit,
         "time_unit": args.time_unit,
+        "on_gap": args.on_gap,
+        "gap_tolerance": args.gap_tolerance,
     }
 
 

@@ -45,6 +45,7 @@ from imubounds.io.drive_legacy import DriveLog
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
+from .validate import check_input_path
 
 _PREFIX = re.compile(r"^\s*([+-]?\d+(?:\.\d*)?)[,;\s]+(?=[$!])")
 
@@ -100,8 +101,7 @@ def scan_nmea(path: str | Path, *, on_bad_checksum: str = "error") -> NmeaCaptur
     p = Path(path)
     if on_bad_checksum not in ("error", "skip"):
         raise OptionError(f"on_bad_checksum must be error or skip, got {on_bad_checksum!r}")
-    if not p.is_file():
-        raise InputError(f"no such file: {p}")
+    check_input_path(p, what="NMEA capture")
     out: list[Sentence] = []
     bad: list[int] = []
     garbage = no_sum = 0

@@ -569,6 +569,25 @@ class OutOfCoreStats:
     seconds: float = 0.0
 
 
+def _work_dir(tmpdir: str | Path | None) -> str:
+    """A fresh temporary directory in ``tmpdir`` (one-line errors if it cannot be made)."""
+    from imubounds.errors import OutputError
+
+    if tmpdir is not None and not Path(tmpdir).is_dir():
+        what = "is not a directory" if Path(tmpdir).exists() else "does not exist"
+        raise OptionError(f"--tmpdir {tmpdir} {what}; create it or choose another directory")
+    try:
+        return tempfile.mkdtemp(
+            prefix="imubounds-ooc-", dir=None if tmpdir is None else str(tmpdir)
+        )
+    except OSError as err:
+        where = tmpdir if tmpdir is not None else tempfile.gettempdir()
+        raise OutputError(
+            f"cannot create temporary files in {where} ({err.strerror or err}); "
+            "choose a writable directory with --tmpdir"
+        ) from err
+
+
 def allan_outofcore(
     log: ChunkedLog | str | Path,
     taus: str | int | Sequence[float] | np.ndarray = "octave",
@@ -624,7 +643,7 @@ def allan_outofcore(
     rows = max(1024, mem // (8 * 8 * max(1, len(log.channels))))
     t0 = 1.0 / log.rate_hz
     report = progress or (lambda _s, _d, _t: None)
-    work = tempfile.mkdtemp(prefix="imubounds-ooc-", dir=None if tmpdir is None else str(tmpdir))
+    work = _work_dir(tmpdir)
     phases: dict[str, PhaseFile] = {}
     try:
         # ---- pass 1: count, mean, finiteness (and spill of text logs)
