@@ -154,16 +154,15 @@ def check_input_path(
     """
     p = Path(path)
     who = f"{option} {p}" if option else str(p)
-    if not str(path):
+    if not os.fspath(path):
         raise InputError(f"{option or 'the ' + what + ' path'} is empty; give a file name")
+    missing = f"{who}: cannot read it: no such file" if option else f"no such file: {p}"
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise InputError(f"no such file: {who}; check the path") from None
+        raise InputError(f"{missing}; check the path") from None
     except NotADirectoryError:
-        raise InputError(
-            f"no such file: {who} (a folder in that path is a file); check the path"
-        ) from None
+        raise InputError(f"{missing} (a folder in that path is a file); check the path") from None
     except PermissionError:
         raise InputError(f"{who}: permission denied; check the file's permissions") from None
     except OSError as err:  # ENAMETOOLONG, ELOOP, EIO ...
