@@ -118,9 +118,8 @@ def _os_error_message(err: OSError) -> str:
 
 
 def _interrupted(signame: str) -> str:
-    from imubounds.io.outputs import committed_outputs
-
-    done = committed_outputs()
+    outputs = sys.modules.get("imubounds.io.outputs")  # not imported yet: nothing written
+    done = outputs.committed_outputs() if outputs is not None else []
     if done:
         return (
             f"imubounds: interrupted ({signame}); complete results had been written to "
@@ -150,41 +149,26 @@ def _terminate_as_interrupt() -> Iterator[None]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    """Run ``imubounds ARGV``; return the exit code (see the module docstring)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as done:  # --help, --version, or an invalid option (already printed)
-        return done.code if isinstance(done.code, int) else 2
-    args.argv = argv
-    debug = bool(getattr(args, "debug", False) or os.environ.get("IMUBOUNDS_DEBUG"))
-    # The command line alone chooses the figure backend and touches numba caches;
-    # importing the library does neither.
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    from imubounds import _numba_cache
-    from imubounds.io.outputs import reset_committed_outputs
-
-    _numba_cache.refresh_all()
-    reset_committed_outputs()
+    state = {"debug": "--debug" in argv or bool(os.environ.get("IMUBOUNDS_DEBUG"))}
     with warnings.catch_warnings(), _terminate_as_interrupt():
-        if not debug:
-            warnings.showwarning = _one_line_warning
         try:
-            return int(args.func(args) or 0)
+            return _main(argv, state)
         except _Terminated:
-            _trace(debug)
+            _trace(state["debug"])
             print(_interrupted("SIGTERM"), file=sys.stderr)
             return EXIT_TERMINATED
         except KeyboardInterrupt:
-            _trace(debug)
+            _trace(state["debug"])
             print(_interrupted("Ctrl-C"), file=sys.stderr)
             return EXIT_INTERRUPTED
         except ImuboundsError as err:
-            _trace(debug)
+            _trace(state["debug"])
             print(f"imubounds: error: {' '.join(str(err).split())}", file=sys.stderr)
             return err.exit_code
         except MemoryError:
-            _trace(debug)
+            _trace(state["debug"])
             print(
                 "imubounds: error: out of memory; for a large log lower --max-memory or pass "
                 "--out-of-core (static, fleet), or analyse fewer --channels",
@@ -199,11 +183,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 pass
             return EXIT_BROKEN_PIPE
         except OSError as err:
-            _trace(debug)
+            _trace(state["debug"])
             print(f"imubounds: error: {_os_error_message(err)}", file=sys.stderr)
             return 2
         except Exception as err:  # noqa: BLE001 - a bug: say so in one line
-            _trace(debug)
+            _trace(state["debug"])
             text = " ".join(str(err).split())[:200]
             print(
                 f"imubounds: internal error ({type(err).__name__}: {text}); this is a bug: "
@@ -211,6 +195,27 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return EXIT_INTERNAL
+
+
+def _main(argv: list[str], state: dict[str, bool]) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # --help, --version, or an invalid option (already printed)
+        return done.code if isinstance(done.code, int) else 2
+    args.argv = argv
+    state["debug"] = bool(getattr(args, "debug", False) or os.environ.get("IMUBOUNDS_DEBUG"))
+    # The command line alone chooses the figure backend and touches numba caches;
+    # importing the library does neither.
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from imubounds import _numba_cache
+    from imubounds.io.outputs import reset_committed_outputs
+
+    reset_committed_outputs()
+    _numba_cache.refresh_all()
+    if not state["debug"]:
+        warnings.showwarning = _one_line_warning
+    return int(args.func(args) or 0)
 
 
 def _trace(debug: bool) -> None:

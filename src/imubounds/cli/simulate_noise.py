@@ -129,6 +129,8 @@ def _parse_type(check: Any) -> Any:
             check(text)
         except OptionError as err:
             raise argparse.ArgumentTypeError(str(err).split(": ", 1)[-1]) from None
+        except OverflowError:
+            raise argparse.ArgumentTypeError(f"{text!r} is too large; must be finite") from None
         return text
 
     parse.__name__ = getattr(check, "__name__", "value")

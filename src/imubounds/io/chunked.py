@@ -329,6 +329,8 @@ def _time_info(
     if t.dtype.kind not in "fiu":
         raise InputError(f"time column {column!r} of {source} is not numeric")
     check_finite(t, source=source, column=column, row_label=row_label, what="time")
+    if t.size == 0:
+        raise InputError(f"{source} has a header but no data rows; give a file with samples")
     if t.size < 2:
         raise InputError(f"{source}: fewer than 2 rows; cannot find the sample rate")
     t = t.astype(np.int64) if t.dtype.kind in "iu" else t.astype(np.float64)
@@ -424,7 +426,9 @@ def open_chunked(
         label = _line_finder(p, gz, layout)
         tinfo = None
         if plan.time is not None:
-            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_ROWS))
+            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_ROWS), None)
+            if head is None:
+                raise InputError(f"{p} has a header but no data rows; give a file with samples")
             t = head[plan.time.index]
             stated = plan.time.unit
             if stated is None and t.dtype.kind == "i" and layout.first_row and not _numeric(

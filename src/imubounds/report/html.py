@@ -439,6 +439,18 @@ def _dynamic_section(
     return "".join(parts), warnings, commands
 
 
+def _result_json(path: Path) -> dict[str, Any]:
+    """A result file written by imubounds (a JSON object with an imubounds ``format``)."""
+    data = _load_json(path)
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(data, dict) or not str(fmt or "").startswith("imubounds"):
+        raise InputError(
+            f"{path}: not a result file written by imubounds (no imubounds 'format' in it); "
+            "rerun the command that writes it, or move the file away"
+        )
+    return data
+
+
 @contextmanager
 def _unexpected(path: Path) -> Iterator[None]:
     """A result file whose structure is not what imubounds writes: one-line InputError."""
@@ -470,14 +482,14 @@ def build_report(directory: str | Path) -> str:
             "run 'imubounds static' or 'imubounds dynamic' with -o there first"
         )
     if static_dir is not None:
-        noise = _load_json(static_dir / "noise.json") or {}
+        noise = _result_json(static_dir / "noise.json")
         with _unexpected(static_dir / "noise.json"):
             html_s, w, c = _static_section(static_dir, noise)
         sections.append(html_s)
         warnings += w
         commands += c
     for i, dyn_dir in enumerate(dyn_dirs):
-        dyn = _load_json(dyn_dir / "dynamic.json") or {}
+        dyn = _result_json(dyn_dir / "dynamic.json")
         label = "" if i == 0 else dyn_dir.name
         with _unexpected(dyn_dir / "dynamic.json"):
             html_d, w, c = _dynamic_section(dyn_dir, dyn, label)
