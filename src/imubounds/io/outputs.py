@@ -299,6 +299,14 @@ def _acquire(lock: Path, what: Path, *, wait_s: float = 0.0) -> None:
     raise OutputError(f"cannot lock {what} for writing")
 
 
+def _remove_stale_parts(folder: Path, names: Iterable[str]) -> None:
+    """Temporary files of ``names`` (``.NAME.XXXX.part``) left by a killed run; only
+    called while holding the lock under which they are written."""
+    for name in names:
+        for p in folder.glob(glob.escape(f".{name}.") + "*.part"):
+            p.unlink(missing_ok=True)
+
+
 @contextmanager
 def _sigint_held() -> Iterator[None]:
     """Hold Ctrl-C (and SIGTERM) back for a few renames; deliver it afterwards."""
@@ -409,6 +417,7 @@ def output_file(
         lock = folder / FILES_LOCK
         _acquire(lock, folder, wait_s=10.0)
         try:
+            _remove_stale_parts(folder, (FILES_RECORD,))
             check_output_file(d, force=force, inputs=inputs, option=option, advice=advice)
             with _sigint_held():
                 os.replace(tmp_path, d)
@@ -492,6 +501,7 @@ class OutputSet:
                 self._created_target = True
             self._take_lock()
             self._remove_stale_staging()
+            _remove_stale_parts(t, (RUN_RECORD, COMMIT_RECORD))
             self._staging = Path(
                 tempfile.mkdtemp(prefix=self._staging_prefix(os.getpid()), dir=self._parent())
             )
