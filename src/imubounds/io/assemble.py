@@ -297,7 +297,7 @@ def assemble_logs(
         n = int(tv.size)
 
         def label(i: int) -> str:
-            return row_label(int(kept[i]))  # type: ignore[index]
+            return row_label(int(kept[i]))
 
         if n < 2 and opts.rate_hz is None:
             raise InputError(

@@ -37,7 +37,7 @@ out of core (a gap is then an error naming it).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -365,7 +365,7 @@ def open_chunked(
     *,
     rate_hz: float | None = None,
     columns: Mapping[str, str] | None = None,
-    channels: tuple[str, ...] | list[str] | None = None,
+    channels: Sequence[str] | None = None,
     gyro_unit: str | None = None,
     accel_unit: str | None = None,
     time_unit: str | None = None,
@@ -475,10 +475,10 @@ def open_chunked(
             rate, tinfo = _time_info(np.asarray(t[:HEAD_ROWS]), unit, opts, src, tsrc, warnings)
         else:
             rate = _check_rate(opts.rate_hz, src)
-        srcs = {c: s.source for c, s in plan.channels.items()}
+        names_pq = {c: s.source for c, s in plan.channels.items()}
         return finish(
             "parquet", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
-            n, True, {"columns": srcs, "time": tsrc}, time=tinfo,
+            n, True, {"columns": names_pq, "time": tsrc}, time=tinfo,
         )
 
     if suf in (".npy", ".f64", ".bin", ".raw", ".f32"):
@@ -506,10 +506,10 @@ def open_chunked(
                 rate, tinfo = _time_info(t, plan.time.unit, opts, src, tsrc, warnings)
             else:
                 rate = _check_rate(opts.rate_hz, src)
-            srcs: dict[str, Any] = {c: s.source for c, s in plan.channels.items()}
+            fields = {c: s.source for c, s in plan.channels.items()}
             return finish(
                 "npy", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
-                int(arr.shape[0]), True, {"array": arr, "columns": srcs, "time": tsrc},
+                int(arr.shape[0]), True, {"array": arr, "columns": fields, "time": tsrc},
                 time=tinfo,
             )
         names = list(chans) if chans else None
@@ -539,8 +539,8 @@ def open_chunked(
                 f"{', '.join(IMU_CHANNELS)}"
             )
         rate = _check_rate(opts.rate_hz, src)
-        srcs = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
-        order = {c: srcs[c] for c in IMU_CHANNELS if c in srcs}
+        index = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
+        order = {c: index[c] for c in IMU_CHANNELS if c in index}
         return finish(
             "npy" if suf == ".npy" else "raw", dict.fromkeys(order), {}, rate,
             int(arr.shape[0]), True, {"array": arr, "columns": order},
@@ -584,10 +584,10 @@ def open_chunked(
             rate, tinfo = _time_info(t, plan.time.unit, opts, src, plan.time.source, warnings)
         else:
             rate = _check_rate(opts.rate_hz, src)
-        srcs = {c: (found[s.index][1], found[s.index][2]) for c, s in plan.channels.items()}
+        dsets = {c: (found[s.index][1], found[s.index][2]) for c, s in plan.channels.items()}
     return finish(
         "hdf5", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate, n,
-        True, {"columns": srcs, "time": tsrc5}, time=tinfo,
+        True, {"columns": dsets, "time": tsrc5}, time=tinfo,
     )
 
 

@@ -82,7 +82,8 @@ class ReaderEntry:
         if callable(self.read):
             return self.read
         module, _, func = self.read.partition(":")
-        return getattr(importlib.import_module(module), func)  # type: ignore[no-any-return]
+        reader: ReaderFunc = getattr(importlib.import_module(module), func)
+        return reader
 
 
 _REGISTRY: dict[str, ReaderEntry] = {}

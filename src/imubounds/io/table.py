@@ -398,15 +398,11 @@ def _slow_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict
     return out
 
 
-def _arrow_options(
-    layout: _Layout, plan: ColumnPlan, time_type: pa.DataType | None = None
-) -> tuple[Any, Any, Any]:
+def _arrow_options(layout: _Layout, plan: ColumnPlan) -> tuple[Any, Any, Any]:
     names = [f"c{i}" for i in range(len(layout.header))]
     idx = plan.indices()
     types: dict[str, pa.DataType] = {f"c{spec.index}": pa.float64()
                                      for spec in plan.channels.values()}
-    if time_type is not None and plan.time is not None:
-        types[f"c{plan.time.index}"] = time_type
     ropts = pacsv.ReadOptions(column_names=names, skip_rows=layout.skip_lines,
                               block_size=1 << 22)
     popts = pacsv.ParseOptions(delimiter=layout.delimiter, newlines_in_values=layout.quoted)
@@ -435,16 +431,6 @@ def _arrow_arrays(table: Any, plan: ColumnPlan) -> dict[int, np.ndarray]:
 
 _FAST_ERRORS = (pa.ArrowException, ValueError, OSError, EOFError, zlib.error, KeyError,
                 IndexError, UnicodeDecodeError)
-
-
-def time_type(layout: _Layout, plan: ColumnPlan) -> pa.DataType | None:
-    """Arrow type of the time column judged from the first data row (None: no time)."""
-    if plan.time is None:
-        return None
-    if _is_datetime_text(layout, plan):
-        return pa.timestamp("ns")
-    cell = layout.first_row[plan.time.index] if plan.time.index < len(layout.first_row) else ""
-    return pa.int64() if _cell_value(cell, layout.decimal).__class__ is int else pa.float64()
 
 
 def iter_text_blocks(
@@ -477,8 +463,10 @@ def iter_text_blocks(
                 yield arrs
                 done += len(df)
             return
-        ropts, popts, copts = _arrow_options(layout, plan, time_type(layout, plan))
-        ropts.block_size = max(1 << 16, min(1 << 26, rows * 16 * max(1, len(layout.header))))
+        # the time column's type is inferred from the first block (int ns, float s or
+        # ISO date-times); a later row that does not fit goes to the line parser
+        ropts, popts, copts = _arrow_options(layout, plan)
+        ropts.block_size = max(1 << 20, min(1 << 26, rows * 16 * max(1, len(layout.header))))
         stream = pa.input_stream(str(path), compression="gzip" if gz else None)
         try:
             reader = pacsv.open_csv(stream, read_options=ropts, parse_options=popts,

@@ -186,9 +186,9 @@ def read_ulog(path: Path, opts: ReadOptions) -> list[ImuLog]:
                                          "accel_x", "accel_y", "accel_z"))}
     channels = dict(sorted(channels.items(), key=lambda kv: order[kv[0]]))
     notes = [f"{path}: PX4 FRD body axes converted to FLU (y and z negated)"]
-    cut = truncation_note(path)
-    if cut is not None:
-        notes.append(cut)
+    truncated = truncation_note(path)
+    if truncated is not None:
+        notes.append(truncated)
     elif getattr(ulog, "file_corruption", False):
         notes.append(f"{path}: pyulog found corrupt data in the ULog and skipped it")
     dropouts = getattr(ulog, "dropouts", None) or []

@@ -674,9 +674,9 @@ class StreamChecker:
         self.rows = 0  # rows fed so far (before dropping)
         self._last_t: np.ndarray | None = None
         self._last_v: dict[str, np.ndarray] = {}
-        self._tail: dict[str, np.ndarray] = {}  # last two kept samples, for spikes
+        self._tail: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # last two kept samples, rows
         self._sigma: dict[str, float] = {}
-        self._spikes: dict[str, list[object]] = {}
+        self._spikes: dict[str, tuple[int, int, float]] = {}  # count, first row, its value
         self._dups = 0
         self._first_dup: str | None = None
         self._gaps = 0
@@ -703,12 +703,13 @@ class StreamChecker:
         self, t: np.ndarray, values: Mapping[str, np.ndarray], row0: int
     ) -> np.ndarray | None:
         has_prev = self._last_t is not None
-        if has_prev:
-            tt = np.concatenate((self._last_t, t))  # type: ignore[arg-type]
+        tt: np.ndarray = t
+        vv = [np.asarray(v) for v in values.values()]
+        off = row0
+        if self._last_t is not None:
+            tt = np.concatenate((self._last_t, t))
             vv = [np.concatenate((self._last_v[c], np.asarray(v))) for c, v in values.items()]
             off = row0 - 1
-        else:
-            tt, vv, off = t, [np.asarray(v) for v in values.values()], row0
         order = check_time_order(tt, source=self.source, column=str(self.column), values=vv,
                                  on_gap=self.on_gap, row_label=self.row_label,
                                  median_step=self.median_step or None, offset=off,
@@ -764,11 +765,9 @@ class StreamChecker:
             rr = np.concatenate((tail_r, rows))
             idx = _spike_index(vv, self._sigma[c], SPIKE_SIGMAS)
             if idx.size:
-                rec = self._spikes.setdefault(c, [0, None, 0.0])
-                if rec[1] is None:
-                    rec[1], rec[2] = int(rr[idx[0]]), float(vv[idx[0]])
-                rec[0] = int(rec[0]) + int(idx.size)  # type: ignore[call-overload]
-            self._tail[c] = (vv[-2:].copy(), rr[-2:].copy())  # type: ignore[assignment]
+                count, row, value = self._spikes.get(c, (0, int(rr[idx[0]]), float(vv[idx[0]])))
+                self._spikes[c] = (count + int(idx.size), row, value)
+            self._tail[c] = (vv[-2:].copy(), rr[-2:].copy())
 
     def finish(self) -> list[str]:
         """Counted warnings: duplicated rows dropped, gaps ignored, spikes."""
@@ -787,9 +786,9 @@ class StreamChecker:
                             row_label=self.row_label)
                 + "; ignored (--on-gap ignore): treated as contiguous"
             )
-        for c, (count, row, value) in self._spikes.items():  # type: ignore[misc]
-            out.append(_spike_note(self.source, c, int(count), self.row_label(int(row)),
-                                   float(value), self._sigma[c], SPIKE_SIGMAS))
+        for c, (count, row, value) in self._spikes.items():
+            out.append(_spike_note(self.source, c, count, self.row_label(row), value,
+                                   self._sigma[c], SPIKE_SIGMAS))
         return out
 
 

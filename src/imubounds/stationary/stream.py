@@ -42,6 +42,7 @@ time left.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 import shutil
@@ -50,7 +51,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -203,7 +204,7 @@ class PhaseFile:
     def __init__(self, path: str | Path, n_samples: int) -> None:
         self.path = Path(path)
         self.n = int(n_samples)
-        self._f: IO[bytes] = open(self.path, "rb")  # noqa: SIM115
+        self._f: io.BufferedReader = open(self.path, "rb")  # noqa: SIM115
         self.bytes_read = 0
 
     def read(self, a: int, b: int) -> np.ndarray:
@@ -225,7 +226,7 @@ class PhaseFile:
         if a < 0 or a + k > self.n + 1:
             raise ValueError(f"phase range [{a}, {a + k}) outside [0, {self.n + 1})")
         self._f.seek(8 * a)
-        got = self._f.readinto(memoryview(out).cast("B"))
+        got = self._f.readinto(out.data.cast("B"))
         if got != 8 * k:
             raise InputError(f"{self.path}: phase file is truncated")
         self.bytes_read += 8 * k
@@ -691,9 +692,9 @@ def allan_outofcore(
                 done_rows = 0
                 for c in names:
                     for y in blocks_of(c):
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                         done_rows += y.shape[0]
                         report("phase", done_rows // len(names), n)
                     spill[c].unlink()
@@ -702,9 +703,9 @@ def allan_outofcore(
                 for blk in log.iter_chunks(rows):
                     for c in names:
                         y = np.ascontiguousarray(blk[c], dtype=np.float64)
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                     done_rows += next(iter(blk.values())).shape[0]
                     report("phase", done_rows, n)
         finally:
