@@ -218,9 +218,20 @@ def parse_taus(text: str) -> str | int | list[float]:
         raise OptionError(
             f"--tau {text!r}: use octave, decade, a count like 50, or seconds like 0.1,1,10"
         ) from err
-    if not values or any(v <= 0 for v in values):
-        raise OptionError(f"--tau {text!r}: every tau must be a positive number of seconds")
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise OptionError(
+            f"--tau {text!r}: every tau must be a positive, finite number of seconds"
+        )
     return values
+
+
+def tau_grid(text: str) -> str:
+    """``--tau``, checked when parsed (:func:`parse_taus`); the text is passed on."""
+    try:
+        parse_taus(text)
+    except OptionError as err:
+        raise argparse.ArgumentTypeError(str(err).split(": ", 1)[-1]) from None
+    return text
 
 
 def parse_list(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:

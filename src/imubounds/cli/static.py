@@ -19,6 +19,7 @@ from imubounds.cli._common import (
     positive_float,
     probability,
     read_log_from_args,
+    tau_grid,
 )
 
 ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
@@ -41,6 +42,7 @@ def register(sub: Any) -> None:
     add_force_option(p)
     p.add_argument(
         "--tau",
+        type=tau_grid,
         default="octave",
         help="tau grid: octave, decade, N log-spaced, or seconds '0.1,1,10'",
     )
