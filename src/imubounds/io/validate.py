@@ -541,11 +541,14 @@ def unit_warnings(
         if peak > GYRO_MAX_RADS:
             unit = units.get(c, "rad/s")
             how = "assumed" if c in assumed else "stated"
-            guess = " the values look like deg/s" if GYRO_UNITS.get(unit) == 1.0 else ""
+            advice = (
+                "the values look like deg/s (use --gyro-unit deg/s)"
+                if GYRO_UNITS.get(unit) == 1.0
+                else "check the unit (--gyro-unit)"
+            )
             out.append(
                 f"{source}: {c} reaches {peak:.3g} rad/s ({peak / DEG:.3g} deg/s) read as "
-                f"{unit} ({how}), beyond the +-2000 deg/s range of MEMS gyros:{guess or ' '}"
-                f"{';' if guess else ''} check the unit (--gyro-unit)"
+                f"{unit} ({how}), beyond the +-2000 deg/s range of MEMS gyros: {advice}"
             )
     acc = [f"accel_{a}" for a in "xyz"]
     if all(c in si and si[c].size for c in acc):
