@@ -101,8 +101,10 @@ ACCEL_NORM_RANGE_G = (0.5, 2.0)
 #: A one-sample spike: a jump of more than this many robust standard deviations of
 #: the sample-to-sample difference to and back from one sample.
 SPIKE_SIGMAS = 30.0
-#: Samples used to estimate the robust spread for the spike check.
+#: Samples used to estimate the robust spread for the spike check (at most, and at least
+#: when a log is read in blocks and is that long).
 SPIKE_ESTIMATE_SAMPLES = 200_000
+SPIKE_MIN_SAMPLES = 1024
 #: Smallest gap tolerance (in nominal periods) of the automatic rule.
 MIN_GAP_FACTOR = 1.5
 #: Multiple of the relative robust jitter added by the automatic gap rule.
@@ -678,6 +680,7 @@ class StreamChecker:
         self._last_t: np.ndarray | None = None
         self._last_v: dict[str, np.ndarray] = {}
         self._tail: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # last two kept samples, rows
+        self._pending: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # before the spread is known
         self._sigma: dict[str, float] = {}
         self._spikes: dict[str, tuple[int, int, float]] = {}  # count, first row, its value
         self._dups = 0
@@ -761,19 +764,33 @@ class StreamChecker:
             rows = np.arange(row0, row0 + v.size)
             if keep is not None:
                 v, rows = v[keep], rows[keep]
-            if c not in self._sigma:
-                self._sigma[c] = _robust_step_sigma(v)
-            tail_v, tail_r = self._tail.get(c, (np.zeros(0), np.zeros(0, dtype=np.int64)))
-            vv = np.concatenate((tail_v, v))
-            rr = np.concatenate((tail_r, rows))
-            idx = _spike_index(vv, self._sigma[c], SPIKE_SIGMAS)
-            if idx.size:
-                count, row, value = self._spikes.get(c, (0, int(rr[idx[0]]), float(vv[idx[0]])))
-                self._spikes[c] = (count + int(idx.size), row, value)
-            self._tail[c] = (vv[-2:].copy(), rr[-2:].copy())
+            if c not in self._sigma:  # gather enough samples for the robust spread first
+                pv, pr = self._pending.get(c, (np.zeros(0), np.zeros(0, dtype=np.int64)))
+                pv, pr = np.concatenate((pv, v)), np.concatenate((pr, rows))
+                if pv.size < SPIKE_MIN_SAMPLES:
+                    self._pending[c] = (pv, pr)
+                    continue
+                self._pending.pop(c, None)
+                self._sigma[c] = _robust_step_sigma(pv)
+                v, rows = pv, pr
+            self._spikes_in(c, v, rows)
+
+    def _spikes_in(self, c: str, v: np.ndarray, rows: np.ndarray) -> None:
+        tail_v, tail_r = self._tail.get(c, (np.zeros(0), np.zeros(0, dtype=np.int64)))
+        vv = np.concatenate((tail_v, v))
+        rr = np.concatenate((tail_r, rows))
+        idx = _spike_index(vv, self._sigma[c], SPIKE_SIGMAS)
+        if idx.size:
+            count, row, value = self._spikes.get(c, (0, int(rr[idx[0]]), float(vv[idx[0]])))
+            self._spikes[c] = (count + int(idx.size), row, value)
+        self._tail[c] = (vv[-2:].copy(), rr[-2:].copy())
 
     def finish(self) -> list[str]:
         """Counted warnings: duplicated rows dropped, gaps ignored, spikes."""
+        for c, (pv, pr) in list(self._pending.items()):  # a log shorter than the estimate
+            self._sigma[c] = _robust_step_sigma(pv)
+            self._spikes_in(c, pv, pr)
+        self._pending.clear()
         out: list[str] = []
         if self._dups:
             out.append(
