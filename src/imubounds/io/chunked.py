@@ -71,8 +71,10 @@ CHUNKED_SUFFIXES: tuple[str, ...] = (
     ".parquet", ".pq", ".parq", ".npy", ".f64", ".bin", ".raw", ".f32", ".h5", ".hdf5",
 )  # fmt: skip
 
-#: Rows of the time column read when the log is opened, to find the rate and unit.
+#: Rows of the time column read when the log is opened, to find the rate and unit
+#: (fewer for text, which has to be parsed).
 HEAD_ROWS = 100_000
+HEAD_TEXT_ROWS = 10_000
 
 RawBlock = tuple[np.ndarray | None, dict[str, np.ndarray]]
 
@@ -426,7 +428,7 @@ def open_chunked(
         label = _line_finder(p, gz, layout)
         tinfo = None
         if plan.time is not None:
-            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_ROWS), None)
+            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_TEXT_ROWS), None)
             if head is None:
                 raise InputError(f"{p} has a header but no data rows; give a file with samples")
             t = head[plan.time.index]
