@@ -5,11 +5,15 @@
 * :mod:`.log` -- :class:`ImuLog`, a static IMU log in SI units;
 * :mod:`.drive` -- :class:`DriveLog`, a multi-sensor drive log in SI units;
 * :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
-  shared column recognition, unit conversion and time checks;
+  shared column recognition, unit conversion and assembly into logs;
+* :mod:`.validate` -- the one validation layer every reader goes through (special
+  files refused before reading, finite values, time order, duplicates, restarts,
+  gaps, unit plausibility, spikes; in memory and block by block);
 * :mod:`.chunked` -- out-of-core readers;
 * :mod:`.rosbag`, :mod:`.ulog`, :mod:`.nmea`, :mod:`.hdf5` -- other formats;
 * :mod:`.drive_readers` -- drive-log layouts (simulator directory, VN-100, comma2k19);
-* :mod:`.outputs` -- atomic writes of result files.
+* :mod:`.outputs` -- atomic writes of result files and sets, and how imubounds
+  recognises the files it wrote.
 """
 
 from imubounds.io.registry import (

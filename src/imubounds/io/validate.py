@@ -71,6 +71,7 @@ __all__ = [
     "TimeOrder",
     "check_finite",
     "check_input_path",
+    "check_on_gap",
     "check_time_order",
     "default_row_label",
     "find_gaps",
