@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import gzip
-import time
 from pathlib import Path
 
 import numpy as np
@@ -127,9 +126,7 @@ def test_real_dynamic_vn100(shared_data: Path) -> None:
 
 
 def test_full_real_log(adis_log_path: Path) -> None:
-    t0 = time.perf_counter()
     log = read_imu(adis_log_path)
-    elapsed = time.perf_counter() - t0
     assert log.n_samples == 1_000_000
     assert log.rate_hz == 100.0
     assert log.duration_s == pytest.approx(10_000.0)
@@ -142,8 +139,7 @@ def test_full_real_log(adis_log_path: Path) -> None:
     # last row: 9999.99,0.35,-0.2,-0.45,-0.00666,-0.00333,-1.01898
     assert log.channels["accel_y"][-1] == -0.00333 * G0
     assert np.mean(log.channels["accel_z"]) == pytest.approx(-G0, rel=0.05)
-    assert log.warnings == []
-    assert elapsed < 5.0  # about 0.8 s on the 2-core CI machine
+    assert log.warnings == []  # the real log passes every plausibility check
 
 
 def test_bundled_extract() -> None:
@@ -172,7 +168,7 @@ def test_units_override_and_assumed(tmp_path: Path) -> None:
     log = read_imu(p)
     assert log.channels["gyro_x"][0] == 1.0
     assert any("assumed rad/s" in w for w in log.warnings)
-    assert any("probably in g" in w for w in log.warnings)
+    assert any("look like g (use --accel-unit g)" in w for w in log.warnings)
     log = read_imu(p, gyro_unit="deg/s", accel_unit="g")
     assert log.channels["gyro_y"][0] == pytest.approx(2 * DEG)
     assert log.channels["accel_z"][0] == G0

@@ -385,3 +385,32 @@ def test_damaged_csv_never_crashes(edits: list[tuple[int, str, int]], suffix: st
     assert np.all(np.diff(log.t) > 0)
     for v in log.channels.values():
         assert v.shape == log.t.shape and np.all(np.isfinite(v))
+
+
+# --- the streaming checks see what the whole-log checks see, across block edges ----
+@pytest.mark.parametrize("block", [1, 2, 3, 7, 64, 1000])
+def test_stream_checker_matches_whole_log_checks_at_any_block_size(block: int) -> None:
+    from imubounds.io.validate import StreamChecker, spike_warnings
+
+    rng = np.random.default_rng(4)
+    n = 600
+    t = np.arange(n, dtype=np.int64) * 10_000_000  # ns at 100 Hz
+    g = rng.normal(0.0, 0.01, n)
+    g[[63, 127, 300]] += 5.0  # isolated spikes (at a block edge for several sizes)
+    t_dup = np.insert(t, 200, t[199])  # a duplicated row...
+    g_dup = np.insert(g, 200, g[199])
+    t_gap = np.where(np.arange(t_dup.size) > 400, t_dup + 50_000_000, t_dup)  # ...and a gap
+    checker = StreamChecker("x.csv", column="t", time_factor=1e-9, median_step=10_000_000,
+                            gap_factor=1.5, on_gap="ignore")
+    kept = []
+    for a in range(0, t_gap.size, block):
+        keep = checker.feed(t_gap[a:a + block], {"gyro_x": g_dup[a:a + block]})
+        kept.append(g_dup[a:a + block] if keep is None else g_dup[a:a + block][keep])
+    notes = checker.finish()
+    np.testing.assert_array_equal(np.concatenate(kept), g)
+    assert any("1 duplicated row(s)" in w and "data row 201" in w for w in notes), notes
+    assert any("1 gap(s)" in w and "data row 402" in w for w in notes), notes
+    whole = spike_warnings({"gyro_x": g}, source="x.csv")
+    assert whole and "3 isolated" in whole[0]
+    assert any("gyro_x has 3 isolated one-sample spike(s)" in w and "data row 64" in w
+               for w in notes), notes

@@ -230,7 +230,7 @@ def test_non_finite_sample_is_named(tmp_path: Path) -> None:
     y[1234] = np.nan
     p = tmp_path / "bad.npy"
     np.save(p, y)
-    with pytest.raises(InputError, match=r"gyro_z sample 1234 \(data row 1235\)"):
+    with pytest.raises(InputError, match=r"data row 1235, column 'gyro_z': value is NaN"):
         allan_outofcore(p, rate_hz=RATE, channels=["gyro_z"], memory_limit="64KiB")
 
 

@@ -77,6 +77,58 @@ def nonneg_int(text: str) -> int:
     return n
 
 
+def gap_factor(text: str) -> float:
+    """A finite number > 1 (a multiple of the sample period)."""
+    x = _number(text)
+    if not x > 1:
+        raise argparse.ArgumentTypeError(
+            f"is a multiple of the sample period and must be > 1, got {text}"
+        )
+    return x
+
+
+def _unit_type(kind: str, examples: str) -> Callable[[str], str]:
+    def parse(text: str) -> str:
+        from imubounds.io.columns import normalise_unit
+
+        if normalise_unit(text, kind) is None:
+            raise argparse.ArgumentTypeError(f"unknown {kind} unit {text!r}; use {examples}")
+        return text
+
+    parse.__name__ = f"{kind}_unit"
+    return parse
+
+
+#: Unit options, checked at parse time (the value is passed on as written).
+gyro_unit = _unit_type("gyro", "rad/s, deg/s, deg/h or mrad/s")
+accel_unit = _unit_type("accel", "m/s^2, g, mg or ug")
+time_unit = _unit_type("time", "s, ms, us or ns")
+
+
+def memory_size(text: str) -> int:
+    """A memory setting (``1GiB``, ``512MB``, ``2e9``) in bytes, at least 64 KiB."""
+    from imubounds.stationary.stream import parse_memory
+
+    try:
+        return parse_memory(text)
+    except OptionError as err:
+        raise argparse.ArgumentTypeError(str(err).replace("memory setting ", "")) from None
+
+
+def existing_dir(text: str) -> str:
+    """An existing, writable directory (checked when the option is parsed)."""
+    import os
+
+    if not text:
+        raise argparse.ArgumentTypeError("is empty; give a directory")
+    if not os.path.isdir(text):
+        what = "is not a directory" if os.path.exists(text) else "does not exist"
+        raise argparse.ArgumentTypeError(f"{text} {what}; create it or choose another")
+    if not os.access(text, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text} is not writable; choose another directory")
+    return text
+
+
 def add_force_option(p: argparse.ArgumentParser) -> None:
     """``--force``: allow overwriting files in the output directory that imubounds did not write."""
     p.add_argument(
@@ -90,7 +142,10 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
     """Options that say how to read an IMU log (shared by static, fleet, ...)."""
     g = p.add_argument_group("reading the log")
     g.add_argument(
-        "--rate", type=float, metavar="HZ", help="sample rate when the log has no time column"
+        "--rate",
+        type=positive_float,
+        metavar="HZ",
+        help="sample rate when the log has no time column",
     )
     g.add_argument(
         "--columns",
@@ -99,11 +154,16 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--gyro-unit",
+        type=gyro_unit,
         metavar="UNIT",
         help="gyro unit if not in the column name: rad/s, deg/s, deg/h",
     )
-    g.add_argument("--accel-unit", metavar="UNIT", help="accelerometer unit: m/s^2, g, mg")
-    g.add_argument("--time-unit", metavar="UNIT", help="time column unit: s, ms, us, ns")
+    g.add_argument(
+        "--accel-unit", type=accel_unit, metavar="UNIT", help="accelerometer unit: m/s^2, g, mg"
+    )
+    g.add_argument(
+        "--time-unit", type=time_unit, metavar="UNIT", help="time column unit: s, ms, us, ns"
+    )
     g.add_argument(
         "--on-gap",
         choices=("refuse", "split", "ignore"),
@@ -112,7 +172,7 @@ def add_log_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--gap-tolerance",
-        type=float,
+        type=gap_factor,
         metavar="FACTOR",
         help="a gap is a time step longer than FACTOR x the nominal period",
     )
@@ -265,9 +325,20 @@ def parse_taus(text: str) -> str | int | list[float]:
         raise OptionError(
             f"--tau {text!r}: use octave, decade, a count like 50, or seconds like 0.1,1,10"
         ) from err
-    if not values or any(v <= 0 for v in values):
-        raise OptionError(f"--tau {text!r}: every tau must be a positive number of seconds")
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise OptionError(
+            f"--tau {text!r}: every tau must be a positive, finite number of seconds"
+        )
     return values
+
+
+def tau_grid(text: str) -> str:
+    """``--tau``, checked when parsed (:func:`parse_taus`); the text is passed on."""
+    try:
+        parse_taus(text)
+    except OptionError as err:
+        raise argparse.ArgumentTypeError(str(err).split(": ", 1)[-1]) from None
+    return text
 
 
 def parse_list(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:

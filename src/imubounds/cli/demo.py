@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from imubounds.cli._common import add_force_option
+
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
@@ -17,9 +19,7 @@ def register(sub: Any) -> None:
         "DIR/report.html.",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
-    p.add_argument(
-        "--force", action="store_true", help="overwrite files imubounds did not write"
-    )
+    add_force_option(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     p.set_defaults(func=run)
 
@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
-    from imubounds.cli import main as cli_main
+    from imubounds.cli import run_command
     from imubounds.io import bundled_static_log
     from imubounds.io.drive_readers import bundled_drive_log
 
@@ -75,7 +75,8 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
     for i, (what, argv) in enumerate(steps, 1):
         if not args.quiet:
             print(f"[{i}/{len(steps) + 1}] {what}")
-        code = cli_main([*argv, *quiet, *(["--force"] if args.force else [])])
+        # errors and Ctrl-C propagate, so the message names what was written
+        code = run_command([*argv, *quiet, *(["--force"] if args.force else [])])
         if code:
             return code
     from imubounds.report.html import write_report

@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import argparse
-import json
+import math
 import sys
 from typing import Any
 
+from imubounds.cli._common import (
+    add_force_option,
+    finite_float,
+    nonneg_int,
+    positive_float,
+    positive_int,
+)
 from imubounds.errors import OptionError
 
 EPILOG = """\
@@ -36,7 +43,11 @@ def register(sub: Any) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("-o", "--out", required=True, metavar="CSV", help="output CSV (.csv or .csv.gz)")
+    p.add_argument(
+        "-o", "--out", required=True, type=csv_name, metavar="CSV",
+        help="output CSV (.csv or .csv.gz)",
+    )
+    add_force_option(p)
     src = p.add_argument_group("where the noise figures come from (one of, then overrides)")
     src.add_argument("--preset", metavar="NAME", help="datasheet preset, e.g. xsens-mtx")
     src.add_argument("--from-noise", metavar="JSON", help="noise.json from 'imubounds static'")
@@ -68,20 +79,27 @@ def register(sub: Any) -> None:
     )
     src.add_argument(
         "--bias-tau-range",
+        type=bias_range_text,
         metavar="LO,HI",
         help="tau range (s) where B is flicker noise (default 1,1000)",
     )
     run_g = p.add_argument_group("the run")
     run_g.add_argument(
         "--rate",
-        type=float,
+        type=positive_float,
         metavar="HZ",
         help="sample rate (default: the noise.json's or the spec's)",
     )
-    run_g.add_argument("--duration", metavar="T", help="length: 7200, 7200s, 90min, 2h")
-    run_g.add_argument("--samples", type=int, metavar="N", help="length in samples")
-    run_g.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    run_g.add_argument("--t0", type=float, default=0.0, metavar="S", help="first time stamp")
+    run_g.add_argument(
+        "--duration", type=duration_text, metavar="T", help="length: 7200, 7200s, 90min, 2h"
+    )
+    run_g.add_argument(
+        "--samples", type=at_least_two, metavar="N", help="length in samples (at least 2)"
+    )
+    run_g.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default 0)")
+    run_g.add_argument(
+        "--t0", type=finite_float, default=0.0, metavar="S", help="first time stamp"
+    )
     run_g.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--save-spec", metavar="JSON", help="also write the resolved spec (SI) here")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
@@ -98,17 +116,62 @@ def _bias_range(text: str | None) -> tuple[float, float] | None:
         raise OptionError(
             f"--bias-tau-range {text!r}: write LO,HI in seconds, e.g. 1,1000"
         ) from err
-    if not 0 < lo < hi:
-        raise OptionError(f"--bias-tau-range {text!r}: need 0 < LO < HI")
+    if not (math.isfinite(hi) and 0 < lo < hi):
+        raise OptionError(f"--bias-tau-range {text!r}: need 0 < LO < HI, both finite")
     return lo, hi
 
 
-def build_spec(args: argparse.Namespace) -> Any:
-    """The :class:`~imubounds.stationary.noise_sim.NoiseSpec` the options describe."""
-    from dataclasses import replace
+def _parse_type(check: Any) -> Any:
+    """An argparse type that runs ``check(text)`` and passes the text on."""
 
-    from imubounds.stationary import noise_sim as sim
+    def parse(text: str) -> str:
+        try:
+            check(text)
+        except OptionError as err:
+            raise argparse.ArgumentTypeError(str(err).split(": ", 1)[-1]) from None
+        except OverflowError:
+            raise argparse.ArgumentTypeError(f"{text!r} is too large; must be finite") from None
+        return text
 
+    parse.__name__ = getattr(check, "__name__", "value")
+    return parse
+
+
+def _duration_check(text: str) -> None:
+    from imubounds.stationary.noise_sim import parse_duration
+
+    d = parse_duration(text)
+    if not (math.isfinite(d) and d > 0):
+        raise OptionError(f"--duration {text!r}: must be a positive, finite length")
+
+
+bias_range_text = _parse_type(_bias_range)
+duration_text = _parse_type(_duration_check)
+
+#: Endings of the CSV written by -o (the readers choose the format by the ending).
+CSV_ENDINGS = (".csv", ".csv.gz", ".txt", ".txt.gz", ".dat", ".dat.gz")
+
+
+def csv_name(text: str) -> str:
+    """An output name ending like a CSV (``.csv``, ``.csv.gz``, ``.txt`` ...)."""
+    if not text.lower().endswith(CSV_ENDINGS):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} does not end in .csv or .csv.gz (the log is written as CSV text; "
+            "a name ending otherwise would be read back as another format)"
+        )
+    return text
+
+
+def at_least_two(text: str) -> int:
+    """A whole number >= 2 (a log needs two samples for its rate)."""
+    n = positive_int(text)
+    if n < 2:
+        raise argparse.ArgumentTypeError(f"must be at least 2, got {text}")
+    return n
+
+
+def _check_sources(args: argparse.Namespace) -> list[str]:
+    """The one source of figures (--preset, --from-noise, --spec), checked for consistency."""
     sources = [s for s in (args.preset, args.from_noise, args.spec) if s]
     if len(sources) > 1:
         raise OptionError("give only one of --preset, --from-noise, --spec")
@@ -118,6 +181,16 @@ def build_spec(args: argparse.Namespace) -> Any:
         )
     if (args.models or args.terms != "fit") and not args.from_noise:
         raise OptionError("--terms and --models apply only with --from-noise")
+    return sources
+
+
+def build_spec(args: argparse.Namespace) -> Any:
+    """The :class:`~imubounds.stationary.noise_sim.NoiseSpec` the options describe."""
+    from dataclasses import replace
+
+    from imubounds.stationary import noise_sim as sim
+
+    sources = _check_sources(args)
     tau_range = _bias_range(args.bias_tau_range)
     if args.preset:
         spec = sim.preset(args.preset, tau_range)
@@ -150,6 +223,8 @@ def build_spec(args: argparse.Namespace) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     from imubounds.cli._common import Reporter
+    from imubounds.io.outputs import check_output_file, output_file, write_json
+    from imubounds.io.validate import check_input_path
     from imubounds.stationary import noise_sim as sim
 
     rep = Reporter(args.quiet)
@@ -161,6 +236,22 @@ def run(args: argparse.Namespace) -> int:
                     figs = ", ".join(f"{k}={v}" for k, v in data[kind].items())
                     print(f"  {kind}: {figs}")
         return 0
+    # Inputs are checked before they are read (a named pipe would block), outputs
+    # before the simulation (nothing is computed for a file that may not be written).
+    _check_sources(args)
+    inputs = []
+    for option, path, what in (
+        ("--from-noise", args.from_noise, "noise.json"),
+        ("--spec", args.spec, "noise spec"),
+    ):
+        if path is not None:
+            inputs.append(check_input_path(path, what=what, option=option))
+    check_output_file(args.out, force=args.force, inputs=inputs, option="-o")
+    if args.save_spec:
+        check_output_file(
+            args.save_spec, force=args.force, inputs=inputs, option="--save-spec",
+            others=[args.out],
+        )
     spec = build_spec(args)
     if args.duration is not None and args.samples is not None:
         raise OptionError("give --duration or --samples, not both")
@@ -179,15 +270,17 @@ def run(args: argparse.Namespace) -> int:
     )
     for note in spec.notes:
         rep.warn(note)
-    path = sim.write_csv(log, args.out)
+    with output_file(args.out, force=args.force, inputs=inputs, option="-o") as tmp:
+        sim.write_csv(log, tmp)
     if args.save_spec:
-        from pathlib import Path
-
-        Path(args.save_spec).write_text(json.dumps(spec.to_dict(), indent=2, default=float) + "\n")
+        with output_file(
+            args.save_spec, force=args.force, inputs=inputs, option="--save-spec"
+        ) as tmp:
+            write_json(tmp, spec.to_dict())
     rep.info(
         f"wrote {log.n_samples} samples x {len(log.channels)} channels at {log.rate_hz:g} Hz "
-        f"({log.duration_s:g} s) to {path} [{spec.name}; seed {args.seed}]"
+        f"({log.duration_s:g} s) to {args.out} [{spec.name}; seed {args.seed}]"
     )
     if not args.quiet:
-        print(str(path), file=sys.stdout)
+        print(str(args.out), file=sys.stdout)
     return 0

@@ -12,9 +12,14 @@ from imubounds.cli._common import (
     Reporter,
     add_force_option,
     add_log_options,
+    existing_dir,
+    memory_size,
     parse_list,
     parse_taus,
+    positive_float,
+    probability,
     read_log_from_args,
+    tau_grid,
 )
 
 ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
@@ -37,28 +42,32 @@ def register(sub: Any) -> None:
     add_force_option(p)
     p.add_argument(
         "--tau",
+        type=tau_grid,
         default="octave",
         help="tau grid: octave, decade, N log-spaced, or seconds '0.1,1,10'",
     )
     p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping", help="Allan estimator")
     p.add_argument(
         "--confidence",
-        type=float,
+        type=probability,
         default=0.683,
         help="confidence level of the CIs (default 0.683)",
     )
     p.add_argument(
-        "--k-sigma", type=float, default=3.0, help="factor k of the per-sample bound k*sigma_c"
+        "--k-sigma",
+        type=positive_float,
+        default=3.0,
+        help="factor k of the per-sample bound k*sigma_c",
     )
     p.add_argument(
         "--avg-time",
-        type=float,
+        type=positive_float,
         metavar="S",
         help="averaging time t of sigma_c (default: log length)",
     )
     p.add_argument(
         "--run-hours",
-        type=float,
+        type=positive_float,
         metavar="H",
         help="run length T of the 95%% level (default: log length)",
     )
@@ -84,6 +93,7 @@ def add_outofcore_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("large logs")
     g.add_argument(
         "--max-memory",
+        type=memory_size,
         default="1GiB",
         metavar="SIZE",
         help="memory setting, e.g. 1GiB, 512MB: logs that would need more are analysed "
@@ -93,7 +103,10 @@ def add_outofcore_options(p: argparse.ArgumentParser) -> None:
         "--out-of-core", action="store_true", help="force the out-of-core (chunked) Allan path"
     )
     g.add_argument(
-        "--tmpdir", metavar="DIR", help="where out-of-core phase files go (default: system temp)"
+        "--tmpdir",
+        type=existing_dir,
+        metavar="DIR",
+        help="where out-of-core phase files go (default: system temp)",
     )
 
 
@@ -106,6 +119,8 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
         "gyro_unit": args.gyro_unit,
         "accel_unit": args.accel_unit,
         "time_unit": args.time_unit,
+        "on_gap": args.on_gap,
+        "gap_tolerance": args.gap_tolerance,
     }
 
 

@@ -8,10 +8,14 @@
   generic layout of :mod:`.drive_layout`, VN-100, comma2k19, ROS bags, ULog, NMEA, CSV
   through a column map), validated by :mod:`.drive_validate`;
 * :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
-  shared column recognition, unit conversion and time checks;
+  shared column recognition, unit conversion and assembly into logs;
+* :mod:`.validate` -- the one validation layer every reader goes through (special
+  files refused before reading, finite values, time order, duplicates, restarts,
+  gaps, unit plausibility, spikes; in memory and block by block);
 * :mod:`.chunked` -- out-of-core readers;
 * :mod:`.rosbag`, :mod:`.ulog`, :mod:`.nmea`, :mod:`.hdf5` -- other formats;
-* :mod:`.outputs` -- atomic writes of result files.
+* :mod:`.outputs` -- atomic writes of result files and sets, and how imubounds
+  recognises the files it wrote.
 """
 
 from imubounds.io.drive import Drive, DriveSettings

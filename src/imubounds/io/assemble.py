@@ -19,17 +19,39 @@ from imubounds.io.log import IMU_CHANNELS, ImuLog
 from imubounds.units import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
 
 from .columns import MAP_KEYS, normalise_unit
+from .validate import (
+    GAP_ADVICE,
+    JITTER_GAP_FACTOR,
+    MIN_GAP_FACTOR,
+    PLAUSIBLE_RATE_HZ,
+    RATE_TOLERANCE,
+    check_finite,
+    check_on_gap,
+    check_time_order,
+    default_row_label,
+    find_gaps,
+    gap_summary,
+    gap_threshold,
+    rate_from_step,
+    resolve_time_unit,
+    spike_warnings,
+    unit_warnings,
+)
 
 OnGap = Literal["refuse", "split", "ignore"]
 ON_GAP_CHOICES: tuple[str, ...] = ("refuse", "split", "ignore")
-#: Relative tolerance when a time column and ``rate_hz`` are both given.
-RATE_TOLERANCE = 0.01
-#: Smallest gap tolerance (in nominal sample periods) used by the automatic rule.
-MIN_GAP_FACTOR = 1.5
-#: Multiple of the relative robust jitter added by the automatic rule.
-JITTER_GAP_FACTOR = 4.0
-#: Plausible IMU sample rates used to infer an unstated time unit, Hz.
-PLAUSIBLE_RATE_HZ = (0.5, 1.0e5)
+__all__ = [
+    "JITTER_GAP_FACTOR",
+    "MIN_GAP_FACTOR",
+    "ON_GAP_CHOICES",
+    "PLAUSIBLE_RATE_HZ",
+    "RATE_TOLERANCE",
+    "RawChannel",
+    "RawTime",
+    "ReadOptions",
+    "assemble_logs",
+    "default_row_label",
+]
 
 
 @dataclass(frozen=True)
@@ -76,10 +98,7 @@ class ReadOptions:
             r = float(self.rate_hz)
             if not np.isfinite(r) or r <= 0:
                 raise OptionError(f"--rate must be a positive number of Hz, got {self.rate_hz!r}")
-        if self.on_gap not in ON_GAP_CHOICES:
-            raise OptionError(
-                f"--on-gap must be one of {', '.join(ON_GAP_CHOICES)}, got {self.on_gap!r}"
-            )
+        check_on_gap(self.on_gap)
         if self.gap_tolerance is not None:
             g = float(self.gap_tolerance)
             if not np.isfinite(g) or g <= 1.0:
@@ -154,27 +173,8 @@ class RawTime:
     layout: str = "generic"
 
 
-def default_row_label(i: int) -> str:
-    """``"data row N"`` (1 = first data row) for a 0-based row index."""
-    return f"data row {i + 1}"
-
-
 def _fmt(x: float) -> str:
     return f"{x:.6g}"
-
-
-def _num(x: object) -> str:
-    """A numpy scalar as plain text (``nan``, ``1403636579758555392``, ``0.01``)."""
-    if isinstance(x, np.integer | int):
-        return str(int(x))
-    return repr(float(x))  # type: ignore[arg-type]
-
-
-def _first_nonfinite(values: np.ndarray) -> int | None:
-    bad = ~np.isfinite(values)
-    if not bad.any():
-        return None
-    return int(np.argmax(bad))
 
 
 def assemble_logs(
@@ -188,6 +188,10 @@ def assemble_logs(
     frame: str = "unknown",
 ) -> list[ImuLog]:
     """Turn raw columns into SI :class:`ImuLog` segments, with all checks.
+
+    The checks are those of :mod:`imubounds.io.validate`: finite values, time
+    order (duplicated rows, restarts), time unit, gaps and the ``on_gap``
+    policy, unit plausibility and spikes (warnings).
 
     Parameters
     ----------
@@ -213,7 +217,7 @@ def assemble_logs(
 
     Raises
     ------
-    InputError, OptionError
+    InputError, UnitsError, OptionError
         Bad values, bad time stamps, gaps (``on_gap="refuse"``), inconsistent rate.
     """
     warnings: list[str] = list(notes)
@@ -247,12 +251,7 @@ def assemble_logs(
         if vals.dtype.kind not in "fiu":
             raise InputError(f"column {raw.source!r} of {source} is not numeric")
         vals = vals.astype(np.float64, copy=False)
-        bad = _first_nonfinite(vals)
-        if bad is not None:
-            raise InputError(
-                f"{source}, {row_label(bad)}, column {raw.source!r}: value "
-                f"{_num(vals[bad])} is not a finite number; remove or repair that row"
-            )
+        check_finite(vals, source=source, column=raw.source, row_label=row_label)
         out[name] = np.ascontiguousarray(vals * table[unit], dtype=np.float64)
         input_units[name] = unit
     if assumed:
@@ -260,7 +259,7 @@ def assemble_logs(
             f"units not stated for {', '.join(assumed)}: assumed rad/s (gyro) and m/s^2 (accel); "
             "use a unit suffix (_dps, _g) or --gyro-unit/--accel-unit if that is wrong"
         )
-        _plausibility(out, assumed, warnings)
+    warnings += unit_warnings(out, input_units, source=source, assumed=assumed)
 
     # --- time ---------------------------------------------------------------
     if time is None:
@@ -271,59 +270,52 @@ def assemble_logs(
             )
         rate = opts.rate_hz
         t = np.arange(n, dtype=np.float64) / rate
-        log = ImuLog(out, rate, t, source, input_units, frame, warnings)
-        return [log]
+        warnings += spike_warnings(out, source=source, t=t, row_label=row_label)
+        return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
 
     tv = np.asarray(time.values)
     if tv.dtype.kind not in "fiu":
         raise InputError(f"time column {time.source!r} of {source} is not numeric")
-    if tv.dtype.kind == "f":
-        bad = _first_nonfinite(tv)
-        if bad is not None:
-            raise InputError(
-                f"{source}, {row_label(bad)}, column {time.source!r}: time {_num(tv[bad])} is not "
-                "a finite number; remove or repair that row"
-            )
+    check_finite(tv, source=source, column=time.source, row_label=row_label, what="time")
     if n < 2 and opts.rate_hz is None:
         raise InputError(
             f"{source} has only {n} data row; at least 2 are needed to find the sample rate"
         )
     # Differences in the native dtype (exact for integer ns stamps).
-    if tv.dtype.kind in "iu":
-        tv = tv.astype(np.int64)
-        d_native = np.diff(tv)
-    else:
-        d_native = np.diff(tv.astype(np.float64))
-    if d_native.size:
-        nonpos = d_native <= 0
-        if nonpos.any():
-            k = int(np.argmax(nonpos)) + 1
-            what = "repeats" if d_native[k - 1] == 0 else "goes backwards"
-            raise InputError(
-                f"{source}, {row_label(k)}, column {time.source!r}: time stamp {_num(tv[k])} "
-                f"{what} (previous {_num(tv[k - 1])}); time must increase strictly: sort the "
-                "rows or remove duplicates"
-            )
+    tv = tv.astype(np.int64) if tv.dtype.kind in "iu" else tv.astype(np.float64)
+    order = check_time_order(
+        tv, source=source, column=time.source, values=list(out.values()), on_gap=opts.on_gap,
+        row_label=row_label,
+    )
+    warnings += order.notes
+    label = row_label
+    kept: np.ndarray | None = None
+    if order.keep is not None:
+        kept = np.flatnonzero(order.keep)
+        tv = tv[kept]
+        out = {c: np.ascontiguousarray(v[kept]) for c, v in out.items()}
+        n = int(tv.size)
 
-    unit = opts.time_unit or time.unit
-    if unit is None and time.layout == "kalibr":
-        unit = "ns"
+        def label(i: int) -> str:
+            return row_label(int(kept[i]))
+
+        if n < 2 and opts.rate_hz is None:
+            raise InputError(
+                f"{source} has only {n} distinct data row; at least 2 are needed to find the "
+                "sample rate"
+            )
+    d_native = np.diff(tv)
+    pos = d_native[d_native > 0]
+    med_native = float(np.median(pos)) if pos.size else 0.0
+
+    stated = time.unit
+    if stated is None and time.layout == "kalibr":
+        stated = "ns"
         warnings.append(f"time column {time.source!r}: Kalibr layout, time stamps taken as ns")
-    if unit is None:
-        unit = "s"
-        if d_native.size:
-            med = float(np.median(d_native))
-            lo, hi = PLAUSIBLE_RATE_HZ
-            if not lo <= 1.0 / med <= hi:
-                for cand in ("ms", "us", "ns"):
-                    if lo <= 1.0 / (med * TIME_UNITS[cand]) <= hi:
-                        unit = cand
-                        break
-            if unit != "s":
-                warnings.append(
-                    f"time column {time.source!r} states no unit; its spacing ({_fmt(med)}) only "
-                    f"makes sense in {unit}, so {unit} was assumed (use --time-unit to override)"
-                )
+    unit = resolve_time_unit(
+        med_native, source=source, column=time.source, stated=stated,
+        override=opts.time_unit, warnings=warnings,
+    )
     factor = TIME_UNITS[unit]
     if tv.dtype.kind == "i":
         # Exact integer split, so 1000000000000 ns is exactly 1000.0 s and large
@@ -338,55 +330,39 @@ def assemble_logs(
     if dt.size == 0:
         rate = float(opts.rate_hz)  # type: ignore[arg-type]
         return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
-    med_dt = float(np.median(dt))
-    rate_from_t = float(f"{1.0 / med_dt:.9g}")
-    if opts.rate_hz is not None:
-        if abs(med_dt * opts.rate_hz - 1.0) > RATE_TOLERANCE:
-            raise OptionError(
-                f"--rate {_fmt(opts.rate_hz)} Hz disagrees with the time stamps of {source} "
-                f"(column {time.source!r}: median step {_fmt(med_dt)} s = {_fmt(rate_from_t)} Hz); "
-                "drop --rate or fix it"
-            )
-        rate = float(opts.rate_hz)
-    else:
-        rate = rate_from_t
+    med_dt, gap_factor = gap_threshold(dt, opts.gap_tolerance)
+    rate = rate_from_step(med_dt, opts.rate_hz, source=source, column=time.source)
+    warnings += spike_warnings(out, source=source, t=t, row_label=label)
 
-    # --- gaps ---------------------------------------------------------------
-    if opts.gap_tolerance is not None:
-        gap_factor = opts.gap_tolerance
-    else:
-        q25, q75 = np.percentile(dt, [25.0, 75.0])
-        jitter = float((q75 - q25) / 1.349 / med_dt)
-        gap_factor = max(MIN_GAP_FACTOR, 1.0 + JITTER_GAP_FACTOR * jitter)
-    gaps = np.flatnonzero(dt > gap_factor * med_dt)
-    if gaps.size == 0:
+    # --- gaps and restarts ------------------------------------------------------
+    gaps = find_gaps(dt, med_dt, gap_factor)
+    restarts = order.restarts
+    if gaps.size == 0 and restarts.size == 0:
         return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
 
-    first = int(gaps[0])
-    longest = float(dt[gaps].max())
-    summary = (
-        f"{source} has {gaps.size} gap(s) in the time stamps longer than "
-        f"{gap_factor:.3g} x the {_fmt(med_dt)} s sample period "
-        f"(first just before {row_label(first + 1)}, t={_fmt(float(t[first + 1]))} s: "
-        f"a {_fmt(float(dt[first]))} s step, about "
-        f"{max(round(float(dt[first]) / med_dt) - 1, 1)} missing sample(s); longest "
-        f"{_fmt(longest)} s)"
-    )
-    if opts.on_gap == "refuse":
-        raise InputError(
-            summary + "; choose --on-gap split (analyse contiguous segments) or --on-gap ignore "
-            "(treat as contiguous), or raise --gap-tolerance"
+    summary = ""
+    if gaps.size:
+        first = int(gaps[0])
+        summary = gap_summary(
+            source, count=int(gaps.size), factor=gap_factor, median_step=med_dt,
+            first_row=first + 1, first_t=float(t[first + 1]), first_step=float(dt[first]),
+            longest=float(dt[gaps].max()), row_label=label,
         )
-    if opts.on_gap == "ignore":
-        warnings.append(summary + "; ignored (--on-gap ignore): treated as contiguous")
-        return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
-    bounds = np.concatenate(([0], gaps + 1, [n]))
+        if opts.on_gap == "refuse":
+            raise InputError(summary + GAP_ADVICE)
+        if opts.on_gap == "ignore":
+            warnings.append(summary + "; ignored (--on-gap ignore): treated as contiguous")
+            return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
+    cuts = np.union1d(gaps + 1, restarts)
+    bounds = np.concatenate(([0], cuts, [n])).astype(np.int64)
+    why = summary or "the time restarts"
     logs = []
     for k in range(bounds.size - 1):
         a, b = int(bounds[k]), int(bounds[k + 1])
+        first, last = (a, b - 1) if kept is None else (int(kept[a]), int(kept[b - 1]))
         seg_warn = [
             *warnings,
-            f"segment {k + 1} of {bounds.size - 1} (data rows {a + 1}..{b}); {summary}",
+            f"segment {k + 1} of {bounds.size - 1} (data rows {first + 1}..{last + 1}); {why}",
         ]
         logs.append(
             ImuLog(
@@ -400,22 +376,3 @@ def assemble_logs(
             )
         )
     return logs
-
-
-def _plausibility(out: dict[str, np.ndarray], assumed: list[str], warnings: list[str]) -> None:
-    """Warn when assumed SI units look wrong (e.g. an accelerometer in g)."""
-    acc = [f"accel_{a}" for a in "xyz"]
-    if all(c in out and c in assumed for c in acc):
-        norm = float(np.median(np.sqrt(sum(out[c] ** 2 for c in acc))))
-        if 0.5 < norm < 1.5:
-            warnings.append(
-                f"median |accel| is {norm:.3g} m/s^2 if the unit is m/s^2, but near 1: "
-                "the accelerometer is probably in g (use --accel-unit g)"
-            )
-    for c in [c for c in assumed if c.startswith("gyro")]:
-        peak = float(np.max(np.abs(out[c]))) if out[c].size else 0.0
-        if peak > 50.0:
-            warnings.append(
-                f"{c} reaches {peak:.3g} rad/s if the unit is rad/s, beyond any MEMS gyro range: "
-                "it is probably in deg/s (use --gyro-unit deg/s)"
-            )

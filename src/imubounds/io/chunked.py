@@ -24,17 +24,20 @@ HDF5 (``.h5``, ``.hdf5``)     1-D datasets named like columns (``gyro_x``, ``acc
 
 Binary formats have no time column: give ``rate_hz``. Units default to rad/s
 and m/s^2 unless the name states one or ``gyro_unit``/``accel_unit`` is given.
-Time stamps, when present, give the rate (median step of the first block); gaps
-are *not* checked out-of-core (the in-memory reader does that).
+Text tables are laid out exactly as for the in-memory reader
+(:mod:`imubounds.io.table`: comments, delimiter, quoting, a units row under the
+header, decimal commas, ISO 8601 time stamps), and values are parsed by the same
+parser. Time stamps, when present, give the rate (median step of the first
+100000 rows). Every block goes through :class:`imubounds.io.validate.StreamChecker`:
+the finiteness, time order (duplicates, restarts), gap and spike checks of the
+in-memory readers, across block boundaries. ``on_gap="split"`` is not possible
+out of core (a gap is then an error naming it).
 """
 
 from __future__ import annotations
 
-import gzip
 import math
-import warnings
-import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,16 +48,45 @@ from imubounds.errors import InputError, OptionError
 from imubounds.io.log import IMU_CHANNELS
 from imubounds.units import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
 
-from .assemble import PLAUSIBLE_RATE_HZ
-from .columns import ColumnPlan, normalise_unit, plan_columns
+from .assemble import ReadOptions
+from .columns import plan_columns
+from .validate import (
+    PLAUSIBLE_RATE_HZ,
+    StreamChecker,
+    check_finite,
+    check_input_path,
+    check_time_order,
+    default_row_label,
+    gap_threshold,
+    rate_from_step,
+    resolve_time_unit,
+    unit_warnings,
+)
 
-__all__ = ["CHUNKED_SUFFIXES", "ChunkedLog", "open_chunked"]
+__all__ = ["CHUNKED_SUFFIXES", "PLAUSIBLE_RATE_HZ", "ChunkedLog", "open_chunked"]
 
 #: File endings :func:`open_chunked` understands, longest first where they overlap.
 CHUNKED_SUFFIXES: tuple[str, ...] = (
     ".csv.gz", ".tsv.gz", ".txt.gz", ".dat.gz", ".csv", ".tsv", ".txt", ".dat",
     ".parquet", ".pq", ".parq", ".npy", ".f64", ".bin", ".raw", ".f32", ".h5", ".hdf5",
 )  # fmt: skip
+
+#: Rows of the time column read when the log is opened, to find the rate and unit
+#: (fewer for text, which has to be parsed).
+HEAD_ROWS = 100_000
+HEAD_TEXT_ROWS = 10_000
+
+RawBlock = tuple[np.ndarray | None, dict[str, np.ndarray]]
+
+
+@dataclass
+class TimeInfo:
+    """The time column of a chunked log, as found in its first rows."""
+
+    column: str
+    factor: float  # native unit -> s
+    median_step: float  # native unit
+    gap_factor: float
 
 
 @dataclass
@@ -80,7 +112,9 @@ class ChunkedLog:
     rereadable : bool
         True when a second pass over the file is cheap (binary formats).
     warnings : list of str
-        Things a user should see.
+        Things a user should see (the checks of a complete pass are added at its end).
+    on_gap : str
+        ``"refuse"`` or ``"ignore"`` (``"split"`` raises at the first gap).
     """
 
     path: Path
@@ -94,6 +128,9 @@ class ChunkedLog:
     warnings: list[str] = field(default_factory=list)
     _sources: dict[str, Any] = field(default_factory=dict, repr=False)
     _extra: dict[str, Any] = field(default_factory=dict, repr=False)
+    on_gap: str = "refuse"
+    time: TimeInfo | None = None
+    _checked: bool = field(default=False, repr=False)
 
     @property
     def source(self) -> str:
@@ -118,26 +155,58 @@ class ChunkedLog:
     def iter_chunks(self, rows: int) -> Iterator[dict[str, np.ndarray]]:
         """Blocks of at most ``rows`` rows: ``{channel: float64 SI array}``.
 
+        Every block is checked (:class:`~imubounds.io.validate.StreamChecker`);
+        duplicated rows are dropped when ``on_gap`` allows it. At the end of
+        the first complete pass the counted warnings join :attr:`warnings`.
+
         Raises
         ------
         InputError
-            Unreadable data (naming file, row and column).
+            Unreadable data, a non-finite value, time out of order, a gap
+            (``on_gap="refuse"``), naming file, row and column.
         """
         rows = max(1, int(rows))
-        if self.fmt == "text":
-            yield from self._iter_text(rows)
-        elif self.fmt == "parquet":
-            yield from self._iter_parquet(rows)
-        elif self.fmt in ("npy", "raw"):
-            yield from self._iter_binary(rows)
-        elif self.fmt == "hdf5":
-            yield from self._iter_hdf5(rows)
-        else:  # pragma: no cover - guarded by open_chunked
-            raise ValueError(self.fmt)
+        label: Callable[[int], str] = self._extra.get("row_label") or default_row_label
+        tinfo = self.time
+        checker = StreamChecker(
+            self.source,
+            column=None if tinfo is None else tinfo.column,
+            time_factor=1.0 if tinfo is None else tinfo.factor,
+            median_step=0.0 if tinfo is None else tinfo.median_step,
+            gap_factor=1.5 if tinfo is None else tinfo.gap_factor,
+            on_gap=self.on_gap,
+            row_label=label,
+        )
+        first = True
+        for t, raw in self._raw_blocks(rows):
+            si = {c: _si(np.asarray(v, dtype=np.float64), self.factors[c]) for c, v in raw.items()}
+            keep = checker.feed(t, si)
+            if keep is not None:
+                si = {c: v[keep] for c, v in si.items()}
+            if first and not self._checked:
+                self.warnings.extend(unit_warnings(si, self.input_units, source=self.source))
+                first = False
+            if si and next(iter(si.values())).size:
+                yield si
+        if not self._checked:
+            self.warnings.extend(checker.finish())
+            self._checked = True
 
-    def _iter_binary(self, rows: int) -> Iterator[dict[str, np.ndarray]]:
+    def _raw_blocks(self, rows: int) -> Iterator[RawBlock]:
+        if self.fmt == "text":
+            return self._iter_text(rows)
+        if self.fmt == "parquet":
+            return self._iter_parquet(rows)
+        if self.fmt in ("npy", "raw"):
+            return self._iter_binary(rows)
+        if self.fmt == "hdf5":
+            return self._iter_hdf5(rows)
+        raise ValueError(self.fmt)  # pragma: no cover - guarded by open_chunked
+
+    def _iter_binary(self, rows: int) -> Iterator[RawBlock]:
         # plain reads, not the memory map: pages of a map would count in RSS
         arr = self._sources["array"]
+        tsrc = self._sources.get("time")
         n = int(arr.shape[0])
         row_dtype = arr.dtype if arr.ndim == 1 else np.dtype((arr.dtype, arr.shape[1:]))
         offset = int(arr.offset) if isinstance(arr, np.memmap) else 0
@@ -149,7 +218,7 @@ class ChunkedLog:
                     f, dtype=arr.dtype, count=k * (row_dtype.itemsize // arr.dtype.itemsize)
                 )
                 if arr.ndim == 2:
-                    block = block.reshape(k, arr.shape[1])
+                    block = block.reshape(-1, arr.shape[1])
                 if block.shape[0] != k:
                     raise InputError(f"{self.path}: the file ends early (row {a + block.shape[0]})")
                 out = {}
@@ -160,79 +229,62 @@ class ChunkedLog:
                         v = block[:, src]
                     else:
                         v = block
-                    out[c] = _si(np.ascontiguousarray(v, dtype=np.float64), self.factors[c])
-                yield out
+                    out[c] = np.ascontiguousarray(v)
+                yield (None if tsrc is None else np.asarray(block[tsrc])), out
 
-    def _iter_text(self, rows: int) -> Iterator[dict[str, np.ndarray]]:
-        import pandas as pd
+    def _iter_text(self, rows: int) -> Iterator[RawBlock]:
+        from .table import iter_text_blocks
 
-        plan: ColumnPlan = self._extra["plan"]
+        ex = self._extra
+        plan = ex["plan"]
         names = {spec.index: c for c, spec in plan.channels.items()}
-        opener = gzip.open if self._extra["gz"] else open
-        row0 = 0
-        try:
-            with opener(self.path, "rb") as f:  # type: ignore[operator]
-                with warnings.catch_warnings():
-                    # round_trip parsing is what makes the values bit-identical to the
-                    # in-memory reader; pandas 3 deprecates the option but honours it
-                    warnings.simplefilter("ignore")
-                    reader = pd.read_csv(
-                        f,
-                        sep=self._extra["sep"],
-                        usecols=sorted(names),
-                        header=0,
-                        chunksize=rows,
-                        dtype=np.float64,
-                        engine="c",
-                        float_precision="round_trip",
-                        skipinitialspace=True,
-                    )
-                for df in reader:
-                    out: dict[str, np.ndarray] = {}
-                    for i, c in names.items():
-                        v = df.iloc[:, sorted(names).index(i)].to_numpy(np.float64)
-                        out[c] = _si(v, self.factors[c])
-                    row0 += len(df)
-                    yield out
-        except (ValueError, EOFError, OSError, zlib.error) as err:
-            raise InputError(
-                f"{self.path}: cannot read the rows after data row {row0} "
-                f"({str(err).splitlines()[0][:120]}); fix or remove the bad row"
-            ) from err
+        tidx = None if plan.time is None else plan.time.index
+        for arrs in iter_text_blocks(self.path, ex["gz"], ex["layout"], plan, rows):
+            yield (None if tidx is None else arrs[tidx]), {c: arrs[i] for i, c in names.items()}
 
-    def _iter_parquet(self, rows: int) -> Iterator[dict[str, np.ndarray]]:
+    def _iter_parquet(self, rows: int) -> Iterator[RawBlock]:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         cols: dict[str, str] = self._sources["columns"]
+        tsrc: str | None = self._sources.get("time")
+        wanted = list(cols.values()) + ([tsrc] if tsrc is not None else [])
         try:
             pf = pq.ParquetFile(self.path)
-            for batch in pf.iter_batches(batch_size=rows, columns=list(cols.values())):
-                yield {
-                    c: _si(
-                        batch.column(src).to_numpy(zero_copy_only=False).astype(np.float64),
-                        self.factors[c],
+            for batch in pf.iter_batches(batch_size=rows, columns=wanted):
+                t = None
+                if tsrc is not None:
+                    tc = batch.column(tsrc)
+                    t = (tc.cast(pa.int64()) if pa.types.is_timestamp(tc.type) else tc).to_numpy(
+                        zero_copy_only=False
                     )
-                    for c, src in cols.items()
+                yield t, {
+                    c: batch.column(src).to_numpy(zero_copy_only=False) for c, src in cols.items()
                 }
         except (pa.ArrowException, OSError) as err:
             raise InputError(
                 f"{self.path}: the Parquet data cannot be read ({str(err).splitlines()[0][:120]})"
             ) from err
 
-    def _iter_hdf5(self, rows: int) -> Iterator[dict[str, np.ndarray]]:
+    def _iter_hdf5(self, rows: int) -> Iterator[RawBlock]:
         import h5py
 
         cols: dict[str, tuple[str, str | None]] = self._sources["columns"]
+        tsrc: tuple[str, str | None] | None = self._sources.get("time")
         n = int(self.n_samples or 0)
-        with h5py.File(self.path, "r") as f:
-            for a in range(0, n, rows):
-                out = {}
-                for c, (dset, fld) in cols.items():
-                    d = f[dset]
-                    block = d[a : a + rows] if fld is None else d[a : a + rows][fld]
-                    out[c] = _si(np.asarray(block, dtype=np.float64), self.factors[c])
-                yield out
+
+        def read(f: Any, src: tuple[str, str | None], a: int) -> np.ndarray:
+            dset, fld = src
+            d = f[dset]
+            return np.asarray(d[a : a + rows] if fld is None else d[a : a + rows][fld])
+
+        try:
+            with h5py.File(self.path, "r") as f:
+                for a in range(0, n, rows):
+                    t = None if tsrc is None else read(f, tsrc, a)
+                    yield t, {c: read(f, src, a) for c, src in cols.items()}
+        except OSError as err:
+            raise InputError(f"{self.path}: the HDF5 data cannot be read ({err})") from err
 
 
 def _si(v: np.ndarray, factor: float) -> np.ndarray:
@@ -251,23 +303,13 @@ def _suffix(path: Path) -> str:
 
 
 def _unit_factor(
-    channel: str,
-    stated: str | None,
-    gyro_unit: str | None,
-    accel_unit: str | None,
-    warnings: list[str],
-    source: str,
+    channel: str, stated: str | None, opts: ReadOptions, warnings: list[str], source: str
 ) -> tuple[str, float]:
     kind = channel.split("_")[0]
-    override = gyro_unit if kind == "gyro" else accel_unit
+    override = opts.gyro_unit if kind == "gyro" else opts.accel_unit
     table = GYRO_UNITS if kind == "gyro" else ACCEL_UNITS
     if override is not None:
-        key = normalise_unit(override, kind)
-        if key is None:
-            raise OptionError(
-                f"--{kind}-unit {override!r} is not known; use one of {', '.join(table)}"
-            )
-        return key, table[key]
+        return override, table[override]
     if stated is not None:
         return stated, table[stated]
     default = "rad/s" if kind == "gyro" else "m/s^2"
@@ -275,40 +317,40 @@ def _unit_factor(
     return default, table[default]
 
 
-def _rate_from_time(
+def _time_info(
     t: np.ndarray,
-    unit: str | None,
-    time_unit: str | None,
+    stated: str | None,
+    opts: ReadOptions,
     source: str,
-    rate_hz: float | None = None,
-) -> float:
-    """Rate as :func:`assemble_logs` finds it: 1/median step rounded to 9 digits."""
+    column: str,
+    warnings: list[str],
+    row_label: Callable[[int], str] = default_row_label,
+) -> tuple[float, TimeInfo]:
+    """Rate and time unit from the first rows, as :func:`assemble_logs` finds them."""
+    t = np.asarray(t)
+    if t.dtype.kind not in "fiu":
+        raise InputError(f"time column {column!r} of {source} is not numeric")
+    check_finite(t, source=source, column=column, row_label=row_label, what="time")
+    if t.size == 0:
+        raise InputError(f"{source} has a header but no data rows; give a file with samples")
     if t.size < 2:
         raise InputError(f"{source}: fewer than 2 rows; cannot find the sample rate")
-    step = float(np.median(np.diff(t.astype(np.float64))))
-    if not step > 0:
+    t = t.astype(np.int64) if t.dtype.kind in "iu" else t.astype(np.float64)
+    order = check_time_order(t, source=source, column=column, values=None, on_gap=opts.on_gap,
+                             row_label=row_label, can_split=False)
+    if order.keep is not None:
+        t = t[order.keep]
+    d = np.diff(t)
+    pos = d[d > 0]
+    if pos.size == 0:
         raise InputError(f"{source}: time stamps do not increase; check the time column")
-    key = time_unit or unit
-    factor = None
-    if key is not None:
-        factor = TIME_UNITS[normalise_unit(key, "time") or key]
-    else:
-        for k in ("s", "ms", "us", "ns"):
-            if PLAUSIBLE_RATE_HZ[0] <= 1.0 / (step * TIME_UNITS[k]) <= PLAUSIBLE_RATE_HZ[1]:
-                factor = TIME_UNITS[k]
-                break
-    if factor is None:
-        raise InputError(f"{source}: time step {step:g} gives no plausible rate; give --time-unit")
-    med_dt = float(np.median(np.diff(t.astype(np.float64)) * factor))
-    rate = float(f"{1.0 / med_dt:.9g}")
-    if rate_hz is not None:
-        if abs(med_dt * float(rate_hz) - 1.0) > 0.01:
-            raise OptionError(
-                f"--rate {rate_hz:g} Hz disagrees with the time stamps of {source} ({rate:g} Hz);"
-                " drop --rate or fix it"
-            )
-        return float(rate_hz)
-    return rate
+    med = float(np.median(pos))
+    unit = resolve_time_unit(med, source=source, column=column, stated=stated,
+                             override=opts.time_unit, warnings=warnings)
+    factor = TIME_UNITS[unit]
+    med_dt, gap_factor = gap_threshold(pos.astype(np.float64) * factor, opts.gap_tolerance)
+    rate = rate_from_step(med_dt, opts.rate_hz, source=source, column=column)
+    return rate, TimeInfo(column, factor, med, gap_factor)
 
 
 def _check_rate(rate_hz: float | None, source: str) -> float:
@@ -325,10 +367,12 @@ def open_chunked(
     *,
     rate_hz: float | None = None,
     columns: Mapping[str, str] | None = None,
-    channels: tuple[str, ...] | list[str] | None = None,
+    channels: Sequence[str] | None = None,
     gyro_unit: str | None = None,
     accel_unit: str | None = None,
     time_unit: str | None = None,
+    on_gap: str = "refuse",
+    gap_tolerance: float | None = None,
 ) -> ChunkedLog:
     """Open a (possibly huge) IMU log for chunked reading.
 
@@ -340,15 +384,18 @@ def open_chunked(
     InputError, OptionError
         Unreadable file, no IMU column, missing rate, bad option.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"no such file: {p}; check the path")
+    opts = ReadOptions(
+        rate_hz=rate_hz, columns=columns, gyro_unit=gyro_unit, accel_unit=accel_unit,
+        time_unit=time_unit, gap_tolerance=gap_tolerance, on_gap=on_gap,  # type: ignore[arg-type]
+    ).validated()
+    p = check_input_path(path)
     if p.stat().st_size == 0:
         raise InputError(f"{p} is empty; give a file with data")
     suf = _suffix(p)
     chans = None if channels is None else tuple(channels)
     warnings: list[str] = []
-    cols = dict(columns) if columns else None
+    cols = dict(opts.columns) if opts.columns else None
+    src = str(p)
 
     def finish(
         fmt: str,
@@ -359,67 +406,48 @@ def open_chunked(
         rereadable: bool,
         sources: dict[str, Any],
         extra: dict[str, Any] | None = None,
+        time: TimeInfo | None = None,
     ) -> ChunkedLog:
         units, factors = {}, {}
         for c in plan_ch:
-            units[c], factors[c] = _unit_factor(
-                c, stated.get(c), gyro_unit, accel_unit, warnings, str(p)
-            )
+            units[c], factors[c] = _unit_factor(c, stated.get(c), opts, warnings, src)
         return ChunkedLog(
-            p,
-            fmt,
-            list(plan_ch),
-            rate,
-            n,
-            units,
-            factors,
-            rereadable,
-            warnings,
-            sources,
-            extra or {},
+            p, fmt, list(plan_ch), rate, n, units, factors, rereadable, warnings, sources,
+            extra or {}, on_gap=opts.on_gap, time=time,
         )
 
     if suf.endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
-        import pandas as pd
+        from .table import _detect_layout, _is_gzip, _line_finder, _read_head, iter_text_blocks
 
-        gz = suf.endswith(".gz")
         try:
-            with (
-                gzip.open(p, "rt", encoding="utf-8-sig") if gz else open(p, encoding="utf-8-sig")
-            ) as f:
-                header_line = f.readline()
-                head_rows = [f.readline() for _ in range(200)]
-        except (OSError, EOFError, UnicodeDecodeError, zlib.error) as err:
-            raise InputError(f"{p}: cannot read the header ({err})") from err
-        sep: str = r"\s+"
-        for cand in (",", ";", "\t"):
-            if cand in header_line:
-                sep = cand
-                break
-        header = [
-            h.strip()
-            for h in (header_line.strip().split(sep) if sep != r"\s+" else header_line.split())
-        ]
-        plan = plan_columns(header, str(p), columns=cols, channels=chans)
-        stated = {c: s.unit for c, s in plan.channels.items()}
+            gz = _is_gzip(p)
+        except OSError as err:
+            raise InputError(f"{p}: cannot read the file ({err.strerror or err})") from err
+        layout = _detect_layout(p, _read_head(p, gz))
+        plan = plan_columns(layout.header, src, columns=cols, channels=chans)
+        label = _line_finder(p, gz, layout)
+        tinfo = None
         if plan.time is not None:
-            import io
-
-            body = "".join(r for r in head_rows if r.strip())
-            df = pd.read_csv(io.StringIO(header_line + body), sep=sep, skipinitialspace=True)
-            t = df.iloc[:, plan.time.index].to_numpy(np.float64)
-            rate = _rate_from_time(t, plan.time.unit, time_unit, str(p), rate_hz)
+            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_TEXT_ROWS), None)
+            if head is None:
+                raise InputError(f"{p} has a header but no data rows; give a file with samples")
+            t = head[plan.time.index]
+            stated = plan.time.unit
+            if stated is None and t.dtype.kind == "i" and layout.first_row and not _numeric(
+                layout.first_row[plan.time.index]
+            ):
+                stated = "ns"  # ISO 8601 date-times, read as epoch ns
+            if stated is None and plan.time.source.lower() == "timestamp" and any(
+                s.layout == "kalibr" for s in plan.channels.values()
+            ):
+                stated = "ns"
+            rate, tinfo = _time_info(t, stated, opts, src, plan.time.source, warnings, label)
         else:
-            rate = _check_rate(rate_hz, str(p))
+            rate = _check_rate(opts.rate_hz, src)
         return finish(
-            "text",
-            dict(plan.channels),
-            stated,
-            rate,
-            None,
-            False,
-            {},
-            {"plan": plan, "gz": gz, "sep": sep},
+            "text", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+            None, False, {}, {"plan": plan, "gz": gz, "layout": layout, "row_label": label},
+            tinfo,
         )
 
     if suf in (".parquet", ".pq", ".parq"):
@@ -432,55 +460,59 @@ def open_chunked(
             n = int(pf.metadata.num_rows)
         except (pa.ArrowException, OSError) as err:
             raise InputError(f"{p}: not a readable Parquet file ({str(err)[:120]})") from err
-        plan = plan_columns(header, str(p), columns=cols, channels=chans)
+        plan = plan_columns(header, src, columns=cols, channels=chans)
+        tinfo = None
+        tsrc = None
         if plan.time is not None:
-            first = pf.read_row_group(0, columns=[plan.time.source]).column(0)
-            t = (
-                first.cast(pa.int64()).to_numpy()
-                if pa.types.is_timestamp(first.type)
-                else first.to_numpy()
-            )
-            unit = first.type.unit if pa.types.is_timestamp(first.type) else plan.time.unit
-            rate = _rate_from_time(np.asarray(t[:100_000]), unit, time_unit, str(p), rate_hz)
+            tsrc = plan.time.source
+            try:
+                first = pf.read_row_group(0, columns=[tsrc]).column(0)
+            except (pa.ArrowException, OSError) as err:
+                raise InputError(
+                    f"{p}: the Parquet data cannot be read ({str(err)[:120]})"
+                ) from err
+            is_ts = pa.types.is_timestamp(first.type)
+            t = (first.cast(pa.int64()) if is_ts else first).to_numpy(zero_copy_only=False)
+            unit = first.type.unit if is_ts else plan.time.unit
+            rate, tinfo = _time_info(np.asarray(t[:HEAD_ROWS]), unit, opts, src, tsrc, warnings)
         else:
-            rate = _check_rate(rate_hz, str(p))
-        srcs = {c: s.source for c, s in plan.channels.items()}
+            rate = _check_rate(opts.rate_hz, src)
+        names_pq = {c: s.source for c, s in plan.channels.items()}
         return finish(
-            "parquet",
-            dict(plan.channels),
-            {c: s.unit for c, s in plan.channels.items()},
-            rate,
-            n,
-            True,
-            {"columns": srcs},
+            "parquet", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+            n, True, {"columns": names_pq, "time": tsrc}, time=tinfo,
         )
 
     if suf in (".npy", ".f64", ".bin", ".raw", ".f32"):
         if suf == ".npy":
             try:
                 arr = np.load(p, mmap_mode="r")
-            except (ValueError, OSError) as err:
+            except (ValueError, OSError, EOFError) as err:
                 raise InputError(f"{p}: not a readable .npy file ({err})") from err
         else:
             dt = np.dtype("<f4") if suf == ".f32" else np.dtype("<f8")
+            if p.stat().st_size % dt.itemsize:
+                raise InputError(
+                    f"{p}: {p.stat().st_size} bytes are not a whole number of "
+                    f"{dt.itemsize}-byte values; the file is truncated or not raw {dt}"
+                )
             arr = np.memmap(p, dtype=dt, mode="r")
         if arr.dtype.names:
             header = list(arr.dtype.names)
-            plan = plan_columns(header, str(p), columns=cols, channels=chans)
+            plan = plan_columns(header, src, columns=cols, channels=chans)
+            tinfo = None
+            tsrc = None
             if plan.time is not None:
-                t = np.asarray(arr[plan.time.source][:100_000], dtype=np.float64)
-                rate = _rate_from_time(t, plan.time.unit, time_unit, str(p), rate_hz)
+                tsrc = plan.time.source
+                t = np.asarray(arr[tsrc][:HEAD_ROWS])
+                rate, tinfo = _time_info(t, plan.time.unit, opts, src, tsrc, warnings)
             else:
-                rate = _check_rate(rate_hz, str(p))
-            srcs: dict[str, Any] = {c: s.source for c, s in plan.channels.items()}
+                rate = _check_rate(opts.rate_hz, src)
+            fields = {c: s.source for c, s in plan.channels.items()}
             return finish(
-                "npy",
-                dict(plan.channels),
-                {c: s.unit for c, s in plan.channels.items()},
-                rate,
-                int(arr.shape[0]),
-                True,
-                {"array": arr, "columns": srcs},
+                "npy", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+                int(arr.shape[0]), True, {"array": arr, "columns": fields, "time": tsrc},
+                time=tinfo,
             )
         names = list(chans) if chans else None
         ncol = 1 if arr.ndim == 1 else int(arr.shape[1])
@@ -492,6 +524,10 @@ def open_chunked(
                     f"{ncol} channels; give the channels with --channels"
                 )
             arr = arr.reshape(-1, ncol) if ncol > 1 else arr
+        if arr.ndim not in (1, 2):
+            raise InputError(f"{p}: array of shape {arr.shape}; expected (N,) or (N, C)")
+        if arr.dtype.kind not in "fiu":
+            raise InputError(f"{p}: array of type {arr.dtype} is not numeric")
         if names is None:
             if ncol != 6:
                 raise OptionError(
@@ -504,19 +540,12 @@ def open_chunked(
                 f"{p}: has {ncol} column(s); give as many channel names from "
                 f"{', '.join(IMU_CHANNELS)}"
             )
-        if arr.ndim not in (1, 2):
-            raise InputError(f"{p}: array of shape {arr.shape}; expected (N,) or (N, C)")
-        rate = _check_rate(rate_hz, str(p))
-        srcs = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
-        order = {c: srcs[c] for c in IMU_CHANNELS if c in srcs}
+        rate = _check_rate(opts.rate_hz, src)
+        index = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
+        order = {c: index[c] for c in IMU_CHANNELS if c in index}
         return finish(
-            "npy" if suf == ".npy" else "raw",
-            dict.fromkeys(order),
-            {},
-            rate,
-            int(arr.shape[0]),
-            True,
-            {"array": arr, "columns": order},
+            "npy" if suf == ".npy" else "raw", dict.fromkeys(order), {}, rate,
+            int(arr.shape[0]), True, {"array": arr, "columns": order},
         )
 
     # HDF5
@@ -539,28 +568,34 @@ def open_chunked(
 
         f.visititems(visit)
         header = [h for h, _, _, _ in found]
-        plan = plan_columns(header, str(p), columns=cols, channels=chans)
+        plan = plan_columns(header, src, columns=cols, channels=chans)
         used = [found[s.index] for s in plan.channels.values()]
+        if plan.time is not None:
+            used.append(found[plan.time.index])
         lengths = {n for _, _, _, n in used}
         if len(lengths) != 1:
             raise InputError(f"{p}: the channel datasets have different lengths {sorted(lengths)}")
         n = lengths.pop()
+        tinfo = None
+        tsrc5 = None
         if plan.time is not None:
             _, dset, fld, _ = found[plan.time.index]
+            tsrc5 = (dset, fld)
             d = f[dset]
-            t = d[:100_000] if fld is None else d[:100_000][fld]
-            rate = _rate_from_time(
-                np.asarray(t, dtype=np.float64), plan.time.unit, time_unit, str(p), rate_hz
-            )
+            t = np.asarray(d[:HEAD_ROWS] if fld is None else d[:HEAD_ROWS][fld])
+            rate, tinfo = _time_info(t, plan.time.unit, opts, src, plan.time.source, warnings)
         else:
-            rate = _check_rate(rate_hz, str(p))
-        srcs = {c: (found[s.index][1], found[s.index][2]) for c, s in plan.channels.items()}
+            rate = _check_rate(opts.rate_hz, src)
+        dsets = {c: (found[s.index][1], found[s.index][2]) for c, s in plan.channels.items()}
     return finish(
-        "hdf5",
-        dict(plan.channels),
-        {c: s.unit for c, s in plan.channels.items()},
-        rate,
-        n,
-        True,
-        {"columns": srcs},
+        "hdf5", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate, n,
+        True, {"columns": dsets, "time": tsrc5}, time=tinfo,
     )
+
+
+def _numeric(text: str) -> bool:
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return False
+    return True

@@ -34,6 +34,7 @@ Time columns: ``time``, ``t``, ``timestamp``, ``time_stamp``, ``stamp``,
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from imubounds.errors import OptionError
@@ -353,8 +354,8 @@ def plan_columns(
     header: list[str],
     source: str,
     *,
-    columns: dict[str, str] | None = None,
-    channels: tuple[str, ...] | None = None,
+    columns: Mapping[str, str] | None = None,
+    channels: Sequence[str] | None = None,
 ) -> ColumnPlan:
     """Decide which header column feeds time and each canonical channel.
 

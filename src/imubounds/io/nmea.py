@@ -56,6 +56,7 @@ from imubounds.io.drive import (
 from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
+from .validate import check_input_path
 
 KNOT = 1852.0 / 3600.0  #: one knot in m/s
 _PREFIX = re.compile(r"^\s*([+-]?\d+(?:\.\d*)?)[,;\s]+(?=[$!])")
@@ -112,8 +113,7 @@ def scan_nmea(path: str | Path, *, on_bad_checksum: str = "error") -> NmeaCaptur
     p = Path(path)
     if on_bad_checksum not in ("error", "skip"):
         raise OptionError(f"on_bad_checksum must be error or skip, got {on_bad_checksum!r}")
-    if not p.is_file():
-        raise InputError(f"no such file: {p}")
+    check_input_path(p, what="NMEA capture")
     out: list[Sentence] = []
     bad: list[int] = []
     garbage = no_sum = 0

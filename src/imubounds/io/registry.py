@@ -26,6 +26,7 @@ from imubounds.io.log import ImuLog
 
 from .assemble import OnGap, ReadOptions, assemble_logs
 from .columns import parse_column_map, recognise
+from .validate import check_input_path
 
 __all__ = [
     "ReadOptions",
@@ -81,7 +82,8 @@ class ReaderEntry:
         if callable(self.read):
             return self.read
         module, _, func = self.read.partition(":")
-        return getattr(importlib.import_module(module), func)  # type: ignore[no-any-return]
+        reader: ReaderFunc = getattr(importlib.import_module(module), func)
+        return reader
 
 
 _REGISTRY: dict[str, ReaderEntry] = {}
@@ -189,11 +191,11 @@ def find_reader(path: str | Path) -> ReaderEntry:
     Raises
     ------
     InputError
-        Missing file, a directory, or an unknown format.
+        Missing file, a directory, a named pipe or device (refused before
+        opening: :func:`imubounds.io.validate.check_input_path`), or an unknown
+        format.
     """
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"no such file: {p}; check the path")
+    p = check_input_path(path, allow_dir=True)
     if p.is_dir():
         for entry in _REGISTRY.values():
             if entry.sniff_dir is not None and entry.sniff_dir(p):

@@ -20,6 +20,7 @@ import re
 import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -74,13 +75,16 @@ class _Layout:
     """Where the header is and how fields are separated."""
 
     def __init__(self, header: list[str], delimiter: str | None, skip_lines: int,
-                 header_line: int, quoted: bool, first_row: list[str] | None = None) -> None:
+                 header_line: int, quoted: bool, first_row: list[str] | None = None,
+                 decimal: str = ".", units_line: int | None = None) -> None:
         self.header = header
         self.first_row = first_row or []  # fields of the first data row, if any
         self.delimiter = delimiter  # None: runs of whitespace
         self.skip_lines = skip_lines  # physical lines before the first data line
         self.header_line = header_line  # 1-based line number of the header
         self.quoted = quoted
+        self.decimal = decimal  # "," for decimal commas (with ; or tab delimiters)
+        self.units_line = units_line  # 1-based line of a units row under the header
 
 
 def _is_number(text: str) -> bool:
@@ -89,6 +93,34 @@ def _is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d*,\d+(?:[eE][-+]?\d+)?\s*$")
+
+
+def _uses_decimal_comma(cells: list[str]) -> bool:
+    """True when the numbers of a row are written with a decimal comma (``0,013``)."""
+    commas = sum(bool(_DECIMAL_COMMA.match(c)) for c in cells)
+    points = sum("." in c and _is_number(c) for c in cells)
+    return commas > 0 and points == 0
+
+
+def _units_row(header: list[str], cells: list[str]) -> list[str | None] | None:
+    """The units of a row of units under the header (``s, deg/s, g``), else ``None``."""
+    from .columns import normalise_unit
+
+    if len(cells) != len(header) or not cells:
+        return None
+    if any(c.strip() and _is_number(c.strip().replace(",", ".")) for c in cells):
+        return None
+    units: list[str | None] = []
+    known = 0
+    for c in cells:
+        text = c.strip().strip("[]()")
+        units.append(text or None)
+        if text and any(normalise_unit(text, k) is not None for k in ("gyro", "accel", "time")):
+            known += 1
+    return units if known else None
 
 
 def _split(line: str, delimiter: str | None) -> list[str]:
@@ -164,7 +196,24 @@ def _detect_layout(path: Path, head: str) -> _Layout:
             delim = _guess_delim(header_text)
     header = [h.strip() for h in _split(header_text, delim)]
     first_row = [] if data_text is None else [c.strip() for c in _split(data_text, delim)]
-    return _Layout(header, delim, skip, header_line, '"' in head, first_row)
+    units_line = None
+    units = _units_row(header, first_row) if not first_is_data and nxt is not None else None
+    if units is not None and nxt is not None:
+        # A row of units under the header: fold each unit into its column name
+        # ("gyro_x [deg/s]") unless the name states one, and skip the row.
+        from .columns import recognise, split_bracket_unit
+
+        for i, u in enumerate(units):
+            rec = recognise(header[i])
+            if u and split_bracket_unit(header[i])[1] is None and (rec is None or rec.unit is None):
+                header[i] = f"{header[i]} [{u}]"
+        units_line = nxt + 1
+        skip = nxt + 1
+        after = next((j for j in range(nxt + 1, len(lines)) if lines[j].strip()
+                      and not lines[j].lstrip().startswith("#")), None)
+        first_row = [] if after is None else [c.strip() for c in _split(lines[after], delim)]
+    decimal = "," if delim not in (",", None) and _uses_decimal_comma(first_row) else "."
+    return _Layout(header, delim, skip, header_line, '"' in head, first_row, decimal, units_line)
 
 
 def _guess_delim(line: str) -> str | None:
@@ -232,21 +281,73 @@ def _records(f: io.TextIOBase, layout: _Layout) -> Iterator[tuple[int, list[str]
         yield line_no, rec
 
 
-def _slow_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict[int, np.ndarray]:
-    """Line-by-line parse of the needed columns; raises at the first bad cell."""
+def _cell_value(cell: str, decimal: str) -> float | int | None:
+    """A cell as int or float (``None`` if it is not a number)."""
+    try:
+        return int(cell)
+    except ValueError:
+        pass
+    try:
+        return float(cell.replace(",", ".") if decimal == "," else cell)
+    except ValueError:
+        return None
+
+
+def _field_count_problem(rec: list[str], ncol: int, layout: _Layout) -> str:
+    """Why a record has the wrong number of fields, with what to do."""
+    delimiter = layout.delimiter
+    text = (delimiter or " ").join(rec)
+    other = [d for d in _DELIMITERS if d != delimiter and d in text and d != ","]
+    if delimiter != "," and layout.decimal != "," and "," in text:
+        other.append(",")
+    if len(rec) < ncol and other:
+        return (
+            f"{len(rec)} field(s) but the header has {ncol}: the row seems separated by "
+            f"{other[0]!r}, the header by {delimiter or 'spaces'!r}; use one separator "
+            "throughout"
+        )
+    return (
+        f"{len(rec)} field(s) but the header has {ncol} (a truncated or malformed row?); "
+        "repair or delete that line"
+    )
+
+
+def _slow_blocks(
+    path: Path, gz: bool, layout: _Layout, plan: ColumnPlan, rows: int, skip_records: int = 0
+) -> Iterator[dict[int, np.ndarray]]:
+    """Line-by-line parse of the needed columns in blocks of ``rows`` records.
+
+    Raises :class:`InputError` at the first bad record (naming its line and
+    column). ``skip_records`` data records are passed over first (already read).
+    """
     idx = plan.indices()
     names = {i: layout.header[i] for i in idx}
-    cols: dict[int, list[float]] = {i: [] for i in idx}
-    is_int = {i: True for i in idx}
     time_index = -1 if plan.time is None else plan.time.index
     ncol = len(layout.header)
+
+    def block(cols: dict[int, list[float]], is_int: dict[int, bool]) -> dict[int, np.ndarray]:
+        out: dict[int, np.ndarray] = {}
+        for i in idx:
+            if is_int[i] and cols[i]:
+                try:
+                    out[i] = np.asarray(cols[i], dtype=np.int64)
+                    continue
+                except OverflowError:
+                    pass
+            out[i] = np.asarray(cols[i], dtype=np.float64)
+        return out
+
+    cols: dict[int, list[float]] = {i: [] for i in idx}
+    is_int = dict.fromkeys(idx, True)
+    count = 0
     try:
         with _open_text(path, gz) as f:
-            for line_no, rec in _records(f, layout):
+            for k, (line_no, rec) in enumerate(_records(f, layout)):
+                if k < skip_records:
+                    continue
                 if len(rec) != ncol:
                     raise InputError(
-                        f"{path}, line {line_no}: {len(rec)} field(s) but the header has {ncol} "
-                        "(a truncated or malformed row?); repair or delete that line"
+                        f"{path}, line {line_no}: {_field_count_problem(rec, ncol, layout)}"
                     )
                 for i in idx:
                     cell = rec[i].strip()
@@ -255,21 +356,24 @@ def _slow_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict
                             f"{path}, line {line_no}, column {names[i]!r}: the cell is empty; "
                             "fill it or delete the row"
                         )
-                    try:
-                        v: float = int(cell)
-                    except ValueError:
-                        try:
-                            v = float(cell)
-                        except ValueError:
-                            if i == time_index and (ns := _parse_datetime_ns(cell)) is not None:
-                                cols[i].append(ns)
-                                continue
-                            raise InputError(
-                                f"{path}, line {line_no}, column {names[i]!r}: {cell[:40]!r} is "
-                                "not a number; fix or delete that row"
-                            ) from None
+                    v = _cell_value(cell, layout.decimal)
+                    if v is None:
+                        if i == time_index and (ns := _parse_datetime_ns(cell)) is not None:
+                            cols[i].append(ns)
+                            continue
+                        raise InputError(
+                            f"{path}, line {line_no}, column {names[i]!r}: {cell[:40]!r} is "
+                            "not a number; fix or delete that row"
+                        )
+                    if isinstance(v, float):
                         is_int[i] = False
                     cols[i].append(v)
+                count += 1
+                if count == rows:
+                    yield block(cols, is_int)
+                    cols = {i: [] for i in idx}
+                    is_int = dict.fromkeys(idx, True)
+                    count = 0
     except (EOFError, zlib.error) as err:
         raise _gzip_error(path, err) from err
     except OSError as err:
@@ -278,22 +382,23 @@ def _slow_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict
         raise InputError(f"{path}: cannot read the file ({err})") from err
     except UnicodeDecodeError as err:
         raise InputError(f"{path}: not a UTF-8 text table ({err.reason})") from err
+    except csv.Error as err:
+        raise InputError(f"{path}: malformed text ({err}); repair the file") from err
+    if count or not skip_records:
+        yield block(cols, is_int)
+
+
+def _slow_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict[int, np.ndarray]:
+    """Line-by-line parse of the whole file; raises at the first bad cell."""
+    blocks = list(_slow_blocks(path, gz, layout, plan, rows=1 << 20))
     out: dict[int, np.ndarray] = {}
-    for i in idx:
-        if is_int[i] and cols[i]:
-            try:
-                out[i] = np.asarray(cols[i], dtype=np.int64)
-                continue
-            except OverflowError:
-                pass
-        out[i] = np.asarray(cols[i], dtype=np.float64)
+    for i in plan.indices():
+        parts = [b[i] for b in blocks if b[i].size] or [blocks[0][i]]
+        out[i] = parts[0] if len(parts) == 1 else np.concatenate(parts)
     return out
 
 
-def _fast_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict[int, np.ndarray]:
-    """pyarrow CSV parse of the needed columns (raises pyarrow errors)."""
-    if layout.delimiter is None:
-        return _whitespace_parse(path, gz, layout, plan)
+def _arrow_options(layout: _Layout, plan: ColumnPlan) -> tuple[Any, Any, Any]:
     names = [f"c{i}" for i in range(len(layout.header))]
     idx = plan.indices()
     types: dict[str, pa.DataType] = {f"c{spec.index}": pa.float64()
@@ -302,15 +407,15 @@ def _fast_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict
                               block_size=1 << 22)
     popts = pacsv.ParseOptions(delimiter=layout.delimiter, newlines_in_values=layout.quoted)
     copts = pacsv.ConvertOptions(include_columns=[f"c{i}" for i in idx], column_types=types,
-                                 null_values=[""], strings_can_be_null=False)
-    stream = pa.input_stream(str(path), compression="gzip" if gz else None)
-    try:
-        table = pacsv.read_csv(stream, read_options=ropts, parse_options=popts,
-                               convert_options=copts)
-    finally:
-        stream.close()
+                                 null_values=[""], strings_can_be_null=False,
+                                 decimal_point=layout.decimal)
+    return ropts, popts, copts
+
+
+def _arrow_arrays(table: Any, plan: ColumnPlan) -> dict[int, np.ndarray]:
+    """Numpy arrays of the needed columns of a pyarrow table or record batch."""
     out: dict[int, np.ndarray] = {}
-    for i in idx:
+    for i in plan.indices():
         col = table.column(f"c{i}")
         if col.null_count:
             raise ValueError("nulls")
@@ -324,6 +429,76 @@ def _fast_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict
     return out
 
 
+_FAST_ERRORS = (pa.ArrowException, ValueError, OSError, EOFError, zlib.error, KeyError,
+                IndexError, UnicodeDecodeError)
+
+
+def iter_text_blocks(
+    path: Path, gz: bool, layout: _Layout, plan: ColumnPlan, rows: int
+) -> Iterator[dict[int, np.ndarray]]:
+    """The needed columns in blocks of at most ``rows`` rows (out-of-core reading).
+
+    pyarrow's streaming CSV reader (the parser of the in-memory fast path, so
+    values are identical); from the first block it cannot parse, the
+    line-by-line parser takes over, which either reads on (comment lines in
+    the data) or raises :class:`InputError` naming the bad line.
+    """
+    rows = max(1, int(rows))
+    done = 0
+    try:
+        if layout.delimiter is None:
+            import pandas as pd
+
+            reader = pd.read_csv(
+                path, sep=r"\s+", header=None, skiprows=layout.skip_lines,
+                usecols=plan.indices(), comment="#", compression="gzip" if gz else None,
+                engine="c", skip_blank_lines=True, chunksize=rows,
+                decimal=layout.decimal,
+            )
+            for df in reader:
+                arrs = {i: df[i].to_numpy() for i in plan.indices()}
+                if any(a.dtype.kind not in "fiu" or (a.dtype.kind == "f" and np.isnan(a).any())
+                       for a in arrs.values()):
+                    raise ValueError("not numeric")
+                yield arrs
+                done += len(df)
+            return
+        # the time column's type is inferred from the first block (int ns, float s or
+        # ISO date-times); a later row that does not fit goes to the line parser
+        ropts, popts, copts = _arrow_options(layout, plan)
+        ropts.block_size = max(1 << 20, min(1 << 26, rows * 16 * max(1, len(layout.header))))
+        stream = pa.input_stream(str(path), compression="gzip" if gz else None)
+        try:
+            reader = pacsv.open_csv(stream, read_options=ropts, parse_options=popts,
+                                    convert_options=copts)
+            for batch in reader:
+                arrs = _arrow_arrays(batch, plan)
+                m = batch.num_rows
+                for a in range(0, m, rows):
+                    yield {i: v[a : a + rows] for i, v in arrs.items()}
+                done += m
+        finally:
+            stream.close()
+        return
+    except _FAST_ERRORS:
+        pass
+    yield from _slow_blocks(path, gz, layout, plan, rows, skip_records=done)
+
+
+def _fast_parse(path: Path, gz: bool, layout: _Layout, plan: ColumnPlan) -> dict[int, np.ndarray]:
+    """pyarrow CSV parse of the needed columns (raises pyarrow errors)."""
+    if layout.delimiter is None:
+        return _whitespace_parse(path, gz, layout, plan)
+    ropts, popts, copts = _arrow_options(layout, plan)
+    stream = pa.input_stream(str(path), compression="gzip" if gz else None)
+    try:
+        table = pacsv.read_csv(stream, read_options=ropts, parse_options=popts,
+                               convert_options=copts)
+    finally:
+        stream.close()
+    return _arrow_arrays(table, plan)
+
+
 def _whitespace_parse(path: Path, gz: bool, layout: _Layout,
                       plan: ColumnPlan) -> dict[int, np.ndarray]:
     import pandas as pd
@@ -331,7 +506,7 @@ def _whitespace_parse(path: Path, gz: bool, layout: _Layout,
     idx = plan.indices()
     df = pd.read_csv(path, sep=r"\s+", header=None, skiprows=layout.skip_lines, usecols=idx,
                      comment="#", compression="gzip" if gz else None, engine="c",
-                     skip_blank_lines=True)
+                     skip_blank_lines=True, decimal=layout.decimal)
     out = {}
     for i in idx:
         arr = df[i].to_numpy()
@@ -379,8 +554,7 @@ def read_text_table(path: Path, opts: ReadOptions) -> list[ImuLog]:
     label = _line_finder(path, gz, layout)
     try:
         arrays = _fast_parse(path, gz, layout, plan)
-    except (pa.ArrowException, ValueError, OSError, EOFError, zlib.error, KeyError,
-            IndexError, UnicodeDecodeError):
+    except _FAST_ERRORS:
         arrays = _slow_parse(path, gz, layout, plan)
     time, chans = _raw_from_arrays(plan, arrays)
     if time is not None and time.values.dtype.kind == "i" and _is_datetime_text(layout, plan):

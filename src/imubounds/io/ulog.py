@@ -51,11 +51,42 @@ def sniff_ulog(head: bytes) -> bool:
     return head.startswith(ULOG_MAGIC)
 
 
+def truncation_note(path: Path) -> str | None:
+    """A warning if the ULog ends inside a message (a cut or truncated file), else ``None``.
+
+    Walks the message headers (2-byte size, 1-byte type) from the end of the
+    16-byte file header; the last message must end exactly at the end of the file.
+    """
+    import mmap
+    import struct
+
+    try:
+        with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
+            size = len(m)
+            pos = 16
+            unpack = struct.Struct("<H").unpack_from
+            while pos + 3 <= size:
+                pos += 3 + unpack(m, pos)[0]
+    except (OSError, ValueError):
+        return None
+    if pos == size or size <= 16:
+        return None
+    return (
+        f"{path}: the ULog is truncated (it ends inside a message, {size} bytes); the "
+        "samples before the cut are used: copy the log again if the end matters"
+    )
+
+
 def _load(path: Path, topics: list[str]) -> Any:
+    import contextlib
+    import io
+
     from pyulog import ULog
 
     try:
-        return ULog(str(path), message_name_filter_list=topics)
+        # pyulog prints diagnostics on stdout; the library prints nothing
+        with contextlib.redirect_stdout(io.StringIO()):
+            ulog = ULog(str(path), message_name_filter_list=topics)
     except ImuboundsError:
         raise
     except Exception as err:  # pyulog raises bare exceptions / struct errors on bad files
@@ -64,13 +95,18 @@ def _load(path: Path, topics: list[str]) -> Any:
             f"{path}: not a readable ULog file ({type(err).__name__}: {text}); "
             "check that it is a PX4 .ulg log and not truncated"
         ) from err
+    return ulog
 
 
 def _topic_names(path: Path) -> list[str]:
+    import contextlib
+    import io
+
     from pyulog import ULog
 
     try:
-        ulog = ULog(str(path), parse_header_only=True)
+        with contextlib.redirect_stdout(io.StringIO()):
+            ulog = ULog(str(path), parse_header_only=True)
     except Exception:  # noqa: BLE001 - only used to list topics in an error message
         return []
     return sorted({f.name for f in ulog.message_formats.values()}) if hasattr(
@@ -121,8 +157,9 @@ def read_ulog(path: Path, opts: ReadOptions) -> list[ImuLog]:
             break
     if ds is None:
         have = _topic_names(path)
+        cut = " (the file is truncated)" if truncation_note(path) else ""
         raise InputError(
-            f"{path}: no IMU topic ({' or '.join(topics)}) in the ULog; it holds "
+            f"{path}: no IMU topic ({' or '.join(topics)}) in the ULog{cut}; it holds "
             f"{', '.join(have) if have else 'no logged topics'}; log sensor_combined in PX4 "
             "(SDLOG_PROFILE) or give --topic"
         )
@@ -156,13 +193,26 @@ def read_ulog(path: Path, opts: ReadOptions) -> list[ImuLog]:
     order = {c: i for i, c in enumerate(("gyro_x", "gyro_y", "gyro_z",
                                          "accel_x", "accel_y", "accel_z"))}
     channels = dict(sorted(channels.items(), key=lambda kv: order[kv[0]]))
+    notes = [f"{path}: PX4 FRD body axes converted to FLU (y and z negated)"]
+    truncated = truncation_note(path)
+    if truncated is not None:
+        notes.append(truncated)
+    elif getattr(ulog, "file_corruption", False):
+        notes.append(f"{path}: pyulog found corrupt data in the ULog and skipped it")
+    dropouts = getattr(ulog, "dropouts", None) or []
+    if dropouts:
+        total_ms = sum(int(getattr(d, "duration", 0)) for d in dropouts)
+        notes.append(
+            f"{path}: the PX4 logger dropped messages {len(dropouts)} time(s) "
+            f"({total_ms} ms in all); the gap check below says where the IMU lost samples"
+        )
     return assemble_logs(
         f"{path}:{ds.name}",
         RawTime(t_us, "us", f"{ds.name}.timestamp"),
         channels,
         opts,
         row_label=lambda i: f"{ds.name} message {i + 1}",
-        notes=[f"{path}: PX4 FRD body axes converted to FLU (y and z negated)"],
+        notes=notes,
         frame="FLU",
     )
 

@@ -15,6 +15,8 @@ import base64
 import html
 import json
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -66,15 +68,29 @@ def _load_json(path: Path) -> dict[str, Any] | None:
         return None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as err:
+    except (OSError, ValueError, RecursionError) as err:  # JSON and UTF-8 errors are ValueErrors
+        reason = " ".join(str(err).split())[:120]
         raise InputError(
-            f"{path}: not readable JSON ({err}); rerun the command that wrote it"
+            f"{path}: not readable JSON ({reason}); rerun the command that wrote it"
         ) from err
     return data if isinstance(data, dict) else None
 
 
+def _listed(d: Path, name: str) -> bool:
+    """Whether ``d/name`` is a file of the complete set in ``d`` (any file if no run.json
+    lists one): a figure left over from an earlier run is not shown with newer results."""
+    if not (d / name).is_file():
+        return False
+    run = _load_json(d / "run.json")
+    files = run.get("files") if run else None
+    return not isinstance(files, list) or name in files
+
+
 def _img(path: Path, caption: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    try:
+        data = base64.b64encode(path.read_bytes()).decode("ascii")
+    except OSError as err:
+        raise InputError(f"{path}: cannot read ({err.strerror or err})") from err
     return (
         f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
         f"<figcaption>{_e(caption)}</figcaption></figure>"
@@ -206,7 +222,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             "</th><th>GM σ (SI)</th><th>white σ (SI)</th><th>AR order</th><th>criterion</th>"
             "<th>AR fit rate</th></tr>" + "".join(models_rows) + "</table>"
         )
-    if (d / "allan.png").is_file():
+    if _listed(d, "allan.png"):
         parts.append(
             _img(
                 d / "allan.png",
@@ -392,11 +408,11 @@ def _dynamic_section(
         )
     shown = set()
     for stem, caption in DYN_FIGURES:
-        if (d / f"{stem}.png").is_file():
+        if _listed(d, f"{stem}.png"):
             parts.append(_img(d / f"{stem}.png", caption))
             shown.add(stem)
     for png in sorted(d.glob("*.png")):
-        if png.stem not in shown and png.stem != "allan":
+        if png.stem not in shown and png.stem != "allan" and _listed(d, png.name):
             parts.append(_img(png, png.stem.replace("_", " ")))
     if inp:
         parts.append(
@@ -423,6 +439,32 @@ def _dynamic_section(
     return "".join(parts), warnings, commands
 
 
+def _result_json(path: Path) -> dict[str, Any]:
+    """A result file written by imubounds (a JSON object with an imubounds ``format``)."""
+    data = _load_json(path)
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(data, dict) or not str(fmt or "").startswith("imubounds"):
+        raise InputError(
+            f"{path}: not a result file written by imubounds (no imubounds 'format' in it); "
+            "rerun the command that writes it, or move the file away"
+        )
+    return data
+
+
+@contextmanager
+def _unexpected(path: Path) -> Iterator[None]:
+    """A result file whose structure is not what imubounds writes: one-line InputError."""
+    try:
+        yield
+    except (AttributeError, TypeError, KeyError, IndexError, ValueError) as err:
+        if isinstance(err, InputError):
+            raise
+        raise InputError(
+            f"{path}: unexpected content ({type(err).__name__}: {str(err)[:80]}); it was "
+            "edited or not written by this version of imubounds: rerun the command that wrote it"
+        ) from err
+
+
 def build_report(directory: str | Path) -> str:
     """Return the HTML text of the report for ``directory``."""
     root = Path(directory)
@@ -440,15 +482,17 @@ def build_report(directory: str | Path) -> str:
             "run 'imubounds static' or 'imubounds dynamic' with -o there first"
         )
     if static_dir is not None:
-        noise = _load_json(static_dir / "noise.json") or {}
-        html_s, w, c = _static_section(static_dir, noise)
+        noise = _result_json(static_dir / "noise.json")
+        with _unexpected(static_dir / "noise.json"):
+            html_s, w, c = _static_section(static_dir, noise)
         sections.append(html_s)
         warnings += w
         commands += c
     for i, dyn_dir in enumerate(dyn_dirs):
-        dyn = _load_json(dyn_dir / "dynamic.json") or {}
+        dyn = _result_json(dyn_dir / "dynamic.json")
         label = "" if i == 0 else dyn_dir.name
-        html_d, w, c = _dynamic_section(dyn_dir, dyn, label)
+        with _unexpected(dyn_dir / "dynamic.json"):
+            html_d, w, c = _dynamic_section(dyn_dir, dyn, label)
         sections.append(html_d)
         warnings += [f"{dyn_dir.name}: {x}" if label else x for x in w]
         commands += c

@@ -42,6 +42,7 @@ time left.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 import shutil
@@ -50,7 +51,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -203,7 +204,7 @@ class PhaseFile:
     def __init__(self, path: str | Path, n_samples: int) -> None:
         self.path = Path(path)
         self.n = int(n_samples)
-        self._f: IO[bytes] = open(self.path, "rb")  # noqa: SIM115
+        self._f: io.BufferedReader = open(self.path, "rb")  # noqa: SIM115
         self.bytes_read = 0
 
     def read(self, a: int, b: int) -> np.ndarray:
@@ -225,7 +226,7 @@ class PhaseFile:
         if a < 0 or a + k > self.n + 1:
             raise ValueError(f"phase range [{a}, {a + k}) outside [0, {self.n + 1})")
         self._f.seek(8 * a)
-        got = self._f.readinto(memoryview(out).cast("B"))
+        got = self._f.readinto(out.data.cast("B"))
         if got != 8 * k:
             raise InputError(f"{self.path}: phase file is truncated")
         self.bytes_read += 8 * k
@@ -569,6 +570,25 @@ class OutOfCoreStats:
     seconds: float = 0.0
 
 
+def _work_dir(tmpdir: str | Path | None) -> str:
+    """A fresh temporary directory in ``tmpdir`` (one-line errors if it cannot be made)."""
+    from imubounds.errors import OutputError
+
+    if tmpdir is not None and not Path(tmpdir).is_dir():
+        what = "is not a directory" if Path(tmpdir).exists() else "does not exist"
+        raise OptionError(f"--tmpdir {tmpdir} {what}; create it or choose another directory")
+    try:
+        return tempfile.mkdtemp(
+            prefix="imubounds-ooc-", dir=None if tmpdir is None else str(tmpdir)
+        )
+    except OSError as err:
+        where = tmpdir if tmpdir is not None else tempfile.gettempdir()
+        raise OutputError(
+            f"cannot create temporary files in {where} ({err.strerror or err}); "
+            "choose a writable directory with --tmpdir"
+        ) from err
+
+
 def allan_outofcore(
     log: ChunkedLog | str | Path,
     taus: str | int | Sequence[float] | np.ndarray = "octave",
@@ -624,7 +644,7 @@ def allan_outofcore(
     rows = max(1024, mem // (8 * 8 * max(1, len(log.channels))))
     t0 = 1.0 / log.rate_hz
     report = progress or (lambda _s, _d, _t: None)
-    work = tempfile.mkdtemp(prefix="imubounds-ooc-", dir=None if tmpdir is None else str(tmpdir))
+    work = _work_dir(tmpdir)
     phases: dict[str, PhaseFile] = {}
     try:
         # ---- pass 1: count, mean, finiteness (and spill of text logs)
@@ -635,14 +655,9 @@ def allan_outofcore(
         total_rows = log.n_samples or 0
         try:
             for blk in log.iter_chunks(rows):
+                # finiteness, time order and gaps are checked by iter_chunks
                 for c in names:
                     v = blk[c]
-                    if not np.all(np.isfinite(v)):
-                        bad = n + int(np.flatnonzero(~np.isfinite(v))[0])
-                        raise InputError(
-                            f"{log.source}: {c} sample {bad} (data row {bad + 1}) is not finite;"
-                            " remove or interpolate non-finite samples first"
-                        )
                     sums[c].append(float(np.sum(v)))
                     if c in files:
                         np.ascontiguousarray(v, dtype=np.float64).tofile(files[c])
@@ -677,9 +692,9 @@ def allan_outofcore(
                 done_rows = 0
                 for c in names:
                     for y in blocks_of(c):
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                         done_rows += y.shape[0]
                         report("phase", done_rows // len(names), n)
                     spill[c].unlink()
@@ -688,9 +703,9 @@ def allan_outofcore(
                 for blk in log.iter_chunks(rows):
                     for c in names:
                         y = np.ascontiguousarray(blk[c], dtype=np.float64)
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                     done_rows += next(iter(blk.values())).shape[0]
                     report("phase", done_rows, n)
         finally:
