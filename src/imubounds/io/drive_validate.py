@@ -37,13 +37,13 @@ from __future__ import annotations
 
 import math
 import os
-import stat
 from pathlib import Path
 
 import numpy as np
 
 from imubounds.errors import InputError, UnitsError
 from imubounds.io.drive import Drive
+from imubounds.io.validate import check_input_path as _check_path
 
 #: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
 GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
@@ -53,43 +53,15 @@ RAD_PER_DEG = math.pi / 180.0
 # ----------------------------------------------------------------------------- paths
 
 
-def _kind_of(mode: int) -> str | None:
-    if stat.S_ISFIFO(mode):
-        return "a named pipe"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return None
-
-
 def check_input_path(
     path: str | os.PathLike[str], what: str = "input", *, directory: bool | None = None
 ) -> Path:
-    """``path`` as a :class:`Path` if it is a regular file or a directory, else an error.
-
-    Named pipes, devices and sockets are refused without opening them (opening
-    a pipe blocks until a writer appears). ``directory=True`` requires a
-    directory, ``False`` a regular file, ``None`` accepts either.
-    """
-    p = Path(path)
-    try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        raise InputError(f"{p}: no such file or directory ({what})") from None
-    except OSError as err:
-        raise InputError(f"{p}: cannot access ({err.strerror}) ({what})") from err
-    kind = _kind_of(st.st_mode)
-    if kind is not None:
-        raise InputError(f"{p} is {kind}, not a file: give the {what} as a regular file")
-    is_dir = stat.S_ISDIR(st.st_mode)
-    if directory is True and not is_dir:
-        raise InputError(f"{p}: not a directory ({what})")
-    if directory is False and is_dir:
-        raise InputError(f"{p} is a directory; give the {what} as a file")
-    if not is_dir and not os.access(p, os.R_OK):
-        raise InputError(f"{p}: permission denied ({what})")
-    return p
+    """``path`` as a :class:`Path` if it is a regular file (``directory=False``), a directory
+    (``True``) or either (``None``); named pipes, devices and sockets are refused without
+    opening them. The checks are :func:`imubounds.io.validate.check_input_path`'s."""
+    return _check_path(
+        path, what=what, allow_dir=directory is None, need_dir=directory is True
+    )
 
 
 def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:

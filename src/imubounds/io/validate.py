@@ -135,6 +135,7 @@ def check_input_path(
     what: str = "IMU log",
     option: str | None = None,
     allow_dir: bool = False,
+    need_dir: bool = False,
 ) -> Path:
     """Check an input path *without opening it*; return it as a :class:`Path`.
 
@@ -148,6 +149,8 @@ def check_input_path(
         The option that named it (``"--from-noise"``), for messages.
     allow_dir:
         Accept a directory (a ROS 2 bag, a run directory).
+    need_dir:
+        Require a directory (a drive-layout folder).
 
     Raises
     ------
@@ -172,9 +175,11 @@ def check_input_path(
         raise InputError(f"{who}: cannot be read ({err.strerror or err}); check the path") from None
     mode = st.st_mode
     if stat.S_ISDIR(mode):
-        if allow_dir:
+        if allow_dir or need_dir:
             return p
         raise InputError(f"{who} is a directory; give the {what} file inside it")
+    if need_dir:
+        raise InputError(f"{who}: not a directory; give the {what} folder")
     kind = None
     if stat.S_ISFIFO(mode):
         kind = "a named pipe (FIFO)"
