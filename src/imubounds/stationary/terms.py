@@ -35,7 +35,7 @@ Three results are built from one curve:
 * :func:`select_terms` — the terms used for bounds and ``imu.yaml``: a
   resolved term from the preferred estimate, otherwise an **upper bound**
   from the curve's confidence intervals where the term would show,
-  ``min_τ σ_hi(τ)/√f_j(τ)`` at 99 % per point. Every other term only adds
+  ``min_τ σ_hi(τ)/√f_j(τ)`` at 99 % per point with EDF ≥ 10. Every other term only adds
   variance, so the true term lies below it whenever the intervals hold. An
   unresolved term is never 0.
 
@@ -287,17 +287,22 @@ def _upper_points(c: _Curve, level: float = UPPER_BOUND_LEVEL) -> NDArray[np.flo
 def curve_upper_bound(curve: AllanCurve | _Curve, term: str) -> tuple[float, float]:
     """Upper bound of one term from the curve's intervals, and the τ (s) that sets it.
 
-    ``min_τ σ_hi(τ)/√f_term(τ)`` over all points with σ_hi the 99 % upper end
+    ``min_τ σ_hi(τ)/√f_term(τ)`` over the points with EDF ≥ :data:`EDF_MIN`
+    (all points when none has it), σ_hi the 99 % upper end
     (:data:`UPPER_BOUND_LEVEL`): every other term only adds variance, so the
-    term cannot exceed this wherever the interval holds. ``(inf, nan)`` when
-    the estimator is blind to the term.
+    term cannot exceed this wherever the interval holds. Points with fewer
+    degrees of freedom are left out: their chi-squared intervals are too
+    uncertain to bound anything (a two-term point can sit at 3 % of its
+    expectation). ``(inf, nan)`` when the estimator is blind to the term.
     """
     c = curve if isinstance(curve, _Curve) else _curve(curve)
     j = TERMS.index(term)  # type: ignore[arg-type]
     f = c.basis[:, j]
-    ok = f > 0
-    if not np.any(ok):
+    if not np.any(f > 0):
         return math.inf, math.nan
+    ok = (f > 0) & (c.edf >= EDF_MIN)
+    if not np.any(ok):  # a very short log: every point, however few its dof
+        ok = f > 0
     up = _upper_points(c)
     cand = up[ok] / np.sqrt(f[ok])
     i = int(np.argmin(cand))
@@ -354,6 +359,19 @@ def _grid_density(tau: NDArray[np.float64]) -> float:
     return max(1.0, (tau.size - 1) / octaves) if octaves > 0 else 1.0
 
 
+#: At most this fraction of the points may be rejected by the robust weights; when
+#: more disagree with the model, the misfit is global and η grows instead.
+MAX_REJECTED = 0.25
+
+
+def _smoothed(avar: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Three-point running median of a curve (ends kept): a start that one notch cannot move."""
+    if avar.size < 3:
+        return avar
+    mid = np.median(np.stack((avar[:-2], avar[1:-1], avar[2:])), axis=0)
+    return np.concatenate(([avar[0]], mid, [avar[-1]]))
+
+
 def _robust_fit(
     A: NDArray[np.float64],
     avar: NDArray[np.float64],
@@ -361,21 +379,35 @@ def _robust_fit(
     robust: bool,
     iterations: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """Iteratively reweighted NNLS: coefficients, robust weights and the misfit η."""
-    coef = _nnls_weighted(A, avar, 1.0 / (avar * sd_stat))
+    """Iteratively reweighted NNLS: coefficients, robust weights and the misfit η.
+
+    Starts from weights of a smoothed curve, iterates model-based weights
+    (plain IRLS), then Tukey weights; never rejects more than
+    :data:`MAX_REJECTED` of the points (η grows instead).
+    """
+    coef = _nnls_weighted(A, avar, 1.0 / (_smoothed(avar) * sd_stat))
     w = np.ones(avar.size)
     eta = 0.0
-    for _ in range(max(1, iterations)):
+    n_iter = max(1, iterations)
+    for it in range(n_iter):
         model = A @ coef
         model = np.where(np.isfinite(model) & (model > 0), model, avar * 1e-12)
         lr = np.log(avar / model)
-        eta = _eta_from_residuals(lr, sd_stat, w if robust else np.ones_like(w))
+        use_robust = robust and it >= n_iter // 3
+        eta = _eta_from_residuals(lr, sd_stat, w if use_robust else np.ones_like(w))
+        if use_robust:
+            cap = int(MAX_REJECTED * avar.size)
+            a = np.sort(np.abs(lr) / TUKEY_C)[::-1]  # |lr| / c per point, largest first
+            if cap < a.size and a[cap] > 0:
+                # the (cap+1)-th largest residual must stay inside the Tukey window
+                need = a[cap] ** 2 - float(np.min(sd_stat)) ** 2
+                eta = max(eta, math.sqrt(need) if need > 0 else 0.0)
         sd = np.sqrt(sd_stat**2 + eta**2)
-        w = _tukey(lr / sd) if robust else np.ones(avar.size)
+        w = _tukey(lr / sd) if use_robust else np.ones(avar.size)
         if np.count_nonzero(w > 0) < A.shape[1] + 1:
             w = np.ones(avar.size)
         new = _nnls_weighted(A, avar, np.sqrt(w) / (model * sd))
-        done = np.allclose(new, coef, rtol=1e-7, atol=1e-300)
+        done = it >= n_iter // 3 and np.allclose(new, coef, rtol=1e-7, atol=1e-300)
         coef = new
         if done:
             break
