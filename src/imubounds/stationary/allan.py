@@ -99,6 +99,7 @@ __all__ = [
     "confidence_interval",
     "edf_greenhall",
     "edf_totdev",
+    "estimator_edf",
     "max_cluster_size",
     "noise_id_lag1",
     "parse_tau_spec",
@@ -573,7 +574,11 @@ def edf_totdev(n_phase: int, m: int, alpha: int) -> float:
     return edf_greenhall(alpha, 2, m, n_phase, overlapping=True, modified=False)
 
 
-def _edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
+def estimator_edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
+    """EDF of one point of ``estimator`` (cluster size ``m``, ``n_samples`` rate samples)
+    for power-law noise ``alpha``: Greenhall's algorithm, or NIST SP 1065 Table 7 for
+    the total deviation (:func:`edf_greenhall`, :func:`edf_totdev`)."""
+    _check_estimator(estimator)
     n_phase = n_samples + 1
     if estimator == "overlapping":
         return edf_greenhall(alpha, 2, m, n_phase, True, False)
@@ -836,7 +841,7 @@ def result_from_sums(
         var = var / ms.astype(np.float64) ** 2
     dev = np.sqrt(var)
     edf = np.array(
-        [_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
+        [estimator_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
         dtype=np.float64,
     )
     lo, hi = confidence_interval(dev, edf, conf)
