@@ -11,7 +11,9 @@ Detection works on the local second difference of the rate samples,
 deviation of √1.5 times the sample noise, every slower process (flicker,
 random walk, drift) is nearly cancelled, and a spike of size A gives
 ``|d| = A`` at its sample. The scale of d is estimated robustly
-(1.4826 × median absolute deviation, so the spikes do not inflate it), and a
+(1.4826 × median absolute deviation, so the spikes do not inflate it; on
+quantised samples, where that underestimates, the RMS of the central 99.9 %
+of the differences), and a
 sample is flagged when ``|d| > threshold × scale`` (default 8: a Gaussian log
 of 10⁹ samples has about one false alarm in a million such logs).
 Neighbouring flagged samples form one event; the count of events, their
@@ -36,6 +38,8 @@ __all__ = ["DEFAULT_THRESHOLD", "SpikeReport", "despike", "detect_spikes"]
 
 #: Robust z above which a sample counts as a spike.
 DEFAULT_THRESHOLD = 8.0
+#: The RMS of the differences below this quantile bounds the robust scale from below.
+TRIM_QUANTILE = 0.999
 #: How many event positions a report lists.
 MAX_LISTED = 20
 
@@ -133,10 +137,15 @@ def detect_spikes(
         return empty
     d = arr[1:-1] - 0.5 * (arr[:-2] + arr[2:])
     med = float(np.median(d))
-    mad = float(np.median(np.abs(d - med)))
-    scale = 1.482602218505602 * mad
-    if scale == 0.0:  # heavily quantised: most differences are 0
-        scale = 1.2533141373155 * float(np.mean(np.abs(d - med)))
+    a = np.abs(d - med)
+    scale = 1.482602218505602 * float(np.median(a))
+    # On quantised samples the median absolute deviation underestimates the spread
+    # (most differences are 0 or one step); the RMS of the central 99.9 % does not,
+    # and spikes rarer than 1 in 1000 samples do not enter it.
+    cut = float(np.quantile(a, TRIM_QUANTILE))
+    central = a[a <= cut]
+    if central.size:
+        scale = max(scale, float(np.sqrt(np.mean(central * central))))
     if scale == 0.0:
         return empty
     z = np.abs(d - med) / scale
