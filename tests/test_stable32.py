@@ -85,7 +85,9 @@ def test_confidence_intervals_match_stable32(ocxo: tuple[Path, np.ndarray], stat
     est = S32[stat]
     r = allan(y, 1.0, taus=ref[:, 1], estimator=est, noise=0)
     alpha = ref[:, 3].astype(int)
-    edf = np.array([estimator_edf(est, int(a), int(m), y.size) for a, m in zip(alpha, r.m)])
+    edf = np.array(
+        [estimator_edf(est, int(a), int(m), y.size) for a, m in zip(alpha, r.m, strict=True)]
+    )
     lo, hi = confidence_interval(np.ones_like(edf), edf, 0.683)
     keep = ~((est == "total") & (alpha >= 1))
     assert keep.sum() >= ref.shape[0] - 4
