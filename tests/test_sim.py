@@ -145,6 +145,21 @@ def test_xsens_mtx_preset_in_si() -> None:
         sim.preset("nope")
 
 
+@pytest.mark.parametrize("grade", ["tactical", "industrial", "consumer"])
+def test_grade_presets_carry_their_rate_random_walk(grade: str) -> None:
+    from imubounds.presets import get_preset
+
+    p = get_preset(grade)
+    spec = sim.preset(grade)
+    for kind in ("gyro", "accel"):
+        axis = spec.channels[f"{kind}_x"]
+        for term in ("N", "B", "K"):
+            assert getattr(axis, term) == pytest.approx(p.kind(kind)[term], rel=1e-5), (kind, term)
+        # K is chosen to overtake the flicker floor inside a long log: 100 s .. 1 h
+        tau_k = 3.0 * (2 * math.log(2) / math.pi) * axis.B**2 / axis.K**2
+        assert 100.0 <= tau_k <= 3600.0, (kind, tau_k)
+
+
 def test_datasheet_white_noise_gives_the_datasheet_density() -> None:
     spec = sim.preset("xsens-mtx")
     log = sim.simulate(spec, 100.0, 600.0, seed=1, channels=["gyro_x", "accel_x"])
