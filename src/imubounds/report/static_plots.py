@@ -111,7 +111,7 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
         label=f"measured ({'robust ' if a.robust else ''}{a.estimator})",
         zorder=3,
     )
-    kw = {"estimator": a.estimator, "rate_hz": a.rate_hz, "n_samples": a.n_samples}
+    est, rate, n_s = a.estimator, a.rate_hz, a.n_samples
     tt = np.logspace(np.log10(tau[0]), np.log10(tau[-1]), 200)
     ymin, ymax = np.nanmin(lo[lo > 0]) if np.any(lo > 0) else dev.min(), np.nanmax(hi)
     sel = ch.selected
@@ -124,7 +124,7 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
             continue  # bounds of absent Q and R only clutter the figure
         ax.plot(
             tt,
-            term_line(t, v, tt, **kw) * scale,
+            term_line(t, v, tt, est, rate, n_s) * scale,
             ":" if bound else "--",
             color=color,
             lw=0.9 if bound else 1.0,
@@ -132,7 +132,7 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
         )
         if t in READ_TAU and not bound and tt[0] <= READ_TAU[t] <= tt[-1]:
             rt = np.array([READ_TAU[t]])
-            ax.plot(rt, term_line(t, v, rt, **kw) * scale, "x", color=color, ms=6)
+            ax.plot(rt, term_line(t, v, rt, est, rate, n_s) * scale, "x", color=color, ms=6)
     terms = ch.fit if terms_from == "fit" else ch.slope
     ax.plot(
         tt, terms.adev(tt) * scale, "-", color="tab:cyan", lw=1.8, label=f"terms ({terms.method})"
@@ -222,6 +222,10 @@ def save_figure(
     out = []
     for fmt in formats:
         dest = dest_stem.with_suffix(f".{fmt}")
-        out.append(write_with(dest, lambda p, fmt=fmt: fig.savefig(p, format=fmt, dpi=130)))
+
+        def save(p: Path, fmt: str = fmt) -> None:
+            fig.savefig(p, format=fmt, dpi=130)
+
+        out.append(write_with(dest, save))
     plt.close(fig)
     return out

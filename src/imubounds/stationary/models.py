@@ -196,7 +196,7 @@ def avar_from_variogram(gamma: NDArray[np.float64], m: ArrayLike) -> NDArray[np.
     c2 = np.concatenate(([0.0], np.cumsum(j * g)))
 
     def big_g(k: NDArray[np.int64]) -> NDArray[np.float64]:
-        return k * c1[k] - c2[k]
+        return np.asarray(k * c1[k] - c2[k], dtype=np.float64)
 
     mf = mm.astype(np.float64)
     return np.asarray((big_g(2 * mm) - 4.0 * big_g(mm)) / (mf * mf), dtype=np.float64)
@@ -566,14 +566,14 @@ def fit_gauss_markov(
         # linear interpolation of the crossing between lags j-1 and j
         frac = (rho[j - 1] - 1.0 / math.e) / (rho[j - 1] - rho[j])
         tc = (j - 1 + frac) * h
-        fit_info = {"lag_1_over_e_s": tc, "rho1": float(rho[1])}
+        paper_info = {"lag_1_over_e_s": tc, "rho1": float(rho[1])}
         notes.append("Gauss-Markov by the paper's 1/e read-off (a white-noise floor biases it)")
         return GaussMarkovModel(
             beta=1.0 / tc,
             sigma=math.sqrt(r0),
             white_density=0.0,
             method="paper_1_over_e",
-            fit=fit_info,
+            fit=paper_info,
             fitted_rate_hz=1.0 / h,
             decimation=d,
             unit=unit,
@@ -699,7 +699,7 @@ def ar_autocovariance(
             m[k, abs(k - i)] += a[i - 1]
     rhs = np.zeros(p + 1)
     rhs[0] = noise_variance
-    r = np.linalg.solve(m, rhs)
+    r = np.asarray(np.linalg.solve(m, rhs), dtype=np.float64)
     if nlags <= p + 1:
         return r[:nlags]
     den = np.concatenate(([1.0], a))

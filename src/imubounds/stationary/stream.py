@@ -42,6 +42,7 @@ time left.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 import shutil
@@ -50,7 +51,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -211,7 +212,7 @@ class PhaseFile:
     def __init__(self, path: str | Path, n_samples: int) -> None:
         self.path = Path(path)
         self.n = int(n_samples)
-        self._f: IO[bytes] = open(self.path, "rb")  # noqa: SIM115
+        self._f: io.BufferedReader = open(self.path, "rb")  # noqa: SIM115
         self.bytes_read = 0
 
     def read(self, a: int, b: int) -> np.ndarray:
@@ -233,7 +234,7 @@ class PhaseFile:
         if a < 0 or a + k > self.n + 1:
             raise ValueError(f"phase range [{a}, {a + k}) outside [0, {self.n + 1})")
         self._f.seek(8 * a)
-        got = self._f.readinto(memoryview(out).cast("B"))
+        got = self._f.readinto(out.data.cast("B"))
         if got != 8 * k:
             raise InputError(f"{self.path}: phase file is truncated")
         self.bytes_read += 8 * k
@@ -623,7 +624,9 @@ def allan_outofcore(
     mem = parse_memory(memory_limit)
     block = block_size(mem)
     if not isinstance(log, ChunkedLog):
-        log = open_chunked(log, channels=channels, **open_kwargs)
+        log = open_chunked(
+            log, channels=list(channels) if channels is not None else None, **open_kwargs
+        )
     names = list(channels) if channels else list(log.channels)
     missing = [c for c in names if c not in log.channels]
     if missing:
@@ -719,9 +722,9 @@ def allan_outofcore(
             progress_done[0] += k
             report("allan", min(progress_done[0], total), total)
 
-        out: dict[str, AllanResult] = {}
+        curves: dict[str, AllanResult] = {}
         for c in names:
-            out[c] = allan_from_phase_file(
+            curves[c] = allan_from_phase_file(
                 phases[c],
                 log.rate_hz,
                 taus,
@@ -731,7 +734,7 @@ def allan_outofcore(
                 block=block,
                 tick=tick,
             )
-            progress_done[0] = per * (len(out))
+            progress_done[0] = per * (len(curves))
             report("allan", progress_done[0], total)
         if stats is not None:
             stats.n_samples = n
@@ -740,7 +743,7 @@ def allan_outofcore(
             stats.temp_bytes = 8 * (n + 1) * len(names)
             stats.bytes_read = sum(p.bytes_read for p in phases.values())
             stats.seconds = time.perf_counter() - t_start
-        return out
+        return curves
     finally:
         for p in phases.values():
             p.close()
@@ -774,7 +777,9 @@ def analyse_static_outofcore(
     log = (
         path
         if isinstance(path, ChunkedLog)
-        else open_chunked(path, channels=channels, **open_kwargs)
+        else open_chunked(
+            path, channels=list(channels) if channels is not None else None, **open_kwargs
+        )
     )
     names = [c for c in (channels or log.channels) if c.startswith(("gyro", "accel"))]
     if not names:

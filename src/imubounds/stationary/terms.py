@@ -97,11 +97,16 @@ class AllanCurve(Protocol):
     (defaults: overlapping, continuous-time factors, no record-length bias).
     """
 
-    tau: NDArray[np.float64]
-    dev: NDArray[np.float64]
-    ci_lower: NDArray[np.float64]
-    ci_upper: NDArray[np.float64]
-    edf: NDArray[np.float64]
+    @property
+    def tau(self) -> NDArray[np.float64]: ...
+    @property
+    def dev(self) -> NDArray[np.float64]: ...
+    @property
+    def ci_lower(self) -> NDArray[np.float64]: ...
+    @property
+    def ci_upper(self) -> NDArray[np.float64]: ...
+    @property
+    def edf(self) -> NDArray[np.float64]: ...
 
 
 @dataclass(frozen=True)
@@ -296,7 +301,7 @@ def curve_upper_bound(curve: AllanCurve | _Curve, term: str) -> tuple[float, flo
     expectation). ``(inf, nan)`` when the estimator is blind to the term.
     """
     c = curve if isinstance(curve, _Curve) else _curve(curve)
-    j = TERMS.index(term)  # type: ignore[arg-type]
+    j = TERMS.index(term)
     f = c.basis[:, j]
     if not np.any(f > 0):
         return math.inf, math.nan
@@ -502,7 +507,7 @@ def fit_terms(
     chi2_stat = float(np.sum(w * (lr / sd_stat) ** 2)) / dof
     shares = _shares(c, coef, active)
     adequate = c.edf >= EDF_MIN
-    values = {t: 0.0 for t in TERMS}
+    values: dict[str, float] = {t: 0.0 for t in TERMS}
     ci: dict[str, tuple[float, float]] = {}
     status: dict[str, str] = {}
     info: dict[str, dict[str, Any]] = {}
@@ -571,7 +576,11 @@ def fit_terms(
         estimator=c.estimator,
         rate_hz=c.rate_hz,
         n_samples=c.n_samples,
-        **values,
+        Q=values["Q"],
+        N=values["N"],
+        B=values["B"],
+        K=values["K"],
+        R=values["R"],
     )
 
 
@@ -730,7 +739,11 @@ def fit_slopes(
         estimator=c.estimator,
         rate_hz=c.rate_hz,
         n_samples=c.n_samples,
-        **{t: values[t] for t in TERMS},
+        Q=values["Q"],
+        N=values["N"],
+        B=values["B"],
+        K=values["K"],
+        R=values["R"],
     )
 
 
