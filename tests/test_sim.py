@@ -221,6 +221,13 @@ def _fake_noise_json() -> dict:
                 "K": term(1e-5),
                 "R": term(None),
             },
+            "selected": {
+                "Q": term(1e-6),
+                "N": term(1e-3),
+                "B": term(2e-4),
+                "K": term(1e-5),
+                "R": term(None),
+            },
         },
         "models": {
             "gauss_markov": GaussMarkovModel(
@@ -244,6 +251,9 @@ def test_from_noise_json_takes_fit_or_slope_terms_and_models() -> None:
     assert fit.rate_hz == 50.0 and set(fit.channels) == {"gyro_x"}
     slope = sim.NoiseSpec.from_noise_json(data, terms="slope").channels["gyro_x"]
     assert (slope.N, slope.B, slope.K) == (2e-3, 1e-4, 0.0)
+    # the selected terms: upper bounds where the log did not resolve a term, never 0
+    sel = sim.NoiseSpec.from_noise_json(data, terms="selected").channels["gyro_x"]
+    assert (sel.Q, sel.N, sel.B, sel.K) == (1e-6, 1e-3, 2e-4, 1e-5)
     mod = sim.NoiseSpec.from_noise_json(data, terms="none", models=("gm", "ar"))
     ax = mod.channels["gyro_x"]
     assert ax.N == 0 and ax.gauss_markov[0].beta == 0.01 and ax.ar is not None

@@ -7,6 +7,7 @@ import json
 import sys
 from typing import Any
 
+from imubounds.cli._common import finite_float, nonneg_int, positive_float, positive_int
 from imubounds.errors import OptionError
 
 EPILOG = """\
@@ -43,9 +44,10 @@ def register(sub: Any) -> None:
     src.add_argument("--spec", metavar="FILE", help="noise spec in YAML or JSON")
     src.add_argument(
         "--terms",
-        choices=("fit", "slope", "none"),
+        choices=("fit", "slope", "selected", "none"),
         default="fit",
-        help="with --from-noise: which term estimate to use (default fit)",
+        help="with --from-noise: which term estimate to use: fit (default), slope, or the "
+        "selected terms (upper bounds where the log did not resolve a term)",
     )
     src.add_argument(
         "--models",
@@ -74,14 +76,16 @@ def register(sub: Any) -> None:
     run_g = p.add_argument_group("the run")
     run_g.add_argument(
         "--rate",
-        type=float,
+        type=positive_float,
         metavar="HZ",
         help="sample rate (default: the noise.json's or the spec's)",
     )
     run_g.add_argument("--duration", metavar="T", help="length: 7200, 7200s, 90min, 2h")
-    run_g.add_argument("--samples", type=int, metavar="N", help="length in samples")
-    run_g.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    run_g.add_argument("--t0", type=float, default=0.0, metavar="S", help="first time stamp")
+    run_g.add_argument("--samples", type=positive_int, metavar="N", help="length in samples")
+    run_g.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default 0)")
+    run_g.add_argument(
+        "--t0", type=finite_float, default=0.0, metavar="S", help="first time stamp in s"
+    )
     run_g.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--save-spec", metavar="JSON", help="also write the resolved spec (SI) here")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
