@@ -202,38 +202,11 @@ def avar_from_variogram(gamma: NDArray[np.float64], m: ArrayLike) -> NDArray[np.
     return np.asarray((big_g(2 * mm) - 4.0 * big_g(mm)) / (mf * mf), dtype=np.float64)
 
 
-def _avar_at_tau(
-    tau: ArrayLike, dt: float, gamma_fn: Callable[[int], NDArray[np.float64]]
+def _at_tau(
+    tau: ArrayLike, dt: float, at_m: Callable[[NDArray[np.int64]], NDArray[np.float64]]
 ) -> NDArray[np.float64]:
-    """σ²(τ) of a sampled process for arbitrary τ ≥ dt (log-log interpolation
-    between the integer cluster sizes around τ/dt; NaN below dt)."""
-    t = np.atleast_1d(np.asarray(tau, dtype=np.float64))
-    out = np.full(t.shape, np.nan)
-    mreal = t / dt
-    ok = np.isfinite(mreal) & (mreal >= 1.0 - 1e-9)
-    if not ok.any():
-        return out
-    mr = np.maximum(mreal[ok], 1.0)
-    lo = np.floor(mr + 1e-9).astype(np.int64)
-    hi = np.maximum(lo, np.ceil(mr - 1e-9).astype(np.int64))
-    gamma = gamma_fn(int(2 * hi.max()))
-    a_lo = avar_from_variogram(gamma, lo)
-    a_hi = avar_from_variogram(gamma, hi)
-    same = hi == lo
-    w = np.where(same, 0.0, (np.log(mr) - np.log(lo)) / np.where(same, 1.0, np.log(hi / lo)))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        val = np.exp((1 - w) * np.log(a_lo) + w * np.log(a_hi))
-    out[ok] = np.where(same, a_lo, val)
-    return out
-
-
-def _variance_at_tau(
-    tau: ArrayLike, dt: float, acov: Callable[[int], NDArray[np.float64]], estimator: str
-) -> NDArray[np.float64]:
-    """Expected variance of ``estimator`` at τ for a stationary sequence sampled every
-    ``dt`` (log-log interpolation between integer cluster sizes; NaN below dt)."""
-    from imubounds.stationary.theory import stationary_variance
-
+    """A variance known at integer cluster sizes, at arbitrary τ ≥ dt: log-log
+    interpolation between the cluster sizes around τ/dt; NaN below dt."""
     t = np.atleast_1d(np.asarray(tau, dtype=np.float64))
     out = np.full(t.shape, np.nan)
     mreal = t / dt
@@ -244,7 +217,7 @@ def _variance_at_tau(
     lo = np.floor(mr + 1e-9).astype(np.int64)
     hi = np.maximum(lo, np.ceil(mr - 1e-9).astype(np.int64))
     grid = np.unique(np.concatenate((lo, hi)))
-    vals = stationary_variance(acov, grid, estimator)
+    vals = at_m(grid)
     v_lo = vals[np.searchsorted(grid, lo)]
     v_hi = vals[np.searchsorted(grid, hi)]
     same = hi == lo
@@ -253,6 +226,27 @@ def _variance_at_tau(
         val = np.exp((1 - w) * np.log(v_lo) + w * np.log(v_hi))
     out[ok] = np.where(same, v_lo, val)
     return out
+
+
+def _avar_at_tau(
+    tau: ArrayLike, dt: float, gamma_fn: Callable[[int], NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """σ²(τ) (overlapping Allan) of a sampled process from its variogram (see :func:`_at_tau`)."""
+
+    def at_m(m: NDArray[np.int64]) -> NDArray[np.float64]:
+        return avar_from_variogram(gamma_fn(int(2 * m.max())), m)
+
+    return _at_tau(tau, dt, at_m)
+
+
+def _variance_at_tau(
+    tau: ArrayLike, dt: float, acov: Callable[[int], NDArray[np.float64]], estimator: str
+) -> NDArray[np.float64]:
+    """Expected variance of ``estimator`` at τ for a stationary sequence sampled every
+    ``dt`` from its autocovariance (see :func:`_at_tau`)."""
+    from imubounds.stationary.theory import stationary_variance
+
+    return _at_tau(tau, dt, lambda m: stationary_variance(acov, m, estimator))
 
 
 def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:

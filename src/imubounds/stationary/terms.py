@@ -269,6 +269,14 @@ def _curve(curve: AllanCurve) -> _Curve:
     )
 
 
+def _curve_fields(c: _Curve) -> dict[str, Any]:
+    return {"estimator": c.estimator, "rate_hz": c.rate_hz, "n_samples": c.n_samples}
+
+
+def _term_fields(values: Mapping[str, float]) -> dict[str, Any]:
+    return {t: float(values[t]) for t in TERMS}
+
+
 def local_slopes(tau: ArrayLike, dev: ArrayLike) -> NDArray[np.float64]:
     """Local log-log slope d log σ / d log τ at each point (central differences)."""
     lt = np.log(np.asarray(tau, dtype=np.float64))
@@ -573,14 +581,8 @@ def fit_terms(
             "robust": bool(robust),
             "confidence": confidence,
         },
-        estimator=c.estimator,
-        rate_hz=c.rate_hz,
-        n_samples=c.n_samples,
-        Q=values["Q"],
-        N=values["N"],
-        B=values["B"],
-        K=values["K"],
-        R=values["R"],
+        **_curve_fields(c),
+        **_term_fields(values),
     )
 
 
@@ -736,14 +738,8 @@ def fit_slopes(
         notes=notes,
         status=status,
         info=info,
-        estimator=c.estimator,
-        rate_hz=c.rate_hz,
-        n_samples=c.n_samples,
-        Q=values["Q"],
-        N=values["N"],
-        B=values["B"],
-        K=values["K"],
-        R=values["R"],
+        **_curve_fields(c),
+        **_term_fields(values),
     )
 
 
