@@ -1307,16 +1307,41 @@ def fit_models(
             ar, a_ar = _best_ar(arr, rate_hz, factors, curve, ar_order_max, criterion, notes, unit)
             if a_ar is not None:
                 adq["ar"] = a_ar
-        return ModelsResult(
-            gauss_markov=gm,
-            ar=ar,
-            rate_hz=float(rate_hz),
-            decimation=d,
-            n_samples=int(arr.size),
-            unit=unit,
-            notes=notes,
-            adequacy=adq,
-        )
+    else:
+        gm, ar = _fit_plain(arr, rate_hz, ks, fixed, notes, max_lag_s=max_lag_s,
+                            gm_method=gm_method, ar_order_max=ar_order_max, criterion=criterion,
+                            ar_order=ar_order, name=name, unit=unit)  # fmt: skip
+        adq = {}
+    return ModelsResult(
+        gauss_markov=gm,
+        ar=ar,
+        rate_hz=float(rate_hz),
+        decimation=d,
+        n_samples=int(arr.size),
+        unit=unit,
+        notes=notes,
+        adequacy=adq,
+    )
+
+
+def _fit_plain(
+    arr: NDArray[np.float64],
+    rate_hz: float,
+    ks: tuple[str, ...],
+    fixed: float | None,
+    notes: list[str],
+    *,
+    max_lag_s: float | None,
+    gm_method: Literal["acf_ls", "paper"],
+    ar_order_max: int,
+    criterion: str,
+    ar_order: int | None,
+    name: str,
+    unit: str | None,
+) -> tuple[GaussMarkovModel | None, ArModel | None]:
+    """The models at one fit rate, without checking them against a curve."""
+    gm: GaussMarkovModel | None = None
+    ar: ArModel | None = None
     if "gm" in ks:
         try:
             gm = fit_gauss_markov(
@@ -1343,12 +1368,4 @@ def fit_models(
             unit=unit,
             notes=notes,
         )
-    return ModelsResult(
-        gauss_markov=gm,
-        ar=ar,
-        rate_hz=float(rate_hz),
-        decimation=d,
-        n_samples=int(arr.size),
-        unit=unit,
-        notes=notes,
-    )
+    return gm, ar
