@@ -28,16 +28,17 @@ Three results are built from one curve:
   tangent to the curve inside the home (the point minimising
   ``σ²(τ)/f_j(τ)``, which is where the local slope equals the term's) and
   read at the characteristic τ. The τ used, the local slope there and the
-  expected slope are reported, with a warning when they disagree or when the
-  read point sits on the edge of the curve. B is read from σ_min, the lowest
-  point with adequate EDF: ``B = σ_min / 0.664`` on an Allan curve (0.546
-  modified, 0.598 Hadamard).
+  expected slope are reported, with a warning when they disagree (other
+  terms contribute there and the value is an upper estimate). B is read
+  from σ_min, the lowest point with adequate EDF: ``B = σ_min / 0.664`` on
+  an Allan curve (0.546 modified, 0.598 Hadamard). The read-off counts as
+  resolved only where the fit resolves the term.
 * :func:`select_terms` — the terms used for bounds and ``imu.yaml``: a
   resolved term from the preferred estimate, otherwise an **upper bound**
   from the curve's confidence intervals where the term would show,
-  ``min_τ σ_hi(τ)/√f_j(τ)`` at 99 % per point with EDF ≥ 10. Every other term only adds
-  variance, so the true term lies below it whenever the intervals hold. An
-  unresolved term is never 0.
+  ``min_τ σ_hi(τ)/√f_j(τ)`` at 99 % per point with EDF ≥ 10. Every other
+  term only adds variance, so the true term lies below it whenever the
+  intervals hold. An unresolved term is never 0.
 
 Everything is SI: Q in rad (m/s), N in rad/s^0.5 (m/s^1.5), B in rad/s
 (m/s^2), K in rad/s^1.5 (m/s^2.5), R in rad/s^2 (m/s^3).
@@ -62,9 +63,8 @@ from imubounds.units import DATASHEET_UNITS, SI_UNITS, SensorKind, Term, to_data
 TERMS: tuple[Term, ...] = ("Q", "N", "B", "K", "R")
 #: √(2 ln2 / π): the flat level of the Allan deviation of flicker noise, per unit B.
 B_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
-#: log-log slope of the Allan deviation for each term, and the τ (s) at which
-#: IEEE 952 reads the line (N at 1 s, K at 3 s, Q at √3 s, R at √2 s).
-SLOPES: dict[Term, float] = {"Q": -1.0, "N": -0.5, "B": 0.0, "K": 0.5, "R": 1.0}
+#: The τ (s) at which IEEE 952 reads each term's line on an Allan curve
+#: (N at 1 s, K at 3 s, Q at √3 s, R at √2 s); other estimators: :func:`expected_slope`.
 READ_TAU: dict[Term, float] = {"Q": math.sqrt(3.0), "N": 1.0, "K": 3.0, "R": math.sqrt(2.0)}
 #: How far (in slope units) the local slope may be from the term's expected
 #: slope before the read-off warns that other terms contribute there.
