@@ -75,6 +75,7 @@ def test_robust_curve_equals_the_plain_one_on_clean_data(logs: tuple[np.ndarray,
         assert np.all(np.abs(ratio - 1.0) < 0.02), (e, np.round(ratio, 3))
 
 
+@pytest.mark.slow  # six estimators, plain and robust, on a 3 h log: ~10 s
 @pytest.mark.parametrize("estimator", ESTIMATORS)
 def test_robust_recovers_n_and_b_where_the_plain_curve_fails(
     logs: tuple[np.ndarray, ...], estimator: str
