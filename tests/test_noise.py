@@ -130,6 +130,18 @@ def test_a_notch_or_a_bump_cannot_drag_the_fit(factor: float) -> None:
     assert worst > 0.05, f"the plain fit is dragged by {worst:.1%}"
 
 
+def test_a_notch_at_the_floor_is_not_taken_for_sigma_min() -> None:
+    tau = np.logspace(-2, 3.5, 24)
+    c = exact_curve(tau, edf=np.logspace(6, 2, tau.size), rate_hz=RATE, N=0.1, B=0.01, K=2e-4)
+    i = int(np.argmin(c.dev))
+    floor = float(c.dev[i])
+    c.dev[i] *= 0.3
+    fit, slope, sel = analyse_curve(c)
+    assert sel.sigma_min["index"] != i
+    assert sel.sigma_min["value"] == pytest.approx(floor, rel=0.1)
+    assert slope.B == pytest.approx(sel.sigma_min["value"] / B_FACTOR, rel=1e-6)
+
+
 def test_intervals_include_the_model_misfit() -> None:
     """A curve off the model by ±15 % with EDF 1e6 gets intervals of that size, not ±0.1 %."""
     tau = np.logspace(-2, 3.5, 30)

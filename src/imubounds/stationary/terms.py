@@ -578,6 +578,7 @@ def fit_terms(
             "points_downweighted": down,
             "cov_inflation": inflate,
             "removed": gone,
+            "point_weights": [float(v) for v in w],
             "robust": bool(robust),
             "confidence": confidence,
         },
@@ -611,18 +612,27 @@ def expected_slope(term: str, estimator: str, tau_s: float, **kw: Any) -> float:
     return float(0.5 * (math.log(r[1]) - math.log(r[0])) / math.log(1.05**2))
 
 
-def sigma_min(curve: AllanCurve | _Curve) -> dict[str, Any]:
+def _fit_weights(fit: NoiseTerms, size: int) -> NDArray[np.float64]:
+    w = np.asarray(fit.stats.get("point_weights", np.ones(size)), dtype=np.float64)
+    return w if w.shape == (size,) else np.ones(size)
+
+
+def sigma_min(curve: AllanCurve | _Curve, weights: ArrayLike | None = None) -> dict[str, Any]:
     """The lowest point of the curve among points with EDF ≥ :data:`EDF_MIN`.
 
-    Returns ``{"value", "tau_s", "ci", "edf", "index"}`` (value in the unit of
-    the curve). Falls back to all points when none has that EDF (and says so).
+    ``weights`` (the robust fit's point weights) leave out points the fit set
+    aside (weight < 0.5: a notch is not a bias stability). Returns
+    ``{"value", "tau_s", "ci", "edf", "index"}`` (value in the unit of the
+    curve). Falls back to all points when none qualifies (and says so).
     """
     c = curve if isinstance(curve, _Curve) else _curve(curve)
     ok = c.edf >= EDF_MIN
+    if weights is not None:
+        ok &= np.asarray(weights, dtype=np.float64) >= 0.5
     note = None
     if not np.any(ok):
         ok = np.ones(c.dev.size, dtype=bool)
-        note = f"no point has EDF >= {EDF_MIN:g}; the minimum is taken over all points"
+        note = f"no kept point has EDF >= {EDF_MIN:g}; the minimum is taken over all points"
     idx = np.flatnonzero(ok)
     i = int(idx[np.argmin(c.dev[ok])])
     out: dict[str, Any] = {
@@ -644,7 +654,9 @@ def fit_slopes(
     """IEEE 952 read-off of Q, N, B, K and R, each where it lives.
 
     The home of a term is where ``fit`` (computed when not given) gives it at
-    least half of the variance and the EDF is at least :data:`EDF_MIN`. Inside
+    least half of the variance, the EDF is at least :data:`EDF_MIN` and the
+    robust fit kept the point (weight ≥ 0.5: a notch, a bump or a first
+    sample shaped by the sensor's own filter is no place to read). Inside
     it the tangent line of the term's slope touches the curve at the point
     minimising ``σ²/f_term``; the term is ``σ/√f_term`` there (for N on an Allan
     curve: ``σ(τ)·√τ``, the line read at τ = 1 s). The CI of that point scales
@@ -657,7 +669,9 @@ def fit_slopes(
         fit = fit_terms(curve)
     shares = _full_shares(c, fit)
     slopes = local_slopes(c.tau, c.dev)
-    adequate = c.edf >= EDF_MIN
+    weights = _fit_weights(fit, c.tau.size)
+    # points the robust fit set aside (a notch, a bump, a filtered first sample) are no home
+    adequate = (c.edf >= EDF_MIN) & (weights >= 0.5)
     kw = {"rate_hz": c.rate_hz, "n_samples": c.n_samples}
     values: dict[str, float] = {}
     ci: dict[str, tuple[float, float]] = {}
@@ -665,7 +679,7 @@ def fit_slopes(
     status: dict[str, str] = {}
     info: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
-    smin = sigma_min(c)
+    smin = sigma_min(c, weights)
     for j, term in enumerate(TERMS):
         f = c.basis[:, j]
         if not np.any(f > 0) or not theory.observable(term, c.estimator):
@@ -876,7 +890,8 @@ def select_terms(
         out[t] = SelectedTerm(ub, "upper_bound", "curve_ci", (0.0, ub), tau_ub, note)
         if t in ("N", "B", "K"):
             notes.append(note)
-    return Selection(terms=out, sigma_min=sigma_min(c), estimator=c.estimator, notes=notes)
+    smin = sigma_min(c, _fit_weights(fit, c.tau.size))
+    return Selection(terms=out, sigma_min=smin, estimator=c.estimator, notes=notes)
 
 
 def analyse_curve(
