@@ -7,7 +7,6 @@ import json
 import sys
 from typing import Any
 
-from imubounds.cli._common import finite_float, nonneg_int, positive_float, positive_int
 from imubounds.errors import OptionError
 
 EPILOG = """\
@@ -76,16 +75,14 @@ def register(sub: Any) -> None:
     run_g = p.add_argument_group("the run")
     run_g.add_argument(
         "--rate",
-        type=positive_float,
+        type=float,
         metavar="HZ",
         help="sample rate (default: the noise.json's or the spec's)",
     )
     run_g.add_argument("--duration", metavar="T", help="length: 7200, 7200s, 90min, 2h")
-    run_g.add_argument("--samples", type=positive_int, metavar="N", help="length in samples")
-    run_g.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default 0)")
-    run_g.add_argument(
-        "--t0", type=finite_float, default=0.0, metavar="S", help="first time stamp in s"
-    )
+    run_g.add_argument("--samples", type=int, metavar="N", help="length in samples")
+    run_g.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    run_g.add_argument("--t0", type=float, default=0.0, metavar="S", help="first time stamp")
     run_g.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--save-spec", metavar="JSON", help="also write the resolved spec (SI) here")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
