@@ -690,9 +690,9 @@ def allan_outofcore(
                 done_rows = 0
                 for c in names:
                     for y in blocks_of(c):
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                         done_rows += y.shape[0]
                         report("phase", done_rows // len(names), n)
                     spill[c].unlink()
@@ -701,9 +701,9 @@ def allan_outofcore(
                 for blk in log.iter_chunks(rows):
                     for c in names:
                         y = np.ascontiguousarray(blk[c], dtype=np.float64)
-                        out = np.empty_like(y)
-                        state[c] = _phase_block(y, means[c], t0, *state[c], out)
-                        out.tofile(out_files[c])
+                        x = np.empty_like(y)
+                        state[c] = _phase_block(y, means[c], t0, *state[c], x)
+                        x.tofile(out_files[c])
                     done_rows += next(iter(blk.values())).shape[0]
                     report("phase", done_rows, n)
         finally:
@@ -722,9 +722,9 @@ def allan_outofcore(
             progress_done[0] += k
             report("allan", min(progress_done[0], total), total)
 
-        curves: dict[str, AllanResult] = {}
+        out: dict[str, AllanResult] = {}
         for c in names:
-            curves[c] = allan_from_phase_file(
+            out[c] = allan_from_phase_file(
                 phases[c],
                 log.rate_hz,
                 taus,
@@ -734,7 +734,7 @@ def allan_outofcore(
                 block=block,
                 tick=tick,
             )
-            progress_done[0] = per * (len(curves))
+            progress_done[0] = per * (len(out))
             report("allan", progress_done[0], total)
         if stats is not None:
             stats.n_samples = n
@@ -743,7 +743,7 @@ def allan_outofcore(
             stats.temp_bytes = 8 * (n + 1) * len(names)
             stats.bytes_read = sum(p.bytes_read for p in phases.values())
             stats.seconds = time.perf_counter() - t_start
-        return curves
+        return out
     finally:
         for p in phases.values():
             p.close()
