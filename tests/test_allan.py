@@ -441,6 +441,8 @@ def test_tau_grammar_reads_each_form(text: str, want: object) -> None:
         ("points:1", "K >= 2"),
         ("points:x", "K >= 2"),
         ("1,-2s", "positive"),
+        ("0.1,-1", "positive"),
+        ("1,infs", "finite"),
         ("1,xs", "cannot read"),
         ("weekly", "unknown tau grid"),
     ],

@@ -296,24 +296,25 @@ def parse_tau_spec(text: str) -> str | int | list[float]:
         if not body.isdigit() or int(body) < 2:
             raise OptionError(f"tau grid {raw!r}: points:K needs a whole number K >= 2")
         return int(body)
-    if t.endswith("s") and not t.endswith("ss"):
-        items = [v.strip() for v in t[:-1].split(",")]
-        try:
-            values = [float(v) for v in items]
-        except ValueError:
+    seconds = t.endswith("s")
+    items = [v.strip() for v in (t[:-1] if seconds else t).split(",")]
+    try:
+        values = [float(v) for v in items]
+    except ValueError:
+        if seconds:
             raise OptionError(
                 f"tau grid {raw!r}: cannot read the seconds; write e.g. '1,10,100s'"
             ) from None
-        if not values or any(not (math.isfinite(v) and v > 0) for v in values):
-            raise OptionError(f"tau grid {raw!r}: every tau must be a positive number of seconds")
-        return values
-    try:
-        float(t.split(",")[0])
-    except ValueError:
         raise OptionError(f"unknown tau grid {raw!r}: use {TAU_GRAMMAR}") from None
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise OptionError(
+            f"tau grid {raw!r}: every tau must be a positive, finite number of seconds"
+        )
+    if seconds:
+        return values
     raise OptionError(
-        f"tau grid {raw!r} is ambiguous: write points:{t} for {t} log-spaced points or {t}s "
-        "for averaging times in seconds"
+        f"tau grid {raw!r} is ambiguous: write points:K for K log-spaced points (K >= 2) or "
+        f"{t}s for averaging times in seconds"
     )
 
 
