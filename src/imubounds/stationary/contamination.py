@@ -73,8 +73,9 @@ class SpikeReport:
     def found(self) -> bool:
         return self.events > 0
 
-    def warning(self) -> str | None:
-        """One line for the user, or None when the log is clean."""
+    def warning(self, robust: bool = False) -> str | None:
+        """One line for the user, or None when the log is clean (``robust``: the
+        robust curve is in use and sets the spikes aside)."""
         if not self.found:
             return None
         where = ", ".join(f"{t:.6g}" for t in self.first_time_s[:3])
@@ -82,8 +83,12 @@ class SpikeReport:
             f"{self.channel}: {self.events} spike(s) beyond {self.threshold:g} robust sigma "
             f"({self.samples} sample(s), largest z = {self.max_z:.3g}) at t = {where}"
             f"{' ...' if self.events > 3 else ''} s (row {self.first_index[0]}); they carry "
-            f"{self.variance_share:.2%} of the sample-period Allan variance and inflate N; "
-            "compare with --robust"
+            f"{self.variance_share:.2%} of the sample-period Allan variance"
+            + (
+                "; the robust curve interpolates them (the plain one is kept for comparison)"
+                if robust
+                else " and inflate N; compare with --robust"
+            )
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -351,8 +351,9 @@ def analyse_static(
         notes: list[str] = []
         warnings: list[str] = []
         rep = spikes.get(name)
-        if rep is not None and rep.warning():
-            warnings.append(rep.warning() or "")
+        msg = rep.warning(settings.robust) if rep is not None else None
+        if msg:
+            warnings.append(msg)
         used = {t: sel.value(t) for t in ("N", "B")}
         for t in ("N", "B"):
             if sel.status(t) == "upper_bound":
