@@ -25,6 +25,7 @@ from imubounds.stationary.allan import (
     edf_totdev,
     max_cluster_size,
     noise_id_lag1,
+    parse_tau_spec,
     tau_grid,
 )
 
@@ -36,6 +37,7 @@ AT_FUNC = {
     "non-overlapping": "adev",
     "modified": "mdev",
     "hadamard": "ohdev",
+    "non-overlapping-hadamard": "hdev",
     "total": "totdev",
 }
 
@@ -146,6 +148,8 @@ def test_matches_allantools(estimator: str, n: int, rate: float) -> None:
     ms, _ = tau_grid(n, rate, 25, estimator)
     if estimator == "non-overlapping":
         ms = ms[n // ms >= 3]  # allantools drops points with a single term
+    if estimator == "non-overlapping-hadamard":
+        ms = ms[n // ms >= 4]
     assert _compare_allantools(y, rate, ms, estimator) < 1e-12
 
 
@@ -161,6 +165,8 @@ def test_matches_allantools_property(n: int, frac: float, est: str, rate: float,
     m_max = max_cluster_size(n, est)
     if est == "non-overlapping":
         m_max = n // 3
+    if est == "non-overlapping-hadamard":
+        m_max = n // 4  # allantools drops a point with a single term
     m = 1 + int(frac * (m_max - 1))
     y = np.random.default_rng(seed).normal(size=n)
     assert _compare_allantools(y, rate, np.array([m]), est) < 1e-12
@@ -217,6 +223,8 @@ def test_kernel_ranges_add_up_for_chunked_drivers(estimator: str, tmp_path) -> N
     cuts = [k0, k0 + 1, k0 + span // 3, k0 + (2 * span) // 3, k1]
     if estimator == "non-overlapping":
         parts = [K.adev_sumsq(mm, m, a * m, b * m, m) for a, b in pairwise(cuts)]
+    elif estimator == "non-overlapping-hadamard":
+        parts = [K.hdev_sumsq(mm, m, a * m, b * m, m) for a, b in pairwise(cuts)]
     else:
         fn = {
             "overlapping": lambda a, b: K.adev_sumsq(mm, m, a, b, 1),
@@ -402,6 +410,51 @@ def test_tau_grid_specs() -> None:
     m, tau = tau_grid(1000, 100.0, [0.02, 0.014, 0.1, 0.02])
     assert list(m) == [1, 2, 10]
     np.testing.assert_allclose(tau, [0.01, 0.02, 0.1])
+    m, _ = tau_grid(1000, 10.0, "all")
+    assert list(m) == list(range(1, 500))
+    m, _ = tau_grid(1000, 10.0, "points:10")
+    assert list(m) == list(tau_grid(1000, 10.0, 10)[0])
+    m, _ = tau_grid(1000, 10.0, "0.1,1, 10s")
+    assert list(m) == [1, 10, 100]
+
+
+@pytest.mark.parametrize(
+    ("text", "want"),
+    [
+        ("octave", "octave"),
+        (" Decade ", "decade"),
+        ("all", "all"),
+        ("points:60", 60),
+        ("1,10,100s", [1.0, 10.0, 100.0]),
+        ("0.5s", [0.5]),
+    ],
+)
+def test_tau_grammar_reads_each_form(text: str, want: object) -> None:
+    assert parse_tau_spec(text) == want
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("60", "ambiguous"),  # a count or seconds? the old grammar read 60 points
+        ("1,10,100", "ambiguous"),
+        ("points:1", "K >= 2"),
+        ("points:x", "K >= 2"),
+        ("1,-2s", "positive"),
+        ("0.1,-1", "positive"),
+        ("1,infs", "finite"),
+        ("1,xs", "cannot read"),
+        ("weekly", "unknown tau grid"),
+    ],
+)
+def test_tau_grammar_refuses_ambiguous_or_bad_forms(text: str, needle: str) -> None:
+    with pytest.raises(OptionError, match=needle):
+        parse_tau_spec(text)
+
+
+def test_all_tau_refused_where_it_would_not_finish() -> None:
+    with pytest.raises(OptionError, match="points:K"):
+        tau_grid(10**6, 100.0, "all")
 
 
 @pytest.mark.parametrize("estimator", ESTIMATORS)
@@ -416,6 +469,7 @@ def test_max_cluster_size_is_usable(estimator: str) -> None:
     assert max_cluster_size(1000, "hadamard") == 333
     assert max_cluster_size(1000, "modified") == 333
     assert max_cluster_size(1000, "non-overlapping") == 500
+    assert max_cluster_size(1000, "non-overlapping-hadamard") == 333
 
 
 # ---------------------------------------------------------------------------
@@ -461,6 +515,8 @@ def test_errors() -> None:
         allan(y, 10.0, estimator="fancy")
     with pytest.raises(OptionError, match="tau grid"):
         allan(y, 10.0, taus="weekly")
+    with pytest.raises(OptionError, match="ambiguous"):
+        allan(y, 10.0, taus="20")
     with pytest.raises(OptionError, match="sample rate"):
         allan(y, 0.0)
     with pytest.raises(OptionError, match="confidence"):

@@ -459,7 +459,7 @@ OPTION_CASES = [
         (("static", "--tmpdir", "/nonexistent/tmp"), "does not exist"),
         (("static", "--tau", "0.1,-1"), "positive"),
         (("static", "--tau", "1,inf"), "finite"),
-        (("static", "--tau", "1"), "N >= 2"),
+        (("static", "--tau", "1"), "ambiguous"),
         (("simulate-noise", "--seed", "-1", "--preset", "xsens-mtx"), ">= 0"),
         (("simulate-noise", "--samples", "1", "--preset", "xsens-mtx"), "at least 2"),
         (("simulate-noise", "--duration", "0", "--preset", "xsens-mtx"), "positive"),

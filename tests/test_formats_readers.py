@@ -67,7 +67,7 @@ def _noise_numbers(js: dict[str, Any]) -> dict[str, float]:
                 if isinstance(e, dict) and isinstance(e.get("value"), int | float):
                     out[f"{ch}.{method}.{term}"] = float(e["value"])
         out[f"{ch}.sigma_c"] = float(c["sigma_c"])
-        out[f"{ch}.level_95"] = float(c["level_95"]["value"])
+        out[f"{ch}.random_walk_95"] = float(c["random_walk_95"]["value"])
         for k, v in enumerate(c["allan"]["adev"]):
             out[f"{ch}.adev{k}"] = float(v)
     return out

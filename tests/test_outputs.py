@@ -312,8 +312,8 @@ def test_simulate_killed_at_random_points_leaves_old_set_or_new_set(tmp_path: Pa
     target = tmp_path / "sim"
 
     def argv_of(tag: str) -> list[str]:
-        return ["simulate", "--seed", "1" if tag == "a" else "2", "--duration", "200", "--distance", "2000",
-                "-o", str(target), "-q"]
+        return ["simulate", "--seed", "1" if tag == "a" else "2", "--duration", "200",
+                "--distance", "2000", "-o", str(target), "-q"]
 
     def check_set(command: str) -> None:
         seed = 1 if "--seed 1" in command else 2

@@ -49,7 +49,7 @@ def _run_dynamic(out: Path) -> None:
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("run")
     code = cli_main(["static", str(FORMATS / "adis_ros2"), "-o", str(root / "static"), "-q",
-                     "--tau", "20", "--no-report"])
+                     "--tau", "points:20", "--no-report"])
     assert code == 0
     if VN100.is_dir():
         _run_dynamic(root / "dynamic")

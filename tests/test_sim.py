@@ -145,6 +145,21 @@ def test_xsens_mtx_preset_in_si() -> None:
         sim.preset("nope")
 
 
+@pytest.mark.parametrize("grade", ["tactical", "industrial", "consumer"])
+def test_grade_presets_carry_their_rate_random_walk(grade: str) -> None:
+    from imubounds.presets import get_preset
+
+    p = get_preset(grade)
+    spec = sim.preset(grade)
+    for kind in ("gyro", "accel"):
+        axis = spec.channels[f"{kind}_x"]
+        for term in ("N", "B", "K"):
+            assert getattr(axis, term) == pytest.approx(p.kind(kind)[term], rel=1e-5), (kind, term)
+        # K is chosen to overtake the flicker floor inside a long log: 100 s .. 1 h
+        tau_k = 3.0 * (2 * math.log(2) / math.pi) * axis.B**2 / axis.K**2
+        assert 100.0 <= tau_k <= 3600.0, (kind, tau_k)
+
+
 def test_datasheet_white_noise_gives_the_datasheet_density() -> None:
     spec = sim.preset("xsens-mtx")
     log = sim.simulate(spec, 100.0, 600.0, seed=1, channels=["gyro_x", "accel_x"])
@@ -206,6 +221,13 @@ def _fake_noise_json() -> dict:
                 "K": term(1e-5),
                 "R": term(None),
             },
+            "selected": {
+                "Q": term(1e-6),
+                "N": term(1e-3),
+                "B": term(2e-4),
+                "K": term(1e-5),
+                "R": term(None),
+            },
         },
         "models": {
             "gauss_markov": GaussMarkovModel(
@@ -229,6 +251,9 @@ def test_from_noise_json_takes_fit_or_slope_terms_and_models() -> None:
     assert fit.rate_hz == 50.0 and set(fit.channels) == {"gyro_x"}
     slope = sim.NoiseSpec.from_noise_json(data, terms="slope").channels["gyro_x"]
     assert (slope.N, slope.B, slope.K) == (2e-3, 1e-4, 0.0)
+    # the selected terms: upper bounds where the log did not resolve a term, never 0
+    sel = sim.NoiseSpec.from_noise_json(data, terms="selected").channels["gyro_x"]
+    assert (sel.Q, sel.N, sel.B, sel.K) == (1e-6, 1e-3, 2e-4, 1e-5)
     mod = sim.NoiseSpec.from_noise_json(data, terms="none", models=("gm", "ar"))
     ax = mod.channels["gyro_x"]
     assert ax.N == 0 and ax.gauss_markov[0].beta == 0.01 and ax.ar is not None

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from imubounds.errors import InputError, OptionError
 from imubounds.io.chunked import open_chunked
 from imubounds.stationary import _allan_kernels as _k
-from imubounds.stationary.allan import ESTIMATORS, allan
+from imubounds.stationary.allan import ESTIMATORS, allan, max_cluster_size
 from imubounds.stationary.stream import (
     EtaTracker,
     PhaseFile,
@@ -91,8 +91,7 @@ def test_sumsq_file_matches_numpy_reference(
     x = _k.phase_from_rate(y, 0.01)
     p = tmp_path_factory.mktemp("ph") / "x.f64"
     x.tofile(p)
-    m_max = {"overlapping": (n - 1) // 2, "non-overlapping": n // 2, "modified": n // 3,
-             "hadamard": (n - 1) // 3, "total": n // 2}[est]  # fmt: skip
+    m_max = max_cluster_size(n, est)
     ms = np.unique(np.linspace(1, m_max, 6).astype(np.int64))
     with PhaseFile(p, n) as ph:
         got = sumsq_file(ph, est, ms, block)

@@ -51,18 +51,20 @@ class ImuPreset:
         return dict(self.gyro if kind == "gyro" else self.accel)
 
     def noise_mapping(self) -> dict[str, object]:
-        """The preset as a noise-simulator mapping (N and B with their units, readable)."""
-        return {
-            "name": self.name,
-            "gyro": {
-                "N": f"{self.gyro['N'] / DEG:g} deg/s/sqrt(Hz)",
-                "B": f"{self.gyro['B'] / DEG:g} deg/s",
-            },
-            "accel": {
-                "N": f"{self.accel['N']:g} m/s^2/sqrt(Hz)",
-                "B": f"{self.accel['B']:g} m/s^2",
-            },
+        """The preset as a noise-simulator mapping (N, B and K where given, with units)."""
+        gyro = {
+            "N": f"{self.gyro['N'] / DEG:g} deg/s/sqrt(Hz)",
+            "B": f"{self.gyro['B'] / DEG:g} deg/s",
         }
+        accel = {
+            "N": f"{self.accel['N']:g} m/s^2/sqrt(Hz)",
+            "B": f"{self.accel['B']:g} m/s^2",
+        }
+        if "K" in self.gyro:
+            gyro["K"] = f"{self.gyro['K'] / DEG:g} deg/s^1.5"
+        if "K" in self.accel:
+            accel["K"] = f"{self.accel['K']:g} m/s^2.5"
+        return {"name": self.name, "gyro": gyro, "accel": accel}
 
 
 def _p(
@@ -96,7 +98,42 @@ VN100 = _p(
     aliases=("vn-100",),
 )
 
-PRESETS: Mapping[str, ImuPreset] = MappingProxyType({p.key: p for p in (XSENS_MTX, VN100)})
+# Representative sensor grades (not one product each): the known-truth tests of the
+# stationary analysis simulate them. N and B are typical datasheet figures of the
+# grade; K is chosen so that the rate random walk overtakes the flicker floor
+# (K^2 tau/3 = (2 ln2/pi) B^2) at a stated tau, within a 1-3 h log for the
+# industrial and consumer grades and near its end for the tactical one.
+
+#: Tactical-grade MEMS IMU: gyro ARW 0.04 deg/sqrt(h), bias instability 0.45 deg/h,
+#: K overtakes B at 3000 s; accelerometer VRW 0.03 m/s/sqrt(h), 25 ug, K at 1000 s.
+TACTICAL = _p(
+    "tactical",
+    "tactical-grade MEMS IMU (representative figures)",
+    gyro={"N": 0.04 * DEG / 60.0, "B": 0.45 * DEG / 3600.0, "K": 4.583e-08},
+    accel={"N": 0.03 / 60.0, "B": 25e-6 * 9.80665, "K": 8.92e-06},
+)
+
+#: Industrial-grade MEMS IMU: gyro ARW 0.15 deg/sqrt(h), 3 deg/h, K at 200 s;
+#: accelerometer VRW 0.04 m/s/sqrt(h), 25 ug, K at 300 s.
+INDUSTRIAL = _p(
+    "industrial",
+    "industrial-grade MEMS IMU (representative figures)",
+    gyro={"N": 0.15 * DEG / 60.0, "B": 3.0 * DEG / 3600.0, "K": 1.183e-06},
+    accel={"N": 0.04 / 60.0, "B": 25e-6 * 9.80665, "K": 1.629e-05},
+)
+
+#: Consumer-grade MEMS IMU (phone / drone class): gyro 0.014 deg/s/sqrt(Hz), 20 deg/h,
+#: K at 150 s; accelerometer 150 ug/sqrt(Hz), 40 ug, K at 400 s.
+CONSUMER = _p(
+    "consumer",
+    "consumer-grade MEMS IMU (representative figures)",
+    gyro={"N": 0.014 * DEG, "B": 20.0 * DEG / 3600.0, "K": 9.109e-06},
+    accel={"N": 150e-6 * 9.80665, "B": 40e-6 * 9.80665, "K": 2.257e-05},
+)
+
+PRESETS: Mapping[str, ImuPreset] = MappingProxyType(
+    {p.key: p for p in (XSENS_MTX, VN100, TACTICAL, INDUSTRIAL, CONSUMER)}
+)
 
 
 def get_preset(name: str) -> ImuPreset:

@@ -42,6 +42,30 @@ IEEE_UNITS: dict[SensorKind, dict[Term, tuple[str, float]]] = {
     },
 }
 
+# Datasheet-style units (per second and per root-hertz, as most MEMS datasheets
+# print them), shown beside the IEEE 952 ones; the factor converts from SI.
+DATASHEET_UNITS: dict[SensorKind, dict[Term, tuple[str, float]]] = {
+    "gyro": {
+        "Q": ("deg", 1.0 / DEG),
+        "N": ("deg/s/sqrt(Hz)", 1.0 / DEG),
+        "B": ("deg/s", 1.0 / DEG),
+        "K": ("deg/s^2/sqrt(Hz)", 1.0 / DEG),
+        "R": ("deg/s^2", 1.0 / DEG),
+    },
+    "accel": {
+        "Q": ("m/s", 1.0),
+        "N": ("ug/sqrt(Hz)", 1.0e6 / G0),
+        "B": ("mg", 1.0e3 / G0),
+        "K": ("m/s^3/sqrt(Hz)", 1.0),
+        "R": ("m/s^3", 1.0),
+    },
+}
+#: Datasheet unit of the measured signal itself, with the factor from SI.
+SIGNAL_DATASHEET_UNITS: dict[SensorKind, tuple[str, float]] = {
+    "gyro": ("deg/s", 1.0 / DEG),
+    "accel": ("mg", 1.0e3 / G0),
+}
+
 # Measured-quantity units accepted on input, with the factor to SI.
 GYRO_UNITS: dict[str, float] = {
     "rad/s": 1.0,
@@ -79,4 +103,16 @@ def si_unit_of_signal(kind: SensorKind) -> str:
 def to_ieee(kind: SensorKind, term: Term, value_si: float) -> tuple[float, str]:
     """Convert a noise term from SI into IEEE 952 units; returns (value, unit)."""
     unit, factor = IEEE_UNITS[kind][term]
+    return value_si * factor, unit
+
+
+def to_datasheet(kind: SensorKind, term: Term, value_si: float) -> tuple[float, str]:
+    """Convert a noise term from SI into datasheet units; returns (value, unit)."""
+    unit, factor = DATASHEET_UNITS[kind][term]
+    return value_si * factor, unit
+
+
+def signal_to_datasheet(kind: SensorKind, value_si: float) -> tuple[float, str]:
+    """A rate (rad/s) or acceleration (m/s^2) in datasheet units (deg/s, mg)."""
+    unit, factor = SIGNAL_DATASHEET_UNITS[kind]
     return value_si * factor, unit

@@ -310,26 +310,14 @@ def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
 
 
 def parse_taus(text: str) -> str | int | list[float]:
-    """``octave`` | ``decade`` | ``N`` (log-spaced count) | ``0.1,1,10`` (seconds)."""
-    t = text.strip().lower()
-    if t in ("octave", "decade", "all"):
-        return t
-    if t.isdigit():
-        n = int(t)
-        if n < 2:
-            raise OptionError("--tau N needs N >= 2 log-spaced points")
-        return n
-    try:
-        values = [float(v) for v in t.split(",") if v.strip()]
-    except ValueError as err:
-        raise OptionError(
-            f"--tau {text!r}: use octave, decade, a count like 50, or seconds like 0.1,1,10"
-        ) from err
-    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
-        raise OptionError(
-            f"--tau {text!r}: every tau must be a positive, finite number of seconds"
-        )
-    return values
+    """``octave`` | ``decade`` | ``all`` | ``points:K`` | ``1,10,100s`` (seconds).
+
+    The grammar lives in :func:`imubounds.stationary.allan.parse_tau_spec`; a bare
+    number is refused as ambiguous.
+    """
+    from imubounds.stationary.allan import parse_tau_spec
+
+    return parse_tau_spec(text)
 
 
 def tau_grid(text: str) -> str:

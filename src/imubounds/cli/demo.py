@@ -47,7 +47,7 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
                 "-o",
                 str(out / "static"),
                 "--tau",
-                "40",
+                "points:40",
                 "--no-report",
             ],
         ),

@@ -54,9 +54,10 @@ def register(sub: Any) -> None:
     src.add_argument("--spec", metavar="FILE", help="noise spec in YAML or JSON")
     src.add_argument(
         "--terms",
-        choices=("fit", "slope", "none"),
+        choices=("fit", "slope", "selected", "none"),
         default="fit",
-        help="with --from-noise: which term estimate to use (default fit)",
+        help="with --from-noise: which term estimate to use: fit (default), slope, or the "
+        "selected terms (upper bounds where the log did not resolve a term)",
     )
     src.add_argument(
         "--models",

@@ -17,23 +17,29 @@ from imubounds.cli._common import (
     parse_list,
     parse_taus,
     positive_float,
+    positive_int,
     probability,
     read_log_from_args,
     tau_grid,
 )
 
-ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
 MODELS = ("gm", "ar")
 
 
 def register(sub: Any) -> None:
+    from imubounds.stationary.allan import ESTIMATORS, TAU_GRAMMAR
+
     p = sub.add_parser(
         "static",
         help="Allan variance, noise terms and stationary bounds of a static log",
-        description="Characterise a static IMU log: Allan deviation with confidence intervals, "
-        "IEEE 952 noise terms (Q, N, B, K, R) by slope read-off and by weighted fit, "
-        "stationary per-sample bounds and 95 %% levels. Writes noise.json, imu.yaml, "
-        "allan.png/.svg into the output directory.",
+        description="Characterise a static IMU log: Allan-family deviation with confidence "
+        "intervals and the noise identified at each tau, IEEE 952 noise terms (Q, N, B, K, R) "
+        "by a robust weighted fit and by the slope read-off (each term where it lives), the "
+        "terms selected for bounds (an unresolved term enters as its upper bound, never 0), "
+        "sigma_min and B in both conventions, spike detection, Gauss-Markov and AR models "
+        "checked against the curve, and the stationary per-sample bound and random-walk "
+        "growth. Writes noise.json, imu.yaml, allan.png/.svg and report.html into the "
+        "output directory.",
     )
     p.add_argument("log", help="static IMU log (CSV, CSV.gz, Parquet, ...)")
     p.add_argument(
@@ -44,9 +50,28 @@ def register(sub: Any) -> None:
         "--tau",
         type=tau_grid,
         default="octave",
-        help="tau grid: octave, decade, N log-spaced, or seconds '0.1,1,10'",
+        metavar="GRID",
+        help=f"tau grid: {TAU_GRAMMAR} (default: octave)",
     )
-    p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping", help="Allan estimator")
+    p.add_argument(
+        "--estimator",
+        choices=ESTIMATORS,
+        default="overlapping",
+        help="Allan-family estimator (default: overlapping); the terms use its own factors",
+    )
+    p.add_argument(
+        "--robust",
+        action="store_true",
+        help="outlier-resistant Allan curve (spikes interpolated, clipped mean of the "
+        "squared differences); the plain curve is kept in noise.json for comparison",
+    )
+    p.add_argument(
+        "--spike-threshold",
+        type=positive_float,
+        default=8.0,
+        metavar="Z",
+        help="robust z above which a sample counts as a spike (default 8)",
+    )
     p.add_argument(
         "--confidence",
         type=probability,
@@ -57,27 +82,35 @@ def register(sub: Any) -> None:
         "--k-sigma",
         type=positive_float,
         default=3.0,
-        help="factor k of the per-sample bound k*sigma_c",
+        help="factor k of the per-sample bound k*sigma_c (default 3)",
     )
     p.add_argument(
         "--avg-time",
         type=positive_float,
         metavar="S",
-        help="averaging time t of sigma_c (default: log length)",
+        help="averaging time t of sigma_c in s (default: log length)",
     )
     p.add_argument(
         "--run-hours",
         type=positive_float,
         metavar="H",
-        help="run length T of the 95%% level (default: log length)",
+        help="run length T of the 95%% random-walk growth in hours (default: log length)",
     )
     p.add_argument(
         "--terms-from",
         choices=("fit", "slope"),
         default="fit",
-        help="which estimate feeds bounds and imu.yaml",
+        help="estimate preferred for the selected terms (bounds, imu.yaml); default fit",
     )
     p.add_argument("--models", default="gm,ar", help="stochastic models to fit: gm,ar (or 'none')")
+    p.add_argument(
+        "--ar-max-order",
+        type=positive_int,
+        default=20,
+        metavar="P",
+        help="largest AR order tried when looking for an AR model that follows the curve "
+        "(default 20)",
+    )
     p.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
@@ -125,45 +158,86 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def summary(result: Any) -> dict[str, Any]:
-    """A compact summary: per channel the terms used, in SI and IEEE units, and the bounds."""
+    """A compact summary per channel: the selected terms (SI, IEEE 952 and datasheet
+    units, status), sigma_min, the per-sample bound with its k and the random-walk growth."""
     out: dict[str, Any] = {}
     for name, ch in result.channels.items():
-        js = ch.to_json(result.settings.k_sigma)
-        terms = js["noise"][result.settings.terms_from]
+        js = ch.to_json()
+        sel = js["noise"]["selected"]
         out[name] = {
             "unit": js["unit"],
             **{
-                t: {"value": terms[t]["value"], "unit": terms[t]["unit"], "ieee": terms[t]["ieee"]}
+                t: {
+                    k: sel[t][k]
+                    for k in ("value", "unit", "status", "from", "ieee", "datasheet")
+                    if k in sel[t]
+                }
                 for t in ("Q", "N", "B", "K", "R")
             },
+            "sigma_min": sel["sigma_min"],
             "sigma_c": ch.sigma_c,
-            "bound_3sigma": ch.bound,
-            "level_95": ch.level_95,
+            "bound": js["bound"],
+            "random_walk_95": js["random_walk_95"],
+            "spikes": js["spikes"].get("events"),
         }
     return out
 
 
-def _fmt(v: float | None) -> str:
-    return "—" if v is None or not math.isfinite(v) else f"{v:.4g}"
+def _fmt(v: float | None, status: str | None = None) -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    mark = {"upper_bound": "<", "not_observed": "?"}.get(status or "", "")
+    return f"{mark}{v:.3g}"
+
+
+def table_lines(result: Any) -> list[str]:
+    """The terminal table: selected N, B, K (IEEE 952 and datasheet units), sigma_min,
+    the per-sample bound and the random-walk growth; '<' marks an upper bound."""
+    rows = []
+    for name, ch in result.channels.items():
+        js = ch.to_json()
+        sel = js["noise"]["selected"]
+        cells = [name]
+        for t in ("N", "B", "K"):
+            e = sel[t]
+            cells.append(_fmt(e["ieee"]["value"], e["status"]))
+            cells.append(_fmt(e["datasheet"]["value"], e["status"]))
+        sm = sel["sigma_min"]
+        cells.append(f"{_fmt(sm['datasheet']['value'])} @{sm['tau_s']:.3g}s")
+        cells.append(_fmt(js["bound"]["value"]))
+        cells.append(_fmt(js["random_walk_95"]["datasheet"]["value"]))
+        rows.append((ch.kind, cells))
+    out: list[str] = []
+    for kind in ("gyro", "accel"):
+        krows = [c for k, c in rows if k == kind]
+        if not krows:
+            continue
+        ch0 = next(c for c in result.channels.values() if c.kind == kind).to_json()
+        sel0 = ch0["noise"]["selected"]
+        head = ["channel"]
+        for t in ("N", "B", "K"):
+            head += [f"{t} [{sel0[t]['ieee']['unit']}]", f"{t} [{sel0[t]['datasheet']['unit']}]"]
+        head.append(f"sigma_min [{sel0['sigma_min']['datasheet']['unit']}]")
+        head.append(f"{ch0['bound']['k']:g}*sigma_c [{ch0['unit']}]")
+        head.append(f"RW95 [{ch0['random_walk_95']['datasheet']['unit']}]")
+        widths = [max(len(h), *(len(r[i]) for r in krows)) for i, h in enumerate(head)]
+        out.append("  ".join(h.rjust(w) if i else h.ljust(w) for i, (h, w) in
+                             enumerate(zip(head, widths, strict=True))))  # fmt: skip
+        for r in krows:
+            out.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in
+                                 enumerate(zip(r, widths, strict=True))))  # fmt: skip
+        out.append("")
+    est = result.settings.estimator
+    out.append(
+        f"selected terms (preferring the {result.settings.terms_from}) from the {est} curve; "
+        "'<' = upper bound (not resolved); sigma_min = lowest point of the curve; "
+        "RW95 = 1.96*N*sqrt(T) over the run (integrated error)"
+    )
+    return out
 
 
 def print_table(result: Any) -> None:
-    terms_from = result.settings.terms_from
-    print(f"noise terms ({terms_from}), IEEE 952 units; bounds in SI")
-    header = (
-        f"{'channel':<9}"
-        + "".join(f"{t:>22}" for t in ("N", "B", "K"))
-        + f"{'k*sigma_c':>14}{'95% level':>12}"
-    )
-    print(header)
-    for name, ch in result.channels.items():
-        js = ch.to_json(result.settings.k_sigma)["noise"][terms_from]
-        cells = "".join(
-            f"{_fmt(js[t]['ieee']['value']) + ' ' + js[t]['ieee']['unit']:>22}"
-            for t in ("N", "B", "K")
-        )
-        unit = "rad/s" if name.startswith("gyro") else "m/s^2"
-        print(f"{name:<9}{cells}{_fmt(ch.bound):>9} {unit:<5}{_fmt(ch.level_95):>11}")
+    print("\n".join(table_lines(result)))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -203,11 +277,21 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         run_hours=args.run_hours,
         terms_from=args.terms_from,
         models=models,
+        robust=args.robust,
+        spike_threshold=args.spike_threshold,
+        ar_max_order=args.ar_max_order,
     )
     channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
     big = route_outofcore(
         args.log, args.max_memory, force=args.out_of_core, channels=channels, **_open_kwargs(args)
     )
+    if big is not None and args.robust:
+        from imubounds.errors import OptionError
+
+        raise OptionError(
+            "--robust needs the samples in memory; this log takes the out-of-core path "
+            "(raise --max-memory or drop --robust)"
+        )
     if big is not None:
         rep.info(
             f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
@@ -247,6 +331,8 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         save_figure(allan_figure(result), outdir / "allan")
         written += ["allan.png", "allan.svg"]
     for name, ch in result.channels.items():
+        for w in ch.warnings:
+            rep.warn(w)
         for note in ch.notes + ch.slope.notes + ch.fit.notes:
             rep.info(f"{name}: {note}")
         if ch.models is not None:

@@ -125,6 +125,61 @@ def _units_text(inp: dict[str, Any]) -> str:
     return "; ".join(f"{', '.join(chs)} in {u}" for u, chs in groups.items()) + " (SI inside)"
 
 
+def _fits(model: dict[str, Any]) -> str:
+    adq = model.get("adequacy")
+    if not model or not adq:
+        return "—"
+    if adq.get("adequate"):
+        return "<span class='ok'>yes</span>"
+    ratio = adq.get("worst_ratio")
+    where = f" (×{_num(ratio, 3)} at τ = {_num(adq.get('worst_tau_s'), 3)} s)" if ratio else ""
+    return f"<span class='bad'>no</span>{_e(where)}"
+
+
+def _selected_table(channels: dict[str, Any]) -> str:
+    """The terms used for bounds and imu.yaml, with status, IEEE 952 and datasheet units."""
+    rows = []
+    for name, ch in channels.items():
+        sel = ch.get("noise", {}).get("selected")
+        if not sel:
+            continue
+        cells = [f"<td class='l'>{_e(name)}</td>"]
+        for t in ("N", "B", "K"):
+            e = sel.get(t, {})
+            mark = "≤ " if e.get("status") == "upper_bound" else ""
+            ieee, ds = e.get("ieee", {}), e.get("datasheet", {})
+            cells.append(
+                f"<td>{mark}{_num(ieee.get('value'))} {_e(ieee.get('unit', ''))}</td>"
+                f"<td>{mark}{_num(ds.get('value'))} {_e(ds.get('unit', ''))}</td>"
+                f"<td class='l'>{_e(str(e.get('status', '?')).replace('_', ' '))}"
+                f" <span class='muted'>({_e(e.get('from', ''))})</span></td>"
+            )
+        sm = sel.get("sigma_min", {})
+        smd = sm.get("datasheet", {})
+        cells.append(
+            f"<td>{_num(smd.get('value'))} {_e(smd.get('unit', ''))} at τ = "
+            f"{_num(sm.get('tau_s'), 3)} s</td>"
+        )
+        adev1 = sel.get("N", {}).get("adev_at_1s", {}).get("datasheet", {})
+        cells.append(f"<td>{_num(adev1.get('value'))} {_e(adev1.get('unit', ''))}</td>")
+        rows.append("<tr>" + "".join(cells) + "</tr>")
+    if not rows:
+        return ""
+    head = "".join(
+        f"<th>{t} (IEEE 952)</th><th>{t} (datasheet)</th><th class='l'>{t} status</th>"
+        for t in ("N", "B", "K")
+    )
+    return (
+        "<h3>Selected terms (used for the bounds and imu.yaml)</h3><table><tr>"
+        f"<th class='l'>channel</th>{head}<th>σ_min (bias stability)</th>"
+        "<th>N as ADEV at τ = 1 s</th></tr>" + "".join(rows) + "</table>"
+        "<p class='muted'>'≤' marks an upper bound from the curve's intervals where the log "
+        "does not resolve the term (never 0). σ_min is the lowest point of the curve with "
+        "EDF ≥ 10, as datasheets quote 'bias stability'; B is the IEEE 952 bias instability, "
+        "σ_min/0.664 on an Allan curve (the fit uses each estimator's own factor).</p>"
+    )
+
+
 def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], list[str]]:
     inp = noise.get("input", {})
     settings = noise.get("settings", {})
@@ -157,9 +212,10 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
     )
     for note in noise.get("notes", []):
         warnings.append(str(note))
+    parts.append(_selected_table(channels))
     for method, title in (
-        ("fit", "weighted least-squares fit"),
-        ("slope", "IEEE 952 slope read-off"),
+        ("fit", "robust weighted least-squares fit"),
+        ("slope", "IEEE 952 slope read-off, each term where it dominates"),
     ):
         parts.append(f"<h3>Noise terms — {title}</h3><table><tr><th class='l'>channel</th>")
         for t in TERM_ORDER:
@@ -177,29 +233,47 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
                     if ci
                     else ""
                 )
+                where = f" <span class='muted'>τ={_num(e['tau_s'], 3)} s</span>" if (
+                    method == "slope" and e.get("tau_s") is not None
+                ) else ""
+                st = e.get("status")
+                st_txt = f" <span class='muted'>({_e(st.replace('_', ' '))})</span>" if (
+                    st and st != "resolved"
+                ) else ""
                 parts.append(
-                    f"<td>{_num(ieee.get('value'))} {_e(ieee.get('unit', ''))}{ci_txt}</td>"
-                    f"<td>{_num(e.get('value'))} {_e(e.get('unit', ''))}</td>"
+                    f"<td>{_num(ieee.get('value'))} {_e(ieee.get('unit', ''))}{ci_txt}{where}"
+                    f"{st_txt}</td><td>{_num(e.get('value'))} {_e(e.get('unit', ''))}</td>"
                 )
             parts.append("</tr>")
         parts.append("</table>")
     parts.append(
         "<h3>Stationary bounds</h3><table><tr><th class='l'>channel</th><th>σ_c</th>"
-        "<th>k·σ_c (per-sample half-width)</th><th>95 % level</th><th>T (h)</th></tr>"
+        "<th>k</th><th>k·σ_c (per-sample half-width)</th><th>95 % random-walk growth over T"
+        "</th><th>T (h)</th><th>spikes</th></tr>"
     )
     for name, ch in channels.items():
-        lvl = ch.get("level_95", {})
+        rw = ch.get("random_walk_95", {})
+        bound = ch.get("bound", {})
         unit = _e(ch.get("unit", ""))
+        ds = rw.get("datasheet", {})
+        spikes = ch.get("spikes", {})
+        sp = spikes.get("events", "not checked") if spikes.get("checked", True) else "not checked"
         parts.append(
             f"<tr><td class='l'>{_e(name)}</td><td>{_num(ch.get('sigma_c'))} {unit}</td>"
-            f"<td>{_num(ch.get('bound_3sigma'))} {unit}</td>"
-            f"<td>{_num(lvl.get('value'))} {unit}</td><td>{_num(lvl.get('T_hours'), 3)}</td></tr>"
+            f"<td>{_num(bound.get('k'))}</td><td>{_num(bound.get('value'))} {unit}</td>"
+            f"<td>{_num(rw.get('value'))} {_e(rw.get('unit', ''))}"
+            f" ({_num(ds.get('value'))} {_e(ds.get('unit', ''))})</td>"
+            f"<td>{_num(rw.get('T_hours'), 3)}</td><td>{_e(sp)}</td></tr>"
         )
+        for w in ch.get("warnings", []):
+            warnings.append(str(w))
         for note in ch.get("notes", []):
             warnings.append(f"{name}: {note}")
     parts.append(
-        "</table><p class='muted'>σ_c = N/√δt + √(δt/t)·B; interval [y − kσ_c, y + kσ_c]; "
-        "95 % level 1.96·RW·√T with RW per √h (paper, section IV; METHOD.md 1.4).</p>"
+        "</table><p class='muted'>σ_c = N/√δt + √(δt/t)·B from the selected N and B (an upper "
+        "bound where a term is not resolved); per-sample interval [y − kσ_c, y + kσ_c]; "
+        "random-walk growth 1.96·N·√T is the 95 % spread of the integrated error (angle or "
+        "velocity) over the run (paper, section IV; METHOD.md 1.4).</p>"
     )
     models_rows = []
     for name, ch in channels.items():
@@ -211,16 +285,22 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
         models_rows.append(
             f"<tr><td class='l'>{_e(name)}</td><td>{_num(gm.get('correlation_time_s'))} s</td>"
             f"<td>{_num(gm.get('sigma'))}</td><td>{_num(gm.get('white_sigma'))}</td>"
+            f"<td>{_num(gm.get('fitted_rate_hz'))} Hz</td><td>{_fits(gm)}</td>"
             f"<td>{_e(ar.get('order', '—'))}</td><td>{_e(ar.get('criterion', '—'))}</td>"
-            f"<td>{_num(ar.get('rate_hz', m.get('effective_rate_hz')))} Hz</td></tr>"
+            f"<td>{_num(ar.get('rate_hz', m.get('effective_rate_hz')))} Hz</td>"
+            f"<td>{_fits(ar)}</td></tr>"
         )
         for note in m.get("notes", []):
             warnings.append(f"{name} models: {note}")
     if models_rows:
         parts.append(
             "<h3>Stochastic models</h3><table><tr><th class='l'>channel</th><th>GM correlation time"
-            "</th><th>GM σ (SI)</th><th>white σ (SI)</th><th>AR order</th><th>criterion</th>"
-            "<th>AR fit rate</th></tr>" + "".join(models_rows) + "</table>"
+            "</th><th>GM σ (SI)</th><th>white σ (SI)</th><th>GM fit rate</th><th>GM follows the "
+            "curve</th><th>AR order</th><th>criterion</th><th>AR fit rate</th><th>AR follows the "
+            "curve</th></tr>" + "".join(models_rows) + "</table><p class='muted'>A model follows "
+            "the curve when its curve lies in the measured 95 % interval (widened by 10 %) at "
+            "90 % of the points where it is valid (τ ≥ its fit sample period) and is nowhere "
+            "off by more than ×1.5; the fit rate and AR order are chosen to achieve that.</p>"
         )
     if _listed(d, "allan.png"):
         parts.append(

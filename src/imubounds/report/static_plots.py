@@ -1,4 +1,4 @@
-"""Figures of the stationary analysis (Allan deviation with noise-term lines).
+"""Figures of the stationary analysis (Allan-family deviation with noise-term lines).
 
 Gyro curves are drawn in deg/h, accelerometer curves in m/s^2 (the usual
 reading units); every axis is labelled with its unit. Figures are made
@@ -16,8 +16,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from imubounds.io.outputs import write_with
-from imubounds.stationary.terms import B_FACTOR, READ_TAU, NoiseTerms
-from imubounds.units import DEG, HOUR, to_ieee
+from imubounds.stationary import theory
+from imubounds.stationary.terms import READ_TAU
+from imubounds.units import DEG, HOUR
 
 if TYPE_CHECKING:
     from imubounds.stationary.pipeline import ChannelResult, StaticResult
@@ -30,6 +31,14 @@ TERM_STYLE: dict[str, tuple[str, str]] = {
     "R": ("tab:red", "R (slope +1)"),
 }
 MODEL_STYLE = {"gauss_markov": ("tab:brown", "Gauss–Markov model"), "ar": ("tab:pink", "AR model")}
+STAT_LABEL = {
+    "overlapping": "Allan deviation",
+    "non-overlapping": "Allan deviation (non-overlapping)",
+    "modified": "modified Allan deviation",
+    "hadamard": "Hadamard deviation",
+    "non-overlapping-hadamard": "Hadamard deviation (non-overlapping)",
+    "total": "total deviation",
+}
 
 
 def display_scale(kind: str) -> tuple[float, str]:
@@ -37,31 +46,40 @@ def display_scale(kind: str) -> tuple[float, str]:
     return (1.0 / DEG * HOUR, "deg/h") if kind == "gyro" else (1.0, "m/s²")
 
 
-def term_line(term: str, value: float, tau: np.ndarray) -> np.ndarray:
-    """Allan deviation of a single term (SI) over ``tau``."""
-    if term == "Q":
-        return math.sqrt(3.0) * value / tau
-    if term == "N":
-        return value / np.sqrt(tau)
-    if term == "B":
-        return np.full_like(tau, B_FACTOR * value)
-    if term == "K":
-        return value * np.sqrt(tau / 3.0)
-    return value * tau / math.sqrt(2.0)
+def term_line(
+    term: str,
+    value: float,
+    tau: np.ndarray,
+    estimator: str = "overlapping",
+    rate_hz: float | None = None,
+    n_samples: int | None = None,
+) -> np.ndarray:
+    """Deviation of a single term (SI) over ``tau`` in the statistic of ``estimator``."""
+    return np.asarray(
+        value * np.sqrt(theory.response(term, estimator, tau, rate_hz=rate_hz, n_samples=n_samples))
+    )
 
 
-def _format_terms(terms: NoiseTerms, kind: str) -> str:
+def _format_terms(ch: ChannelResult) -> str:
+    kind = ch.kind
+    js = ch.selected.to_json(kind)
     parts = []
-    for t in ("Q", "N", "B", "K", "R"):
-        v = terms.value(t)  # type: ignore[arg-type]
-        if math.isfinite(v) and v > 0:
-            iv, unit = to_ieee(kind, t, v)  # type: ignore[arg-type]
-            parts.append(f"{t} = {iv:.3g} {unit}")
-    return "\n".join(parts) if parts else "no term resolved"
+    for t in ("N", "B", "K"):
+        e = js[t]
+        if e["value"] is None:
+            continue
+        mark = "≤ " if e["status"] == "upper_bound" else "= "
+        parts.append(f"{t} {mark}{e['ieee']['value']:.3g} {e['ieee']['unit']}")
+    sm = js["sigma_min"]
+    parts.append(f"σ_min = {sm['datasheet']['value']:.3g} {sm['datasheet']['unit']} "
+                 f"at τ = {sm['tau_s']:.3g} s")  # fmt: skip
+    return "\n".join(parts)
 
 
 def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
-    """Draw one channel's Allan deviation, CI bars, term lines and model curves."""
+    """Draw one channel's curve with CI bars, the selected term lines (dotted where only
+    an upper bound is known), the fitted sum, σ_min, and the stochastic models where
+    they are valid (dash-dot where they follow the curve, thin dotted where not)."""
     kind = ch.kind
     scale, unit = display_scale(kind)
     a = ch.allan
@@ -69,6 +87,17 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
     dev = np.asarray(a.dev) * scale
     lo = np.asarray(a.ci_lower) * scale
     hi = np.asarray(a.ci_upper) * scale
+    if ch.allan_plain is not None:
+        ax.plot(
+            np.asarray(ch.allan_plain.tau),
+            np.asarray(ch.allan_plain.dev) * scale,
+            "s",
+            ms=3,
+            color="0.6",
+            mfc="none",
+            label="plain curve (before --robust)",
+            zorder=2,
+        )
     ax.errorbar(
         tau,
         dev,
@@ -79,47 +108,69 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
         ecolor="0.55",
         elinewidth=1,
         capsize=2,
-        label=f"measured ({a.estimator})",
+        label=f"measured ({'robust ' if a.robust else ''}{a.estimator})",
         zorder=3,
     )
-    terms = ch.fit if terms_from == "fit" else ch.slope
+    est, rate, n_s = a.estimator, a.rate_hz, a.n_samples
     tt = np.logspace(np.log10(tau[0]), np.log10(tau[-1]), 200)
     ymin, ymax = np.nanmin(lo[lo > 0]) if np.any(lo > 0) else dev.min(), np.nanmax(hi)
+    sel = ch.selected
     for t, (color, label) in TERM_STYLE.items():
-        v = terms.value(t)  # type: ignore[arg-type]
-        if not (math.isfinite(v) and v > 0):
+        v = sel.terms[t].value
+        if v is None or not (math.isfinite(v) and v > 0):
             continue
-        ax.plot(tt, term_line(t, v, tt) * scale, "--", color=color, lw=1, label=label)
-        if t in READ_TAU:
-            ax.plot(
-                [READ_TAU[t]],
-                [term_line(t, v, np.array([READ_TAU[t]]))[0] * scale],
-                "x",
-                color=color,
-                ms=6,
-            )
+        bound = sel.status(t) == "upper_bound"
+        if bound and t in ("Q", "R"):
+            continue  # bounds of absent Q and R only clutter the figure
+        ax.plot(
+            tt,
+            term_line(t, v, tt, est, rate, n_s) * scale,
+            ":" if bound else "--",
+            color=color,
+            lw=0.9 if bound else 1.0,
+            label=label + (" (upper bound)" if bound else ""),
+        )
+        if t in READ_TAU and not bound and tt[0] <= READ_TAU[t] <= tt[-1]:
+            rt = np.array([READ_TAU[t]])
+            ax.plot(rt, term_line(t, v, rt, est, rate, n_s) * scale, "x", color=color, ms=6)
+    terms = ch.fit if terms_from == "fit" else ch.slope
     ax.plot(
         tt, terms.adev(tt) * scale, "-", color="tab:cyan", lw=1.8, label=f"terms ({terms.method})"
     )
+    sm = sel.sigma_min
+    ax.plot([sm["tau_s"]], [sm["value"] * scale], "*", color="tab:green", ms=10,
+            label="σ_min", zorder=4)  # fmt: skip
     if ch.models is not None:
+        adq = getattr(ch.models, "adequacy", {})
         for key, model in getattr(ch.models, "models", {}).items():
             color, label = MODEL_STYLE.get(key, ("tab:gray", key))
+            valid = tt >= getattr(model, "valid_from_tau_s", 0.0) * (1 - 1e-9)
+            if not np.any(valid):
+                continue
             try:
-                curve = np.asarray(model.adev(tt)) * scale
+                curve = np.sqrt(model.variance(tt[valid], a.estimator, rate_hz=a.rate_hz)) * scale
             except Exception:  # a model that cannot predict: leave it out of the plot
                 continue
-            ax.plot(tt, curve, "-.", color=color, lw=1.4, label=label)
+            fits = bool(adq.get(key, {}).get("adequate", False))
+            ax.plot(
+                tt[valid],
+                curve,
+                "-." if fits else ":",
+                color=color,
+                lw=1.4 if fits else 1.0,
+                label=label + ("" if fits else " (does not fit)"),
+            )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_ylim(ymin / 3.0, ymax * 3.0)
     ax.set_title(ch.name)
     ax.set_xlabel("averaging time τ (s)")
-    ax.set_ylabel(f"Allan deviation ({unit})")
+    ax.set_ylabel(f"{STAT_LABEL.get(a.estimator, 'Allan deviation')} ({unit})")
     ax.grid(True, which="both", alpha=0.3)
     ax.text(
         0.03,
         0.03,
-        _format_terms(terms, kind),
+        _format_terms(ch),
         transform=ax.transAxes,
         fontsize=7,
         va="bottom",
@@ -156,7 +207,8 @@ def allan_figure(result: StaticResult) -> Figure:
     est = result.settings.estimator
     conf = result.settings.confidence
     fig.suptitle(
-        f"Allan deviation — {Path(result.log.source).name}, {result.log.rate_hz:g} Hz, "
+        f"{STAT_LABEL.get(est, 'Allan deviation')} — {Path(result.log.source).name}, "
+        f"{result.log.rate_hz:g} Hz, "
         f"{result.log.duration_s / 3600:.2f} h ({est}, {conf:.1%} CI)"
     )
     fig.tight_layout(rect=(0, 0.07, 1, 0.96))
@@ -170,6 +222,10 @@ def save_figure(
     out = []
     for fmt in formats:
         dest = dest_stem.with_suffix(f".{fmt}")
-        out.append(write_with(dest, lambda p, fmt=fmt: fig.savefig(p, format=fmt, dpi=130)))
+
+        def save(p: Path, fmt: str = fmt) -> None:
+            fig.savefig(p, format=fmt, dpi=130)
+
+        out.append(write_with(dest, save))
     plt.close(fig)
     return out

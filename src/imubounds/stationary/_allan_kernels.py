@@ -46,6 +46,7 @@ estimator                 term ``k``                                    valid ``
 overlapping ADEV          ``x[k+2m] - 2x[k+m] + x[k]``                  ``0 .. N-2m``
 non-overlapping ADEV      same, with ``k = j*m``; the *range* is in j   ``j = 0 .. N//m-2``
 overlapping HDEV          ``x[k+3m] - 3x[k+2m] + 3x[k+m] - x[k]``       ``0 .. N-3m``
+non-overlapping HDEV      same, with ``k = j*m``; the *range* is in j   ``j = 0 .. N//m-3``
 modified ADEV             ``sum_{i=k}^{k+m-1} (x[i+2m]-2x[i+m]+x[i])``  ``0 .. N-3m+1``
 total deviation           ``x*[k-m] - 2x[k] + x*[k+m]`` (x* reflected)  ``1 .. N-1``
 ========================  ===========================================  =================
@@ -72,6 +73,7 @@ __all__ = [
     "sumsq_ref",
     "sumsq_tasks",
     "term_range",
+    "terms_ref",
     "totdev_sumsq",
 ]
 
@@ -92,6 +94,7 @@ ESTIMATOR_CODES: dict[str, int] = {
     "hadamard": 2,
     "modified": 3,
     "total": 4,
+    "non-overlapping-hadamard": 5,
 }
 
 
@@ -160,6 +163,8 @@ def term_range(estimator: str, n_samples: int, m: int) -> tuple[int, int]:
         return 0, n // m - 1
     if estimator == "hadamard":
         return 0, n - 3 * m + 1
+    if estimator == "non-overlapping-hadamard":
+        return 0, n // m - 2
     if estimator == "modified":
         return 0, n - 3 * m + 2
     if estimator == "total":
@@ -204,9 +209,10 @@ def adev_sumsq(x: np.ndarray, m: int, k0: int, k1: int, stride: int) -> float:
 
 @njit(cache=True, fastmath=_REDUCE_FLAGS, boundscheck=False)
 def hdev_sumsq(x: np.ndarray, m: int, k0: int, k1: int, stride: int) -> float:
-    """Sum of ``(x[k+3m] - 3x[k+2m] + 3x[k+m] - x[k])**2`` over ``k = k0, ... < k1``.
+    """Sum of ``(x[k+3m] - 3x[k+2m] + 3x[k+m] - x[k])**2`` over ``k = k0, k0+stride, ... < k1``.
 
-    Overlapping Hadamard variance numerator for ``stride=1``. The caller
+    Overlapping Hadamard variance numerator for ``stride=1``; ``stride=m`` with
+    ``k = j*m`` the non-overlapping one. The caller
     guarantees ``k1 - 1 + 3m < len(x)``. Units: (U*s)^2.
     """
     s0 = 0.0
@@ -362,6 +368,8 @@ def _run_tasks(
             out[t] = hdev_sumsq(x, m, k0[t], k1[t], 1)
         elif code == 3:
             out[t] = mdev_sumsq(x, m, k0[t], k1[t])
+        elif code == 5:
+            out[t] = hdev_sumsq(x, m, k0[t] * m, k1[t] * m, m)
         else:
             out[t] = totdev_sumsq(x, m, k0[t], k1[t])
     return out
@@ -452,34 +460,52 @@ def num_threads() -> int:
 # --------------------------------------------------------------------------
 # plain-numpy references (tests compare the kernels against these)
 # --------------------------------------------------------------------------
-def sumsq_ref(x: np.ndarray, estimator: str, m: int) -> float:
-    """Plain-numpy sum of squared terms for one ``m`` (reference, uses temporaries)."""
+def terms_ref(x: np.ndarray, estimator: str, m: int) -> np.ndarray:
+    """Plain-numpy array of the squared-term *bases* d_k for one ``m`` (U*s).
+
+    The estimator's numerator is ``sum(d**2)``; the robust Allan variance takes
+    a median of ``|d|`` instead. Uses O(N) temporaries.
+    """
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0] - 1
     m = int(m)
     if estimator == "overlapping":
-        d = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
-    elif estimator == "non-overlapping":
+        return x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
+    if estimator == "non-overlapping":
         k = n // m
         xs = x[: k * m + 1 : m]
-        d = xs[2:] - 2.0 * xs[1:-1] + xs[:-2]
-    elif estimator == "hadamard":
-        d = (
+        return xs[2:] - 2.0 * xs[1:-1] + xs[:-2]
+    if estimator == "non-overlapping-hadamard":
+        k = n // m
+        xs = x[: k * m + 1 : m]
+        return xs[3:] - 3.0 * xs[2:-1] + 3.0 * xs[1:-2] - xs[:-3]
+    if estimator == "hadamard":
+        return (
             x[3 * m :]
             - 3.0 * x[2 * m : n + 1 - m]
             + 3.0 * x[m : n + 1 - 2 * m]
             - x[: n + 1 - 3 * m]
         )
-    elif estimator == "modified":
+    if estimator == "modified":
         d2 = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
-        d = np.lib.stride_tricks.sliding_window_view(d2, m).sum(axis=1)
-    elif estimator == "total":
+        c = np.concatenate(([0.0], np.cumsum(d2)))
+        return c[m:] - c[:-m]
+    if estimator == "total":
         left = 2.0 * x[0] - x[n - 1 : 0 : -1]  # x*[-(n-1)] .. x*[-1]
         right = 2.0 * x[n] - x[n - 1 : 0 : -1]  # x*[n+1] .. x*[2n-1]
         ext = np.concatenate((left, x, right))
         off = n - 1  # ext[off + k] = x*[k]
         k = np.arange(1, n)
-        d = ext[off + k - m] - 2.0 * ext[off + k] + ext[off + k + m]
-    else:
-        raise ValueError(f"unknown estimator {estimator!r}")
+        return ext[off + k - m] - 2.0 * ext[off + k] + ext[off + k + m]
+    raise ValueError(f"unknown estimator {estimator!r}")
+
+
+def sumsq_ref(x: np.ndarray, estimator: str, m: int) -> float:
+    """Plain-numpy sum of squared terms for one ``m`` (reference, uses temporaries)."""
+    x = np.asarray(x, dtype=np.float64)
+    if estimator == "modified":
+        d2 = x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]
+        d = np.lib.stride_tricks.sliding_window_view(d2, int(m)).sum(axis=1)
+        return float(np.sum(d * d))
+    d = terms_ref(x, estimator, m)
     return float(np.sum(d * d))

@@ -13,6 +13,9 @@ at ``rate_hz``. With ``t0 = 1/rate_hz``, cluster size ``m`` and averaging time
                           (the paper's cluster form; allantools ``adev``)
 ``modified``              NIST SP 1065 eq. 14 (allantools ``mdev``)
 ``hadamard``              overlapping Hadamard, NIST SP 1065 eq. 20 (allantools ``ohdev``)
+``non-overlapping-        ``K = N//m`` cluster means,
+hadamard``                ``1/(6(K-2)) sum (ybar[j+2]-2ybar[j+1]+ybar[j])^2``
+                          (NIST SP 1065 eq. 18; allantools ``hdev``, Stable32 HDEV)
 ``total``                 TOTDEV with odd reflection at both ends, NIST SP 1065 eq. 25
                           (allantools ``totdev``)
 ========================  ==================================================================
@@ -43,6 +46,27 @@ cluster means (at most :data:`NOISE_ID_MAX_POINTS` of them); where fewer than
 30 cluster means exist the alpha of the previous tau is kept. An integer
 ``noise`` forces one alpha for every tau.
 
+Robust (outlier-resistant) variant
+----------------------------------
+``allan(..., robust=True)`` first replaces the samples flagged as spikes by
+:func:`imubounds.stationary.contamination.detect_spikes` with a linear
+interpolation between their clean neighbours (a spike averaged into long
+clusters acts like extra white noise that no scale estimate can tell from
+the real one), then replaces the mean of the squared terms ``d_k``
+(the second, third or averaged differences above) by a clipped mean (Huber's
+proposal 2 for a scale): with ``s = 1.4826·median|d_k|`` (a scale a spike does
+not move), each ``d_k²`` is capped at ``(c·s)²``, ``c`` = :data:`ROBUST_CLIP`
+(3), and the mean of the capped squares is divided by its expectation for a
+standard normal term, ``E[min(Z², c²)]`` = 0.9950. For Gaussian terms the
+estimate has the same expectation as the plain one and about the same
+variance; a spike contributes at most ``(c·s)²`` to each of the few terms it
+touches instead of its full square. Unlike a plain median, the clipped mean
+stays unbiased at long τ where the terms are few and strongly correlated.
+The EDF of each point is multiplied by :data:`ROBUST_EFFICIENCY` (a margin for
+the estimated clipping scale). Points with fewer than :data:`ROBUST_MIN_TERMS`
+terms keep the plain estimate. A rate ramp (terms of non-zero mean) is not
+represented faithfully by the robust estimate. It is computed in memory only.
+
 Note: the R package ``avar`` (SMAC-Group), which produced the reference curve
 of the ADIS16405 log, reports a symmetric interval
 ``adev * (1 +- 2/sqrt(2*(N/m - 1)))`` (a normal approximation, about 95 %,
@@ -65,23 +89,64 @@ from imubounds.stationary import _allan_kernels as _k
 
 __all__ = [
     "ESTIMATORS",
+    "HADAMARD_ESTIMATORS",
     "NOISE_ID_MAX_POINTS",
+    "NOISE_NAMES",
+    "ROBUST_EFFICIENCY",
     "AllanResult",
     "allan",
     "allan_channels",
     "confidence_interval",
     "edf_greenhall",
     "edf_totdev",
+    "estimator_edf",
     "max_cluster_size",
     "noise_id_lag1",
+    "parse_tau_spec",
     "tau_grid",
 ]
 
 #: Estimator names accepted by :func:`allan`.
-ESTIMATORS: tuple[str, ...] = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
+ESTIMATORS: tuple[str, ...] = (
+    "overlapping",
+    "non-overlapping",
+    "modified",
+    "hadamard",
+    "non-overlapping-hadamard",
+    "total",
+)
+#: The Hadamard family (third differences of the phase; blind to a linear rate drift).
+HADAMARD_ESTIMATORS: tuple[str, ...] = ("hadamard", "non-overlapping-hadamard")
+
+#: Clipping point of the robust estimate, in robust standard deviations of the terms.
+ROBUST_CLIP: float = 3.0
+#: E[min(Z², c²)] for a standard normal Z and c = ROBUST_CLIP (consistency factor).
+ROBUST_CONSISTENCY: float = float(
+    (2 * stats.norm.cdf(ROBUST_CLIP) - 1)
+    - 2 * ROBUST_CLIP * stats.norm.pdf(ROBUST_CLIP)
+    + 2 * ROBUST_CLIP**2 * stats.norm.sf(ROBUST_CLIP)
+)
+#: EDF factor of the robust estimate (its variance at the normal law is within a few
+#: per cent of the plain one; the factor leaves a margin for the estimated scale).
+ROBUST_EFFICIENCY: float = 0.9
+#: Fewer terms than this at one tau: the robust estimate keeps the plain value.
+ROBUST_MIN_TERMS: int = 30
+#: 1/Φ⁻¹(3/4): scale of the median absolute value of a zero-mean normal variable.
+MAD_SCALE: float = 1.482602218505602
 
 #: Largest number of cluster means used by the lag-1 noise identification.
 NOISE_ID_MAX_POINTS: int = 1 << 13
+
+#: Name of each power-law noise exponent alpha (S_y(f) ~ f^alpha) in IMU terms.
+NOISE_NAMES: dict[int, str] = {
+    2: "white PM (quantization)",
+    1: "flicker PM",
+    0: "white FM (angle/velocity random walk)",
+    -1: "flicker FM (bias instability)",
+    -2: "random-walk FM (rate random walk)",
+    -3: "flicker walk FM",
+    -4: "random run FM (rate ramp-like)",
+}
 
 _ALPHA_NAMES = {
     "white_pm": 2,
@@ -127,6 +192,8 @@ class AllanResult:
         Sample rate in Hz.
     confidence : float
         Confidence level of the interval (0.683 = 1 sigma).
+    robust : bool
+        Whether ``dev`` is the outlier-resistant estimate (see the module notes).
     """
 
     tau: np.ndarray
@@ -141,6 +208,7 @@ class AllanResult:
     n_samples: int
     rate_hz: float
     confidence: float
+    robust: bool = False
 
     @property
     def var(self) -> np.ndarray:
@@ -162,6 +230,8 @@ class AllanResult:
             "edf": [float(v) for v in self.edf],
             "n_terms": [int(v) for v in self.n_terms],
             "alpha": [int(v) for v in self.alpha],
+            "noise_type": [NOISE_NAMES.get(int(v), f"alpha={int(v)}") for v in self.alpha],
+            "robust": bool(self.robust),
         }
 
 
@@ -181,7 +251,8 @@ def max_cluster_size(n_samples: int, estimator: str = "overlapping") -> int:
 
     overlapping ``(N-1)//2`` (>= 2 terms), non-overlapping ``N//2`` (K >= 2
     clusters), modified ``N//3`` (>= 2 terms), hadamard ``(N-1)//3`` (>= 2 terms),
-    total ``N//2`` (tau up to half the record, NIST SP 1065).
+    non-overlapping-hadamard ``N//3`` (K >= 3 clusters), total ``N//2`` (tau up
+    to half the record, NIST SP 1065).
     """
     _check_estimator(estimator)
     n = int(n_samples)
@@ -190,8 +261,61 @@ def max_cluster_size(n_samples: int, estimator: str = "overlapping") -> int:
         "non-overlapping": n // 2,
         "modified": n // 3,
         "hadamard": (n - 1) // 3,
+        "non-overlapping-hadamard": n // 3,
         "total": n // 2,
     }[estimator]
+
+
+#: ``"all"`` is refused when it would sum more than this many squared terms
+#: (every m from 1 to the maximum costs about N per m); use ``points:K`` instead.
+ALL_TAU_MAX_WORK: float = 2e10
+
+TAU_GRAMMAR = (
+    "'octave' (m = 1, 2, 4, ...), 'decade' (m = 1, 2, 5, 10, ...), 'all' (every m), "
+    "'points:K' (K log-spaced points) or averaging times in seconds ending in 's', "
+    "e.g. '1,10,100s'"
+)
+
+
+def parse_tau_spec(text: str) -> str | int | list[float]:
+    """Read a τ-grid specification in the command-line grammar.
+
+    ``octave`` | ``decade`` | ``all`` | ``points:K`` (K log-spaced points) |
+    ``1,10,100s`` (averaging times in s; the list ends in ``s``). A bare number
+    is refused because it is ambiguous (a count or seconds?).
+
+    Returns what :func:`tau_grid` takes: the keyword, an int (points) or a
+    list of τ in s.
+    """
+    raw = str(text)
+    t = raw.strip().lower()
+    if t in ("octave", "decade", "all"):
+        return t
+    if t.startswith("points:"):
+        body = t[len("points:") :].strip()
+        if not body.isdigit() or int(body) < 2:
+            raise OptionError(f"tau grid {raw!r}: points:K needs a whole number K >= 2")
+        return int(body)
+    seconds = t.endswith("s")
+    items = [v.strip() for v in (t[:-1] if seconds else t).split(",")]
+    try:
+        values = [float(v) for v in items]
+    except ValueError:
+        if seconds:
+            raise OptionError(
+                f"tau grid {raw!r}: cannot read the seconds; write e.g. '1,10,100s'"
+            ) from None
+        raise OptionError(f"unknown tau grid {raw!r}: use {TAU_GRAMMAR}") from None
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise OptionError(
+            f"tau grid {raw!r}: every tau must be a positive, finite number of seconds"
+        )
+    if seconds:
+        return values
+    raise OptionError(
+        f"tau grid {raw!r} is ambiguous: write points:K for K log-spaced points (K >= 2) or "
+        f"{t}s for averaging times in seconds"
+    )
 
 
 def tau_grid(
@@ -208,11 +332,14 @@ def tau_grid(
         Signal length N.
     rate_hz : float
         Sample rate in Hz.
-    spec : {"octave", "decade"} or int or sequence of float
+    spec : str or int or sequence of float
         ``"octave"``: m = 1, 2, 4, ...; ``"decade"``: m = 1, 2, 5, 10, 20, 50,
-        ...; an int K: K log-spaced m from 1 to the maximum (duplicates after
-        rounding removed, so possibly fewer); a sequence: averaging times in s,
-        each rounded to the nearest whole number of samples.
+        ...; ``"all"``: every m (refused when that would cost more than
+        :data:`ALL_TAU_MAX_WORK` terms); an int K: K log-spaced m from 1 to the
+        maximum (duplicates after rounding removed, so possibly fewer); a
+        sequence: averaging times in s, each rounded to the nearest whole
+        number of samples. Any other string is read by :func:`parse_tau_spec`
+        (``"points:60"``, ``"1,10,100s"``).
     estimator : str
         Sets the largest usable m (:func:`max_cluster_size`).
 
@@ -231,6 +358,8 @@ def tau_grid(
             f"signal of {n_samples} samples is too short for the {estimator} Allan estimator"
             f" (needs at least {_min_samples(estimator)} samples)"
         )
+    if isinstance(spec, str) and spec not in ("octave", "decade", "all"):
+        spec = parse_tau_spec(spec)
     if isinstance(spec, str):
         if spec == "octave":
             m = 2 ** np.arange(int(math.floor(math.log2(m_max))) + 1, dtype=np.int64)
@@ -239,11 +368,14 @@ def tau_grid(
                 b * 10**e for e in range(int(math.floor(math.log10(m_max))) + 1) for b in (1, 2, 5)
             ]
             m = np.array([v for v in vals if v <= m_max], dtype=np.int64)
-        else:
-            raise OptionError(
-                f"unknown tau grid {spec!r}: use 'octave', 'decade', a number of points"
-                " or a list of tau in seconds"
-            )
+        else:  # "all"
+            work = float(m_max) * float(n_samples)
+            if work > ALL_TAU_MAX_WORK:
+                raise OptionError(
+                    f"tau grid 'all' on {n_samples} samples means {m_max} points (about"
+                    f" {work:.2g} squared terms); use points:K (e.g. points:200) instead"
+                )
+            m = np.arange(1, m_max + 1, dtype=np.int64)
     elif isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
         if spec < 1:
             raise OptionError(f"tau grid: number of points must be >= 1, got {spec}")
@@ -443,7 +575,11 @@ def edf_totdev(n_phase: int, m: int, alpha: int) -> float:
     return edf_greenhall(alpha, 2, m, n_phase, overlapping=True, modified=False)
 
 
-def _edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
+def estimator_edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
+    """EDF of one point of ``estimator`` (cluster size ``m``, ``n_samples`` rate samples)
+    for power-law noise ``alpha``: Greenhall's algorithm, or NIST SP 1065 Table 7 for
+    the total deviation (:func:`edf_greenhall`, :func:`edf_totdev`)."""
+    _check_estimator(estimator)
     n_phase = n_samples + 1
     if estimator == "overlapping":
         return edf_greenhall(alpha, 2, m, n_phase, True, False)
@@ -453,11 +589,13 @@ def _edf(estimator: str, alpha: int, m: int, n_samples: int) -> float:
         return edf_greenhall(alpha, 2, m, n_phase, True, True)
     if estimator == "hadamard":
         return edf_greenhall(alpha, 3, m, n_phase, True, False)
+    if estimator == "non-overlapping-hadamard":
+        return edf_greenhall(alpha, 3, m, n_phase, False, False)
     return edf_totdev(n_phase, m, alpha)
 
 
 def _alpha_limits(estimator: str) -> tuple[int, int]:
-    return (-4, 2) if estimator == "hadamard" else (-2, 2)
+    return (-4, 2) if estimator in HADAMARD_ESTIMATORS else (-2, 2)
 
 
 # --------------------------------------------------------------------------
@@ -509,7 +647,7 @@ def noise_id_lag1(ybar: np.ndarray, dmax: int = 2) -> int | None:
 
 def _identify_alphas(x: np.ndarray, ms: np.ndarray, t0: float, estimator: str) -> np.ndarray:
     lo, hi = _alpha_limits(estimator)
-    dmax = 3 if estimator == "hadamard" else 2
+    dmax = 3 if estimator in HADAMARD_ESTIMATORS else 2
     out = np.zeros(ms.size, dtype=np.int64)
     prev = 0
     n = x.shape[0] - 1
@@ -535,6 +673,7 @@ _NORM_FACTOR = {
     "non-overlapping": 2.0,
     "modified": 2.0,
     "hadamard": 6.0,
+    "non-overlapping-hadamard": 6.0,
     "total": 2.0,
 }
 
@@ -587,6 +726,7 @@ def allan(
     noise: str | int = "auto",
     *,
     name: str = "signal",
+    robust: bool = False,
 ) -> AllanResult:
     """Allan-family deviation of a rate signal with chi-squared confidence intervals.
 
@@ -610,6 +750,9 @@ def allan(
         (= angle/velocity random walk) forces it.
     name : str
         Name used in error messages (a channel or column).
+    robust : bool
+        Outlier-resistant estimate (median of the absolute terms instead of
+        the mean of their squares; see the module notes).
 
     Returns
     -------
@@ -618,6 +761,10 @@ def allan(
     """
     _check_estimator(estimator)
     rate = _check_rate(rate_hz)
+    if robust:
+        from imubounds.stationary.contamination import despike, detect_spikes
+
+        y = despike(y, detect_spikes(_check_signal(y, name), rate, name=name))
     try:
         conf = float(confidence)
     except (TypeError, ValueError) as exc:
@@ -635,7 +782,43 @@ def allan(
         alphas = _identify_alphas(x, ms, t0, estimator)
     else:
         alphas = np.full(ms.size, fixed_alpha, dtype=np.int64)
-    return result_from_sums(sums, ms, tau, alphas, estimator, n, rate, conf)
+    res = result_from_sums(sums, ms, tau, alphas, estimator, n, rate, conf)
+    if not robust:
+        return res
+    return _robust_result(res, x, sums)
+
+
+def _robust_result(res: AllanResult, x: np.ndarray, sums: np.ndarray) -> AllanResult:
+    """Replace the mean of squared terms by their clipped mean where there are enough terms."""
+    dev = res.dev.copy()
+    edf = res.edf.copy()
+    for i, m in enumerate(res.m):
+        nt = int(res.n_terms[i])
+        if nt < ROBUST_MIN_TERMS or sums[i] <= 0:
+            continue
+        d = _k.terms_ref(x, res.estimator, int(m))
+        cap = (ROBUST_CLIP * MAD_SCALE * float(np.median(np.abs(d)))) ** 2
+        if cap <= 0:
+            continue
+        robust_ms = float(np.mean(np.minimum(d * d, cap))) / ROBUST_CONSISTENCY
+        dev[i] = res.dev[i] * math.sqrt(robust_ms / (sums[i] / nt))
+        edf[i] = res.edf[i] * ROBUST_EFFICIENCY
+    lo, hi = confidence_interval(dev, edf, res.confidence)
+    return AllanResult(
+        tau=res.tau,
+        m=res.m,
+        dev=dev,
+        ci_lower=lo,
+        ci_upper=hi,
+        edf=edf,
+        n_terms=res.n_terms,
+        alpha=res.alpha,
+        estimator=res.estimator,
+        n_samples=res.n_samples,
+        rate_hz=res.rate_hz,
+        confidence=res.confidence,
+        robust=True,
+    )
 
 
 def result_from_sums(
@@ -659,7 +842,7 @@ def result_from_sums(
         var = var / ms.astype(np.float64) ** 2
     dev = np.sqrt(var)
     edf = np.array(
-        [_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
+        [estimator_edf(estimator, int(a), int(m), n) for a, m in zip(alphas, ms, strict=True)],
         dtype=np.float64,
     )
     lo, hi = confidence_interval(dev, edf, conf)
@@ -703,6 +886,7 @@ def allan_channels(
     confidence: float = 0.683,
     noise: str | int = "auto",
     progress: Callable[[int, int], None] | None = None,
+    robust: bool = False,
 ) -> dict[str, AllanResult]:
     """:func:`allan` for every channel of a log.
 
@@ -724,7 +908,9 @@ def allan_channels(
     if progress is not None:
         progress(0, total)
     for i, (key, values) in enumerate(channels.items()):
-        out[key] = allan(values, rate_hz, taus, estimator, confidence, noise, name=key)
+        out[key] = allan(
+            values, rate_hz, taus, estimator, confidence, noise, name=key, robust=robust
+        )
         if progress is not None:
             progress(i + 1, total)
     return out

@@ -196,17 +196,17 @@ def avar_from_variogram(gamma: NDArray[np.float64], m: ArrayLike) -> NDArray[np.
     c2 = np.concatenate(([0.0], np.cumsum(j * g)))
 
     def big_g(k: NDArray[np.int64]) -> NDArray[np.float64]:
-        return k * c1[k] - c2[k]
+        return np.asarray(k * c1[k] - c2[k], dtype=np.float64)
 
     mf = mm.astype(np.float64)
     return np.asarray((big_g(2 * mm) - 4.0 * big_g(mm)) / (mf * mf), dtype=np.float64)
 
 
-def _avar_at_tau(
-    tau: ArrayLike, dt: float, gamma_fn: Callable[[int], NDArray[np.float64]]
+def _at_tau(
+    tau: ArrayLike, dt: float, at_m: Callable[[NDArray[np.int64]], NDArray[np.float64]]
 ) -> NDArray[np.float64]:
-    """σ²(τ) of a sampled process for arbitrary τ ≥ dt (log-log interpolation
-    between the integer cluster sizes around τ/dt; NaN below dt)."""
+    """A variance known at integer cluster sizes, at arbitrary τ ≥ dt: log-log
+    interpolation between the cluster sizes around τ/dt; NaN below dt."""
     t = np.atleast_1d(np.asarray(tau, dtype=np.float64))
     out = np.full(t.shape, np.nan)
     mreal = t / dt
@@ -216,15 +216,37 @@ def _avar_at_tau(
     mr = np.maximum(mreal[ok], 1.0)
     lo = np.floor(mr + 1e-9).astype(np.int64)
     hi = np.maximum(lo, np.ceil(mr - 1e-9).astype(np.int64))
-    gamma = gamma_fn(int(2 * hi.max()))
-    a_lo = avar_from_variogram(gamma, lo)
-    a_hi = avar_from_variogram(gamma, hi)
+    grid = np.unique(np.concatenate((lo, hi)))
+    vals = at_m(grid)
+    v_lo = vals[np.searchsorted(grid, lo)]
+    v_hi = vals[np.searchsorted(grid, hi)]
     same = hi == lo
     w = np.where(same, 0.0, (np.log(mr) - np.log(lo)) / np.where(same, 1.0, np.log(hi / lo)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        val = np.exp((1 - w) * np.log(a_lo) + w * np.log(a_hi))
-    out[ok] = np.where(same, a_lo, val)
+        val = np.exp((1 - w) * np.log(v_lo) + w * np.log(v_hi))
+    out[ok] = np.where(same, v_lo, val)
     return out
+
+
+def _avar_at_tau(
+    tau: ArrayLike, dt: float, gamma_fn: Callable[[int], NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """σ²(τ) (overlapping Allan) of a sampled process from its variogram (see :func:`_at_tau`)."""
+
+    def at_m(m: NDArray[np.int64]) -> NDArray[np.float64]:
+        return avar_from_variogram(gamma_fn(int(2 * m.max())), m)
+
+    return _at_tau(tau, dt, at_m)
+
+
+def _variance_at_tau(
+    tau: ArrayLike, dt: float, acov: Callable[[int], NDArray[np.float64]], estimator: str
+) -> NDArray[np.float64]:
+    """Expected variance of ``estimator`` at τ for a stationary sequence sampled every
+    ``dt`` from its autocovariance (see :func:`_at_tau`)."""
+    from imubounds.stationary.theory import stationary_variance
+
+    return _at_tau(tau, dt, lambda m: stationary_variance(acov, m, estimator))
 
 
 def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:
@@ -337,6 +359,37 @@ class GaussMarkovModel:
     def adev(self, tau: ArrayLike, rate_hz: float | None = None) -> NDArray[np.float64]:
         """Theoretical Allan deviation at τ (s), signal units (see :meth:`avar`)."""
         return np.sqrt(self.avar(tau, rate_hz))
+
+    @property
+    def valid_from_tau_s(self) -> float:
+        """Shortest τ the model describes: the sample period of the series it was fitted to."""
+        return 1.0 / self.fitted_rate_hz if self.fitted_rate_hz else 0.0
+
+    def variance(
+        self, tau: ArrayLike, estimator: str = "overlapping", rate_hz: float | None = None
+    ) -> NDArray[np.float64]:
+        """Expected variance of any Allan-family ``estimator`` at τ (s), signal units².
+
+        Exact for the point-sampled process at ``rate_hz`` (default: the rate of
+        the log the model was fitted to, ``fitted_rate_hz·decimation``); NaN for
+        τ below one sample. See :mod:`imubounds.stationary.theory`.
+        """
+        rate = rate_hz or (
+            (self.fitted_rate_hz or 0.0) * self.decimation if self.fitted_rate_hz else None
+        )
+        if rate is None:
+            raise OptionError("give rate_hz: this Gauss-Markov model has no fit rate")
+        dt = 1.0 / rate
+        r_white = self.white_density**2 * rate
+        log_phi = -self.beta * dt
+        sig2 = self.sigma**2
+
+        def acov(nlag: int) -> NDArray[np.float64]:
+            r = sig2 * np.exp(np.arange(nlag, dtype=np.float64) * log_phi)
+            r[0] += r_white
+            return r
+
+        return _variance_at_tau(tau, dt, acov, estimator)
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {
@@ -507,14 +560,14 @@ def fit_gauss_markov(
         # linear interpolation of the crossing between lags j-1 and j
         frac = (rho[j - 1] - 1.0 / math.e) / (rho[j - 1] - rho[j])
         tc = (j - 1 + frac) * h
-        fit_info = {"lag_1_over_e_s": tc, "rho1": float(rho[1])}
+        paper_info = {"lag_1_over_e_s": tc, "rho1": float(rho[1])}
         notes.append("Gauss-Markov by the paper's 1/e read-off (a white-noise floor biases it)")
         return GaussMarkovModel(
             beta=1.0 / tc,
             sigma=math.sqrt(r0),
             white_density=0.0,
             method="paper_1_over_e",
-            fit=fit_info,
+            fit=paper_info,
             fitted_rate_hz=1.0 / h,
             decimation=d,
             unit=unit,
@@ -640,7 +693,7 @@ def ar_autocovariance(
             m[k, abs(k - i)] += a[i - 1]
     rhs = np.zeros(p + 1)
     rhs[0] = noise_variance
-    r = np.linalg.solve(m, rhs)
+    r = np.asarray(np.linalg.solve(m, rhs), dtype=np.float64)
     if nlags <= p + 1:
         return r[:nlags]
     den = np.concatenate(([1.0], a))
@@ -720,6 +773,25 @@ class ArModel:
         """Theoretical Allan deviation at τ (s), signal units.  ``rate_hz`` is
         accepted for symmetry with :class:`GaussMarkovModel` and ignored."""
         return np.sqrt(self.avar(tau))
+
+    @property
+    def valid_from_tau_s(self) -> float:
+        """Shortest τ the model describes: its own sample period."""
+        return 1.0 / self.rate_hz
+
+    def variance(
+        self, tau: ArrayLike, estimator: str = "overlapping", rate_hz: float | None = None
+    ) -> NDArray[np.float64]:
+        """Expected variance of any Allan-family ``estimator`` at τ (s), signal units².
+
+        Computed at the model's own rate (it describes ``decimation``-sample
+        means of the raw log: exact for the Allan and Hadamard families, whose
+        statistics of block means at m equal those of the raw series at
+        m·decimation; for the modified variance the phase is averaged over
+        block means, a difference of order 1/m²). NaN below one model sample.
+        ``rate_hz`` is ignored.
+        """
+        return _variance_at_tau(tau, 1.0 / self.rate_hz, self.autocovariance, estimator)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -889,6 +961,219 @@ def fit_ar_burg(
 # both
 
 
+# ----------------------------------------------------------------------------
+# adequacy: does the model's curve follow the measured one?
+
+#: A model fits when its curve lies inside the measured 95 % interval (from each
+#: point's EDF) widened by this relative tolerance at no fewer than
+#: ADEQUACY_FRACTION of the points where it is valid, and is off by no more than
+#: ADEQUACY_MAX_RATIO at any of those points with EDF >= ADEQUACY_EDF_MIN.
+ADEQUACY_TOLERANCE = 0.10
+ADEQUACY_FRACTION = 0.9
+ADEQUACY_MAX_RATIO = 1.5
+ADEQUACY_EDF_MIN = 10.0
+#: Fit rates (Hz) tried besides the automatic one when a curve is given: a
+#: lower rate lets a low-order model follow the long-term part of the curve.
+CANDIDATE_RATES_HZ: tuple[float, ...] = (10.0, 1.0, 0.5, 0.2, 0.1)
+#: Fewest samples a candidate fit rate must leave.
+CANDIDATE_MIN_SAMPLES = 500
+#: AR orders tried above the criterion's choice (up to the maximum order).
+AR_ORDER_LADDER: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 40, 50, 60, 80)
+
+
+def adequacy(model: GaussMarkovModel | ArModel, curve: Any) -> dict[str, Any]:
+    """How well ``model`` follows a measured Allan-family ``curve`` where it is valid.
+
+    ``curve`` is an :class:`~imubounds.stationary.allan.AllanResult` (its
+    estimator is used for the model's curve). Over the points with
+    τ ≥ ``model.valid_from_tau_s``: z = ln(model/measured) over the spread of
+    ln σ² for the point's EDF (ψ₁(edf/2), halved for the deviation) combined
+    with :data:`ADEQUACY_TOLERANCE`; the fraction with |z| ≤ 2 (a 95 %
+    interval), the worst ratio model/measured at points with enough EDF and
+    its τ, and ``chi2_dof`` (mean z²). ``adequate`` applies
+    :data:`ADEQUACY_FRACTION` and :data:`ADEQUACY_MAX_RATIO`.
+    """
+    from scipy import special
+
+    tau = np.asarray(curve.tau, dtype=np.float64)
+    dev = np.asarray(curve.dev, dtype=np.float64)
+    edf = np.asarray(curve.edf, dtype=np.float64)
+    estimator = str(getattr(curve, "estimator", "overlapping"))
+    rate = getattr(curve, "rate_hz", None)
+    valid = (tau >= model.valid_from_tau_s * (1 - 1e-9)) & (dev > 0)
+    out: dict[str, Any] = {
+        "estimator": estimator,
+        "valid_from_tau_s": model.valid_from_tau_s,
+        "criterion": (
+            f"inside the curve's 95 % interval widened by {ADEQUACY_TOLERANCE:.0%} at >= "
+            f"{ADEQUACY_FRACTION:.0%} of the points with tau >= valid_from_tau_s, and off by "
+            f"no more than x{ADEQUACY_MAX_RATIO:g} where the EDF is >= {ADEQUACY_EDF_MIN:g}"
+        ),
+    }
+    if np.count_nonzero(valid) < 3:
+        out.update(points=int(np.count_nonzero(valid)), adequate=False,
+                   reason="fewer than 3 points of the curve where the model is valid")  # fmt: skip
+        return out
+    pred = np.sqrt(model.variance(tau[valid], estimator, rate_hz=rate))
+    t, d, e = tau[valid], dev[valid], np.maximum(edf[valid], 0.5)
+    lr = np.log(pred / d)
+    sd = np.sqrt(special.polygamma(1, e / 2.0) / 4.0 + math.log(1.0 + ADEQUACY_TOLERANCE) ** 2)
+    zz = lr / sd
+    inside = np.abs(zz) <= 2.0
+    strong = e >= ADEQUACY_EDF_MIN
+    pool = np.flatnonzero(strong) if np.any(strong) else np.arange(t.size)
+    worst = int(pool[np.argmax(np.abs(lr[pool]))])
+    frac = float(np.mean(inside))
+    ratio = float(np.exp(lr[worst]))
+    out.update(
+        tau_range_s=[float(t[0]), float(t[-1])],
+        points=int(t.size),
+        inside_fraction=frac,
+        worst_ratio=ratio,
+        worst_tau_s=float(t[worst]),
+        chi2_dof=float(np.mean(zz**2)),
+        adequate=bool(
+            frac >= ADEQUACY_FRACTION and abs(math.log(ratio)) <= math.log(ADEQUACY_MAX_RATIO)
+        ),
+    )
+    return out
+
+
+def _score(adq: dict[str, Any]) -> tuple[int, float]:
+    return (0 if adq.get("adequate") else 1, float(adq.get("chi2_dof", math.inf)))
+
+
+def candidate_factors(
+    n: int, rate_hz: float, decimate_to_hz: float | Literal["auto"] | None
+) -> list[int]:
+    """Block-averaging factors to try: the asked one first, then those of
+    :data:`CANDIDATE_RATES_HZ` that leave at least :data:`CANDIDATE_MIN_SAMPLES`."""
+    first = decimation_factor(n, rate_hz, decimate_to_hz)
+    out = [first]
+    for target in CANDIDATE_RATES_HZ:
+        d = decimation_factor(n, rate_hz, target)
+        if d not in out and n // d >= CANDIDATE_MIN_SAMPLES:
+            out.append(d)
+    return out
+
+
+def _describe_misfit(kind: str, adq: dict[str, Any], tried: str) -> str:
+    if "worst_ratio" not in adq:
+        return f"no {kind} model could be checked against the curve ({adq.get('reason', '')})"
+    return (
+        f"no {kind} model fits the curve within its intervals (tried {tried}); the best "
+        f"follows {adq['inside_fraction']:.0%} of the points from tau = "
+        f"{adq['valid_from_tau_s']:.3g} s and is off by x{adq['worst_ratio']:.3g} at tau = "
+        f"{adq['worst_tau_s']:.3g} s: do not use it to predict the curve there"
+    )
+
+
+def _best_gm(
+    arr: NDArray[np.float64],
+    rate_hz: float,
+    factors: list[int],
+    curve: Any,
+    notes: list[str],
+    **kw: Any,
+) -> tuple[GaussMarkovModel | None, dict[str, Any] | None]:
+    best: tuple[tuple[int, float], GaussMarkovModel, dict[str, Any], list[str]] | None = None
+    errors: list[str] = []
+    for d in factors:
+        local: list[str] = []
+        try:
+            gm = fit_gauss_markov(arr, rate_hz, decimate_to_hz=rate_hz / d, notes=local, **kw)
+        except ModelNotSupportedError as err:
+            errors.append(str(err))
+            continue
+        adq = adequacy(gm, curve)
+        key = (_score(adq)[0], d if adq.get("adequate") else _score(adq)[1])
+        if best is None or key < best[0]:
+            best = (key, gm, adq, local)
+    if best is None:
+        notes.append("Gauss-Markov model not fitted: " + (errors[0] if errors else "no rate"))
+        return None, None
+    _, gm, adq, local = best
+    notes.extend(local)
+    tried = ", ".join(f"{rate_hz / d:g} Hz" for d in factors)
+    if not adq.get("adequate"):
+        notes.append(_describe_misfit("Gauss-Markov (+ white)", adq, tried))
+    return gm, adq
+
+
+def _best_ar(
+    arr: NDArray[np.float64],
+    rate_hz: float,
+    factors: list[int],
+    curve: Any,
+    order_max: int,
+    criterion: str,
+    notes: list[str],
+    unit: str | None,
+) -> tuple[ArModel | None, dict[str, Any] | None]:
+    best: tuple[tuple[int, float], ArModel, dict[str, Any]] | None = None
+    for d in factors:
+        x = block_average(arr, d)
+        n = x.size
+        pmax = min(int(order_max), n // 10 - 1)
+        if pmax < 1:
+            continue
+        pacf, s2 = burg_path(x, pmax)
+        crit = information_criteria(s2, n)
+        p0 = max(int(np.argmin(crit[criterion])), 1)
+        orders = [p0] + [p for p in (*AR_ORDER_LADDER, pmax) if p0 < p <= pmax]
+        local_best: tuple[tuple[int, float], ArModel, dict[str, Any]] | None = None
+        for p in sorted(set(orders)):
+            model = _ar_model(pacf, s2, p, rate_hz / d, d, criterion, pmax, crit, x, unit)
+            adq = adequacy(model, curve)
+            key = _score(adq)
+            if local_best is None or key < local_best[0]:
+                local_best = (key, model, adq)
+            if adq.get("adequate"):
+                break
+        if local_best is None:
+            continue
+        key = (local_best[0][0], d if local_best[2].get("adequate") else local_best[0][1])
+        if best is None or key < best[0]:
+            best = (key, local_best[1], local_best[2])
+    if best is None:
+        notes.append("AR model not fitted: too few samples at every fit rate tried")
+        return None, None
+    _, model, adq = best
+    tried = ", ".join(f"{rate_hz / d:g} Hz" for d in factors) + f", orders up to {order_max}"
+    if not adq.get("adequate"):
+        notes.append(_describe_misfit("AR", adq, tried))
+    elif model.order == order_max:
+        notes.append(f"the AR model needs the largest order tried ({order_max}); a larger"
+                     " --ar-max-order may give a simpler fit elsewhere")  # fmt: skip
+    return model, adq
+
+
+def _ar_model(
+    pacf: NDArray[np.float64],
+    s2: NDArray[np.float64],
+    p: int,
+    rate: float,
+    d: int,
+    criterion: str,
+    pmax: int,
+    crit: dict[str, NDArray[np.float64]],
+    x: NDArray[np.float64],
+    unit: str | None,
+) -> ArModel:
+    a = ar_from_pacf(pacf[: p + 1])
+    return ArModel(
+        coefficients=tuple(float(v) for v in a),
+        noise_variance=float(s2[p]),
+        rate_hz=rate,
+        decimation=d,
+        criterion=criterion,
+        orders=tuple(range(pmax + 1)),
+        criteria={k: [float(v) for v in vals] for k, vals in crit.items()},
+        mean=float(x.mean()),
+        unit=unit,
+    )
+
+
 @dataclass
 class ModelsResult:
     """The models fitted to one channel (either may be ``None``: see ``notes``)."""
@@ -900,6 +1185,7 @@ class ModelsResult:
     n_samples: int
     unit: str | None = None
     notes: list[str] = field(default_factory=list)
+    adequacy: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def effective_rate_hz(self) -> float:
@@ -926,10 +1212,21 @@ class ModelsResult:
             "decimation": self.decimation,
             "effective_rate_hz": self.effective_rate_hz,
             "decimation_method": "block average",
-            "gauss_markov": None if self.gauss_markov is None else self.gauss_markov.to_dict(),
-            "ar": None if self.ar is None else self.ar.to_dict(),
+            "gauss_markov": _with_adequacy(self.gauss_markov, self.adequacy.get("gauss_markov")),
+            "ar": _with_adequacy(self.ar, self.adequacy.get("ar")),
             "notes": list(self.notes),
         }
+
+
+def _with_adequacy(
+    model: GaussMarkovModel | ArModel | None, adq: dict[str, Any] | None
+) -> dict[str, Any] | None:
+    if model is None:
+        return None
+    d = model.to_dict()
+    if adq is not None:
+        d["adequacy"] = adq
+    return d
 
 
 def parse_kinds(kinds: str | Sequence[str]) -> tuple[str, ...]:
@@ -959,6 +1256,7 @@ def fit_models(
     gm_method: Literal["acf_ls", "paper"] = "acf_ls",
     name: str = "signal",
     unit: str | None = None,
+    curve: Any = None,
 ) -> ModelsResult:
     """Fit the asked stochastic models to one channel.
 
@@ -967,7 +1265,15 @@ def fit_models(
     too short) raises; a model the data do not support (e.g. no positive
     autocorrelation for GM) is left ``None`` and explained in ``notes``.
 
-    Parameters are those of :func:`fit_gauss_markov` and :func:`fit_ar_burg`.
+    With ``curve`` (the channel's measured Allan-family curve) every model is
+    checked against it (:func:`adequacy`): the fit is repeated at the fit rates
+    of :func:`candidate_factors` and, for AR, at increasing orders from the
+    criterion's choice up to ``ar_order_max``, and the first adequate model
+    (widest valid range, lowest order) is kept; when none is adequate the
+    closest one is kept and a note says plainly that no model of that family
+    fits. ``adequacy`` of the result holds the check of each kept model.
+
+    Other parameters are those of :func:`fit_gauss_markov` and :func:`fit_ar_burg`.
     """
     ks = parse_kinds(kinds)
     arr = _as_signal(y, rate_hz, name)
@@ -981,6 +1287,59 @@ def fit_models(
             + (f"; last {dropped} samples dropped" if dropped else "")
         )
     fixed = float(rate_hz / d) if d > 1 else None
+    gm: GaussMarkovModel | None = None
+    ar: ArModel | None = None
+    if curve is not None and ar_order is None:
+        if criterion not in CRITERIA:
+            raise OptionError(
+                f"AR order criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}"
+            )
+        if int(ar_order_max) < 1:
+            raise OptionError(f"AR order must be >= 1, got {ar_order_max}")
+        factors = candidate_factors(arr.size, rate_hz, decimate_to_hz)
+        adq: dict[str, dict[str, Any]] = {}
+        if "gm" in ks:
+            gm, a_gm = _best_gm(arr, rate_hz, factors, curve, notes, max_lag_s=max_lag_s,
+                                method=gm_method, name=name, unit=unit)  # fmt: skip
+            if a_gm is not None:
+                adq["gauss_markov"] = a_gm
+        if "ar" in ks:
+            ar, a_ar = _best_ar(arr, rate_hz, factors, curve, ar_order_max, criterion, notes, unit)
+            if a_ar is not None:
+                adq["ar"] = a_ar
+    else:
+        gm, ar = _fit_plain(arr, rate_hz, ks, fixed, notes, max_lag_s=max_lag_s,
+                            gm_method=gm_method, ar_order_max=ar_order_max, criterion=criterion,
+                            ar_order=ar_order, name=name, unit=unit)  # fmt: skip
+        adq = {}
+    return ModelsResult(
+        gauss_markov=gm,
+        ar=ar,
+        rate_hz=float(rate_hz),
+        decimation=d,
+        n_samples=int(arr.size),
+        unit=unit,
+        notes=notes,
+        adequacy=adq,
+    )
+
+
+def _fit_plain(
+    arr: NDArray[np.float64],
+    rate_hz: float,
+    ks: tuple[str, ...],
+    fixed: float | None,
+    notes: list[str],
+    *,
+    max_lag_s: float | None,
+    gm_method: Literal["acf_ls", "paper"],
+    ar_order_max: int,
+    criterion: str,
+    ar_order: int | None,
+    name: str,
+    unit: str | None,
+) -> tuple[GaussMarkovModel | None, ArModel | None]:
+    """The models at one fit rate, without checking them against a curve."""
     gm: GaussMarkovModel | None = None
     ar: ArModel | None = None
     if "gm" in ks:
@@ -1009,12 +1368,4 @@ def fit_models(
             unit=unit,
             notes=notes,
         )
-    return ModelsResult(
-        gauss_markov=gm,
-        ar=ar,
-        rate_hz=float(rate_hz),
-        decimation=d,
-        n_samples=int(arr.size),
-        unit=unit,
-        notes=notes,
-    )
+    return gm, ar

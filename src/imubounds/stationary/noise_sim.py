@@ -38,7 +38,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -448,7 +448,7 @@ class NoiseSpec:
             raise OptionError("a datasheet spec needs gyro and/or accelerometer figures")
         return cls(channels=ch, name=name)
 
-    def with_overrides(self, kind: str, values: Mapping[str, float]) -> NoiseSpec:
+    def with_overrides(self, kind: str, values: Mapping[str, Any]) -> NoiseSpec:
         """Replace fields (SI) on every axis of ``kind`` (added if missing)."""
         ch = dict(self.channels)
         for c in ("x", "y", "z"):
@@ -531,9 +531,10 @@ class NoiseSpec:
     ) -> NoiseSpec:
         """Build from a ``noise.json`` written by ``imubounds static``.
 
-        ``terms``: ``"fit"`` (default), ``"slope"`` or ``"none"``: which
-        estimate of Q, N, B, K, R to use (a missing, null, NaN or zero term is
-        omitted).  ``models``: any of ``"gm"``, ``"ar"``: also add the fitted
+        ``terms``: ``"fit"`` (default), ``"slope"``, ``"selected"`` (the terms
+        used for bounds: upper bounds where the log did not resolve a term) or
+        ``"none"``: which estimate of Q, N, B, K, R to use (a missing, null,
+        NaN or zero term is omitted).  ``models``: any of ``"gm"``, ``"ar"``: also add the fitted
         Gauss–Markov / AR models (they overlap with the terms: usually use
         ``terms="none"`` with models).
         """
@@ -552,8 +553,8 @@ class NoiseSpec:
                 f"{source}: not a noise.json from 'imubounds static' "
                 "(format imubounds.stationary.terms/1 missing)"
             )
-        if terms not in ("fit", "slope", "none"):
-            raise OptionError(f"terms must be fit, slope or none, got {terms!r}")
+        if terms not in ("fit", "slope", "selected", "none"):
+            raise OptionError(f"terms must be fit, slope, selected or none, got {terms!r}")
         models = tuple(models)
         for m in models:
             if m not in ("gm", "ar"):
@@ -784,7 +785,7 @@ def write_csv(log: ImuLog, path: str | Path, *, precision: int = 10) -> Path:
 
     if not p.parent.is_dir():
         raise OptionError(f"cannot write {p}: folder {p.parent} does not exist")
-    compression = "gzip" if p.name.lower().endswith(".gz") else None
+    compression: Literal["gzip"] | None = "gzip" if p.name.lower().endswith(".gz") else None
     try:
         with atomic_path(p) as tmp:
             pd.DataFrame(cols).to_csv(

@@ -1,4 +1,4 @@
-"""The stationary pipeline: Allan curves -> noise terms -> bounds, for every channel.
+"""The stationary pipeline: spikes -> Allan curves -> noise terms -> models -> bounds.
 
 :func:`analyse_static` takes an :class:`~imubounds.io.log.ImuLog` (SI units) and
 returns a :class:`StaticResult`, whose :meth:`~StaticResult.to_json` is the
@@ -9,7 +9,6 @@ content of ``noise.json`` and whose :meth:`~StaticResult.kalibr_yaml` is
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -21,8 +20,9 @@ from imubounds.errors import AnalysisError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
 from imubounds.stationary.allan import AllanResult, allan_channels
-from imubounds.stationary.terms import NoiseTerms, fit_slopes, fit_terms
-from imubounds.units import SQRT_HOUR, sensor_kind, si_unit_of_signal
+from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
+from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
+from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
 FORMAT = "imubounds.stationary.terms/1"
 TermSource = Literal["fit", "slope"]
@@ -34,11 +34,14 @@ class StaticSettings:
     """Settings of a stationary analysis.
 
     ``taus`` is a grid spec understood by :func:`imubounds.stationary.allan.tau_grid`
-    ("octave", "decade", an int for N log-spaced points, or τ values in s).
+    ("octave", "decade", "all", an int for N log-spaced points, or τ values in s).
     ``averaging_time_s`` is the t of σ_c (the log length when ``None``);
-    ``run_hours`` is the T of the 95 % level (the log length when ``None``).
-    ``terms_from`` selects which estimate (fit or slope read-off) feeds σ_c,
-    the 95 % level and imu.yaml.
+    ``run_hours`` is the T of the random-walk growth (the log length when ``None``).
+    ``terms_from`` selects which estimate (fit or slope read-off) is preferred
+    for the selected terms that feed σ_c, the random-walk growth and imu.yaml.
+    ``robust`` computes the outlier-resistant Allan curve (and keeps the plain
+    one for comparison); ``spike_threshold`` is the robust z of the spike
+    detector; ``ar_max_order`` the largest AR order tried.
     """
 
     taus: str | int | Sequence[float] = "octave"
@@ -49,6 +52,9 @@ class StaticSettings:
     run_hours: float | None = None
     terms_from: TermSource = "fit"
     models: tuple[str, ...] = ()
+    robust: bool = False
+    spike_threshold: float = DEFAULT_THRESHOLD
+    ar_max_order: int = 20
 
     def to_json(self) -> dict[str, Any]:
         taus = self.taus if isinstance(self.taus, str | int) else [float(t) for t in self.taus]
@@ -61,59 +67,108 @@ class StaticSettings:
             "run_hours": self.run_hours,
             "terms_from": self.terms_from,
             "models": list(self.models),
+            "robust": self.robust,
+            "spike_threshold": self.spike_threshold,
+            "ar_max_order": self.ar_max_order,
         }
 
 
 @dataclass
 class ChannelResult:
-    """Everything computed for one channel."""
+    """Everything computed for one channel.
+
+    ``allan`` is the curve the terms come from (the robust one with
+    ``--robust``; ``allan_plain`` is then the plain curve). ``selected`` holds
+    the terms used downstream; ``terms_used`` their N and B (SI).
+    ``level_95`` is the paper's 95 % random-walk growth ``1.96·N·√T``, in rad
+    (gyro) or m/s (accelerometer): the integrated quantity, not a rate.
+    ``warnings`` are counted warnings for the user, ``notes`` remarks.
+    """
 
     name: str
     allan: AllanResult
     slope: NoiseTerms
     fit: NoiseTerms
+    selected: Selection
     sigma_c: float
     bound: float
     level_95: float
     run_hours: float
     averaging_time_s: float
     terms_used: dict[str, float]
+    k_sigma: float = bounds.DEFAULT_K
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
     models: Any = None
+    allan_plain: AllanResult | None = None
+    spikes: SpikeReport | None = None
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> SensorKind:
         return sensor_kind(self.name)
 
-    def to_json(self, k_sigma: float) -> dict[str, Any]:
-        kind = sensor_kind(self.name)
+    def to_json(self, k_sigma: float | None = None) -> dict[str, Any]:
+        kind = self.kind
         unit = si_unit_of_signal(kind)
+        k = self.k_sigma if k_sigma is None else k_sigma
+        sel = self.selected
+        status = {t: sel.status(t) for t in ("N", "B")}
+        rw_unit, rw_ds_unit, rw_factor = (
+            ("rad", "deg", 1.0 / DEG) if kind == "gyro" else ("m/s", "m/s", 1.0)
+        )
         out: dict[str, Any] = {
             "unit": unit,
             "allan": allan_json(self.allan),
-            "noise": {"slope": self.slope.to_json(kind), "fit": self.fit.to_json(kind)},
+        }
+        if self.allan_plain is not None:
+            out["allan_plain"] = allan_json(self.allan_plain)
+        out["noise"] = {
+            "slope": self.slope.to_json(kind),
+            "fit": self.fit.to_json(kind),
+            "selected": sel.to_json(kind),
+        }
+        out["spikes"] = (
+            self.spikes.to_dict()
+            if self.spikes is not None
+            else {"checked": False, "reason": "no samples in memory (out-of-core path)"}
+        )
+        out["sigma_c"] = self.sigma_c
+        out["bound"] = {
+            "value": self.bound,
+            "unit": unit,
+            "k": k,
             "sigma_c": self.sigma_c,
-            "bound_3sigma": self.bound,
-            "stationary": {
-                "unit": unit,
-                "k_sigma": k_sigma,
-                "sigma_c": self.sigma_c,
-                "bound_half_width": self.bound,
-                "N": self.terms_used["N"],
-                "B": self.terms_used["B"],
-                "averaging_time_s": self.averaging_time_s,
-                "formula": "sigma_c = N/sqrt(dt) + sqrt(dt/t)*B; bound = k*sigma_c",
-            },
-            "level_95": {
-                "value": self.level_95,
-                "unit": unit,
-                "T_hours": self.run_hours,
-                "rw_per_sqrt_h": self.terms_used["N"] * SQRT_HOUR,
-                "formula": "1.96 * RW[per sqrt(h)] * sqrt(T[h]) (paper, section IV)",
-            },
+            "formula": "bound = k * sigma_c, sigma_c = N/sqrt(dt) + sqrt(dt/t)*B (per sample)",
+            "terms_status": status,
+        }
+        out["stationary"] = {
+            "unit": unit,
+            "k_sigma": k,
+            "sigma_c": self.sigma_c,
+            "bound_half_width": self.bound,
+            "N": self.terms_used["N"],
+            "B": self.terms_used["B"],
+            "N_status": status["N"],
+            "B_status": status["B"],
+            "averaging_time_s": self.averaging_time_s,
+            "formula": "sigma_c = N/sqrt(dt) + sqrt(dt/t)*B; bound = k*sigma_c",
+        }
+        out["random_walk_95"] = {
+            "value": self.level_95,
+            "unit": rw_unit,
+            "datasheet": {"value": self.level_95 * rw_factor, "unit": rw_ds_unit},
+            "T_hours": self.run_hours,
+            "z": bounds.Z95,
+            "rw_per_sqrt_h": self.terms_used["N"] * SQRT_HOUR,
+            "rw_per_sqrt_h_unit": f"{rw_unit}/h^0.5",
+            "formula": "1.96 * N[per sqrt(h)] * sqrt(T[h]): the 95 % growth of the integrated "
+            f"error ({'angle' if kind == 'gyro' else 'velocity'}) over the run "
+            "(paper, section IV)",
         }
         if self.models is not None:
             out["models"] = self.models.to_dict()
+        if self.warnings:
+            out["warnings"] = list(self.warnings)
         if self.notes:
             out["notes"] = list(self.notes)
         return out
@@ -142,19 +197,16 @@ class StaticResult:
                 "warnings": list(self.log.warnings),
             },
             "settings": self.settings.to_json(),
-            "channels": {
-                name: ch.to_json(self.settings.k_sigma) for name, ch in self.channels.items()
-            },
+            "channels": {name: ch.to_json() for name, ch in self.channels.items()},
             "kalibr": self.kalibr(),
             "notes": list(self.notes),
         }
 
     def kalibr(self) -> dict[str, Any]:
-        """Kalibr IMU noise keys, taking the worst (largest) axis of each sensor.
+        """Kalibr IMU noise keys from the selected terms, taking the worst (largest) axis.
 
-        Kalibr wants one value per sensor; each value must be > 0. Where the
-        chosen estimate has no random-walk (K) term, the upper end of its
-        confidence interval is used and the fallback is stated.
+        Kalibr wants one value per sensor, each > 0. A term the curve does not
+        resolve enters as its upper bound (never 0), and a note says so.
         """
         out: dict[str, Any] = {"update_rate": self.log.rate_hz}
         notes: list[str] = []
@@ -165,16 +217,20 @@ class StaticResult:
             for term, key in (("N", "noise_density"), ("K", "random_walk")):
                 best: tuple[float, str, str] | None = None
                 for ch in chans:
-                    value, how = _positive_term(ch, term, self.settings.terms_from)
-                    if value is not None and (best is None or value > best[0]):
-                        best = (value, ch.name, how)
+                    v = ch.selected.terms[term].value
+                    if v is not None and v > 0 and (best is None or v > best[0]):
+                        best = (float(v), ch.name, ch.selected.status(term))
                 if best is None:
                     notes.append(f"{prefix}_{key}: no axis gave a positive {term}; not written")
                     continue
                 out[f"{prefix}_{key}"] = best[0]
                 out[f"{prefix}_{key}_axis"] = best[1]
-                if best[2]:
-                    notes.append(f"{prefix}_{key}: {best[2]} ({best[1]})")
+                out[f"{prefix}_{key}_status"] = best[2]
+                if best[2] != "resolved":
+                    notes.append(
+                        f"{prefix}_{key}: {term} is not resolved by the log ({best[1]}); its "
+                        "upper bound is written (conservative)"
+                    )
         out["notes"] = notes
         return out
 
@@ -184,7 +240,8 @@ class StaticResult:
         lines = [
             "# IMU noise model for Kalibr, written by imubounds "
             f"{__version__} from {self.log.source}",
-            "# Each value is the worst (largest) axis of its sensor; units as Kalibr expects.",
+            "# Each value is the worst (largest) axis of its sensor's selected terms "
+            "(noise.json: channels.<ch>.noise.selected); units as Kalibr expects.",
         ]
         units = {
             "accelerometer_noise_density": "m/s^2/sqrt(Hz)",
@@ -194,7 +251,10 @@ class StaticResult:
         }
         for key, unit in units.items():
             if key in k:
-                lines.append(f"{key}: {k[key]:.6e}  # {unit}, axis {k[key + '_axis']}")
+                lines.append(
+                    f"{key}: {k[key]:.6e}  # {unit}, axis {k[key + '_axis']}, "
+                    f"{k[key + '_status'].replace('_', ' ')}"
+                )
         lines.append("rostopic: /imu0")
         lines.append(f"update_rate: {k['update_rate']:.6g}  # Hz")
         for note in k["notes"]:
@@ -207,48 +267,21 @@ STATISTIC = {
     "non-overlapping": "non-overlapping Allan deviation",
     "modified": "modified Allan deviation",
     "hadamard": "overlapping Hadamard deviation",
+    "non-overlapping-hadamard": "non-overlapping Hadamard deviation",
     "total": "total deviation",
 }
 
 
 def allan_json(curve: AllanResult) -> dict[str, Any]:
-    """The ``allan`` block of noise.json: ``tau_s``, ``adev``, ``ci_lower``, ``ci_upper`` (SI)."""
+    """The ``allan`` block of noise.json: ``tau_s``, ``adev``, ``ci_lower``, ``ci_upper`` (SI),
+    ``edf``, ``alpha`` and ``noise_type`` (the noise identified at each τ)."""
     d = curve.to_dict()
     d["tau_s"] = d.pop("tau")
     d["adev"] = d.pop("dev")
     d["statistic"] = STATISTIC.get(curve.estimator, curve.estimator)
+    if curve.robust:
+        d["statistic"] = "robust " + d["statistic"]
     return d
-
-
-def _positive_term(ch: ChannelResult, term: str, prefer: TermSource) -> tuple[float | None, str]:
-    first, second = (ch.fit, ch.slope) if prefer == "fit" else (ch.slope, ch.fit)
-    for terms, label in ((first, prefer), (second, "slope" if prefer == "fit" else "fit")):
-        v = terms.value(term)  # type: ignore[arg-type]
-        if math.isfinite(v) and v > 0:
-            return v, "" if label == prefer else f"{term} taken from the {label} estimate"
-    for terms, label in ((first, prefer), (second, "other")):
-        if term in terms.ci and terms.ci[term][1] > 0:
-            return terms.ci[term][1], f"{term} not resolved; upper CI bound of the {label} used"
-    return None, ""
-
-
-def _terms_for_bounds(
-    slope: NoiseTerms, fit: NoiseTerms, prefer: TermSource, notes: list[str]
-) -> dict[str, float]:
-    first, second = (fit, slope) if prefer == "fit" else (slope, fit)
-    used: dict[str, float] = {}
-    for term in ("N", "B"):
-        v = first.value(term)  # type: ignore[arg-type]
-        if not (math.isfinite(v) and v > 0):
-            alt = second.value(term)  # type: ignore[arg-type]
-            if math.isfinite(alt) and alt > 0:
-                notes.append(f"{term} from the {second.method} estimate ({prefer} gave none)")
-                v = alt
-            else:
-                notes.append(f"{term} not determined by either estimate; taken as 0 in sigma_c")
-                v = 0.0
-        used[term] = v
-    return used
 
 
 def analyse_static(
@@ -263,7 +296,9 @@ def analyse_static(
 
     ``progress(stage, done, total)`` is called as work advances (the library
     never prints). ``curves`` supplies Allan curves computed elsewhere (the
-    out-of-core path, :mod:`imubounds.stationary.stream`); they must match ``settings``.
+    out-of-core path, :mod:`imubounds.stationary.stream`); they must match
+    ``settings``, and then the samples are not looked at (no spike check, no
+    robust curve).
     """
     settings = settings or StaticSettings()
     if settings.terms_from not in ("fit", "slope"):
@@ -278,52 +313,90 @@ def analyse_static(
     imu_names = [n for n in names if n.startswith(("gyro", "accel"))]
     if not imu_names:
         raise AnalysisError(f"{log.source} has no gyro or accelerometer channel to analyse")
+    if curves is not None and settings.robust:
+        raise OptionError("the robust Allan variance needs the samples in memory (not out-of-core)")
 
     def allan_progress(done: int, total: int) -> None:
         if progress is not None:
             progress("allan", done, total)
 
+    spikes: dict[str, SpikeReport] = {}
+    plain: Mapping[str, AllanResult] = {}
     if curves is None:
+        for name in imu_names:
+            spikes[name] = detect_spikes(
+                np.asarray(log.channels[name]),
+                log.rate_hz,
+                threshold=settings.spike_threshold,
+                name=name,
+                t=np.asarray(log.t),
+            )
+        data = {n: log.channels[n] for n in imu_names}
+        kw = {"taus": settings.taus, "estimator": settings.estimator}
         curves = allan_channels(
-            {n: log.channels[n] for n in imu_names},
-            log.rate_hz,
-            taus=settings.taus,
-            estimator=settings.estimator,
-            confidence=settings.confidence,
-            progress=allan_progress,
-        )
+            data, log.rate_hz, confidence=settings.confidence, progress=allan_progress,
+            robust=settings.robust, **kw,  # type: ignore[arg-type]
+        )  # fmt: skip
+        if settings.robust:
+            plain = allan_channels(data, log.rate_hz, confidence=settings.confidence, **kw)  # type: ignore[arg-type]
     t_avg = settings.averaging_time_s or log.duration_s
     run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}
-    model_fits = _fit_models(log, imu_names, settings, progress)
+    model_fits = _fit_models(log, imu_names, settings, progress, curves)
     for name in imu_names:
         curve = curves[name]
-        slope = fit_slopes(curve)
-        fit = fit_terms(curve, confidence=settings.confidence)
+        fit, slope, sel = analyse_curve(
+            curve, prefer=settings.terms_from, confidence=settings.confidence
+        )
         notes: list[str] = []
-        used = _terms_for_bounds(slope, fit, settings.terms_from, notes)
+        warnings: list[str] = []
+        rep = spikes.get(name)
+        msg = rep.warning(settings.robust) if rep is not None else None
+        if msg:
+            warnings.append(msg)
+        used = {t: sel.value(t) for t in ("N", "B")}
+        for t in ("N", "B"):
+            if sel.status(t) == "upper_bound":
+                warnings.append(
+                    f"{name}: {t} is not resolved by the curve; sigma_c and the bound use its "
+                    f"upper bound {used[t]:.4g} {SI_UNITS[sensor_kind(name)][t]} (conservative)"
+                )
+        if sel.status("K") == "upper_bound":
+            notes.append(
+                f"K is not resolved; imu.yaml and noise.selected carry its upper bound "
+                f"{sel.value('K'):.4g} {SI_UNITS[sensor_kind(name)]['K']}"
+            )
         sc = bounds.sigma_c(used["N"], used["B"], log.dt, t_avg)
         results[name] = ChannelResult(
             name=name,
             allan=curve,
             slope=slope,
             fit=fit,
+            selected=sel,
             sigma_c=sc,
             bound=settings.k_sigma * sc,
             level_95=bounds.level_95_si(used["N"], run_hours * 3600.0),
             run_hours=run_hours,
             averaging_time_s=t_avg,
             terms_used=used,
+            k_sigma=settings.k_sigma,
             notes=notes,
+            warnings=warnings,
             models=model_fits.get(name),
+            allan_plain=plain.get(name),
+            spikes=rep,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 
 
 def _fit_models(
-    log: ImuLog, names: list[str], settings: StaticSettings, progress: Progress | None
+    log: ImuLog,
+    names: list[str],
+    settings: StaticSettings,
+    progress: Progress | None,
+    curves: Mapping[str, AllanResult],
 ) -> dict[str, Any]:
-    """Fit the stochastic models asked for (issue 3); empty when none are asked."""
+    """Fit the stochastic models asked for, checked against each channel's curve."""
     if not settings.models:
         return {}
     from imubounds.stationary.models import fit_models
@@ -336,8 +409,10 @@ def _fit_models(
             np.asarray(log.channels[name]),
             log.rate_hz,
             settings.models,
+            ar_order_max=settings.ar_max_order,
             name=name,
             unit=si_unit_of_signal(sensor_kind(name)),
+            curve=curves[name],
         )
     if progress is not None:
         progress("models", len(names), len(names))

@@ -60,6 +60,7 @@ from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.chunked import ChunkedLog, open_chunked
 from imubounds.stationary import _allan_kernels as _k
 from imubounds.stationary.allan import (
+    HADAMARD_ESTIMATORS,
     NOISE_ID_MAX_POINTS,
     AllanResult,
     _alpha_limits,
@@ -88,7 +89,14 @@ DEFAULT_MEMORY: int = 1 << 30
 
 Progress = Callable[[str, int, int], None]
 
-_D = {"overlapping": 2, "hadamard": 3, "non-overlapping": 2, "total": 2, "modified": 3}
+_D = {
+    "overlapping": 2,
+    "hadamard": 3,
+    "non-overlapping": 2,
+    "non-overlapping-hadamard": 3,
+    "total": 2,
+    "modified": 3,
+}
 
 
 # --------------------------------------------------------------------------
@@ -428,15 +436,17 @@ def sumsq_file(
                     part.append(float(np.dot(dd, dd)))
                     done(hi - lo)
 
-    elif estimator == "non-overlapping":
+    elif estimator in ("non-overlapping", "non-overlapping-hadamard"):
+        d = 3 if estimator == "non-overlapping-hadamard" else 2
+        code = 2 if estimator == "non-overlapping-hadamard" else 0
         for i, m in enumerate(ms):
             m = int(m)
             a, b = ranges[i]
             for j0 in range(a, b, block):
                 j1 = min(b, j0 + block)
-                xs = ph.read_strided(j0 * m, m, j1 - j0 + 2, block)
+                xs = ph.read_strided(j0 * m, m, j1 - j0 + d, block)
                 tasks = [(i, 1, p - j0, q - j0) for p, q in _chunks(j0, j1, chunk, 0)]
-                _run(xs, 0, tasks, idx, part)
+                _run(xs, code, tasks, idx, part)
                 done(j1 - j0)
 
     elif estimator == "modified":
@@ -501,7 +511,7 @@ def _alphas_file(
     ph: PhaseFile, ms: np.ndarray, t0: float, estimator: str, block: int
 ) -> np.ndarray:
     lo, hi = _alpha_limits(estimator)
-    dmax = 3 if estimator == "hadamard" else 2
+    dmax = 3 if estimator in HADAMARD_ESTIMATORS else 2
     out = np.zeros(ms.size, dtype=np.int64)
     prev = 0
     n = ph.n
@@ -633,7 +643,9 @@ def allan_outofcore(
     mem = parse_memory(memory_limit)
     block = block_size(mem)
     if not isinstance(log, ChunkedLog):
-        log = open_chunked(log, channels=channels, **open_kwargs)
+        log = open_chunked(
+            log, channels=list(channels) if channels is not None else None, **open_kwargs
+        )
     names = list(channels) if channels else list(log.channels)
     missing = [c for c in names if c not in log.channels]
     if missing:
@@ -779,7 +791,9 @@ def analyse_static_outofcore(
     log = (
         path
         if isinstance(path, ChunkedLog)
-        else open_chunked(path, channels=channels, **open_kwargs)
+        else open_chunked(
+            path, channels=list(channels) if channels is not None else None, **open_kwargs
+        )
     )
     names = [c for c in (channels or log.channels) if c.startswith(("gyro", "accel"))]
     if not names:

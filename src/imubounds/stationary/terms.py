@@ -1,20 +1,44 @@
-"""Noise terms read off an Allan-deviation curve (METHOD.md 1.2, IEEE Std 952 Annex C).
+"""Noise terms read off an Allan-family curve (METHOD.md 1.2, IEEE Std 952 Annex C).
 
-The Allan variance of the five classical error processes adds up to
+For the Allan variance the five classical error processes add up to
 
-    σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)·B² + K²·τ/3 + R²·τ²/2
+    σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)·B² + K²·τ/3 + R²·τ²/2;
 
-Two estimators are offered:
+every other estimator has its own factors (:mod:`.theory`), and every
+function here uses the factors of the curve's own estimator, so that the same
+log gives the same Q, N, B, K, R whichever estimator drew the curve.
 
-* :func:`fit_slopes` — the paper's (and IEEE 952's) read-off: a line of the
-  term's slope is laid through the point of the curve whose local slope is
-  closest to it, and read at the characteristic τ (N at τ = 1 s, K at τ = 3 s,
-  Q at τ = √3 s, R at τ = √2 s; B = σ_min / 0.664). A term whose slope is not
-  seen on the curve is reported as not observed (``nan``) with the reason.
-* :func:`fit_terms` — a weighted non-negative least-squares fit of all five
-  coefficients to σ²(τ) over the whole curve, weighted by the statistical
-  uncertainty of each Allan-variance point (from its equivalent degrees of
-  freedom), iteratively re-weighted with the model.
+Three results are built from one curve:
+
+* :func:`fit_terms` — a weighted non-negative least-squares fit of the five
+  squared terms to σ²(τ), **robust** (iteratively reweighted with Tukey's
+  biweight on log residuals, so that a notch or a bump of a few points
+  cannot drag it) and with **honest uncertainty**: each point's standard
+  error is its statistical one (from its EDF) combined with a relative model
+  misfit η estimated from the residuals themselves (the median standardised
+  residual is made that of a normal law), and the covariance is inflated
+  for τ grids denser than one point per octave (neighbouring points share
+  their data). Terms whose removal does not raise χ² by 4 (2σ) are removed
+  one by one. A kept term is ``resolved`` when it dominates the
+  model (half the variance; a quarter for B) at some point whose EDF is at
+  least :data:`EDF_MIN`; otherwise it is an ``upper_bound``.
+* :func:`fit_slopes` — the IEEE 952 read-off, done where each term lives:
+  its *home* is the set of points where the fit gives it at least half of
+  the variance and the EDF is adequate; the line of the term's slope is laid
+  tangent to the curve inside the home (the point minimising
+  ``σ²(τ)/f_j(τ)``, which is where the local slope equals the term's) and
+  read at the characteristic τ. The τ used, the local slope there and the
+  expected slope are reported, with a warning when they disagree (other
+  terms contribute there and the value is an upper estimate). B is read
+  from σ_min, the lowest point with adequate EDF: ``B = σ_min / 0.664`` on
+  an Allan curve (0.546 modified, 0.598 Hadamard). The read-off counts as
+  resolved only where the fit resolves the term.
+* :func:`select_terms` — the terms used for bounds and ``imu.yaml``: a
+  resolved term from the preferred estimate, otherwise an **upper bound**
+  from the curve's confidence intervals where the term would show,
+  ``min_τ σ_hi(τ)/√f_j(τ)`` at 99 % per point with EDF ≥ 10. Every other
+  term only adds variance, so the true term lies below it whenever the
+  intervals hold. An unresolved term is never 0.
 
 Everything is SI: Q in rad (m/s), N in rad/s^0.5 (m/s^1.5), B in rad/s
 (m/s^2), K in rad/s^1.5 (m/s^2.5), R in rad/s^2 (m/s^3).
@@ -23,46 +47,79 @@ Everything is SI: Q in rad (m/s), N in rad/s^0.5 (m/s^1.5), B in rad/s
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import special, stats
 from scipy.optimize import nnls
-from scipy.stats import norm
 
-from imubounds.errors import AnalysisError
-from imubounds.units import SI_UNITS, SensorKind, Term, to_ieee
+from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import theory
+from imubounds.units import DATASHEET_UNITS, SI_UNITS, SensorKind, Term, to_datasheet, to_ieee
 
 TERMS: tuple[Term, ...] = ("Q", "N", "B", "K", "R")
 #: √(2 ln2 / π): the flat level of the Allan deviation of flicker noise, per unit B.
 B_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
-#: log-log slope of σ(τ) for each term, and the τ (s) at which the line is read.
-SLOPES: dict[Term, float] = {"Q": -1.0, "N": -0.5, "B": 0.0, "K": 0.5, "R": 1.0}
+#: The τ (s) at which IEEE 952 reads each term's line on an Allan curve
+#: (N at 1 s, K at 3 s, Q at √3 s, R at √2 s); other estimators: :func:`expected_slope`.
 READ_TAU: dict[Term, float] = {"Q": math.sqrt(3.0), "N": 1.0, "K": 3.0, "R": math.sqrt(2.0)}
-#: How far (in slope units) the local slope may be from a term's slope for the
-#: term to count as observed by the read-off.
+#: How far (in slope units) the local slope may be from the term's expected
+#: slope before the read-off warns that other terms contribute there.
 SLOPE_TOLERANCE = 0.15
+#: Smallest EDF of a point used to locate a term, σ_min or a read-off.
+EDF_MIN = 10.0
+#: Share of the model variance a term must carry somewhere (at a point with EDF ≥
+#: EDF_MIN) to be resolved: it must dominate the curve there; B, which lives where
+#: the N and K lines cross, needs a quarter. A term hidden under another (N under a
+#: large flicker floor at the sample period) depends on how the hiding term is
+#: modelled there, and is reported as an upper bound instead.
+SHARE_VISIBLE: dict[str, float] = {"Q": 0.5, "N": 0.5, "B": 0.25, "K": 0.5, "R": 0.5}
+#: Share of the model variance that makes a point part of a term's home for the read-off.
+SHARE_MIN = 0.5
+#: A term stays in the fit when removing it raises chi-squared by at least this squared.
+RESOLVE_Z = 2.0
+#: Two-sided level of the per-point intervals behind an upper bound (0.99:
+#: each point's upper end is its 99.5 % one-sided bound).
+UPPER_BOUND_LEVEL = 0.99
+#: Tukey biweight tuning constant (95 % efficiency at the normal law).
+TUKEY_C = 4.685
+
+Status = Literal["resolved", "upper_bound", "not_observed"]
 
 
 class AllanCurve(Protocol):
     """What the fits need from an Allan result (:class:`~imubounds.stationary.allan.AllanResult`).
+
+    ``estimator``, ``rate_hz`` and ``n_samples`` are read when present
+    (defaults: overlapping, continuous-time factors, no record-length bias).
     """
 
-    tau: NDArray[np.float64]
-    dev: NDArray[np.float64]
-    ci_lower: NDArray[np.float64]
-    ci_upper: NDArray[np.float64]
-    edf: NDArray[np.float64]
+    @property
+    def tau(self) -> NDArray[np.float64]: ...
+    @property
+    def dev(self) -> NDArray[np.float64]: ...
+    @property
+    def ci_lower(self) -> NDArray[np.float64]: ...
+    @property
+    def ci_upper(self) -> NDArray[np.float64]: ...
+    @property
+    def edf(self) -> NDArray[np.float64]: ...
 
 
 @dataclass(frozen=True)
 class NoiseTerms:
-    """Five noise coefficients in SI with optional confidence intervals.
+    """Five noise coefficients in SI with confidence intervals and a status each.
 
-    ``nan`` marks a term the method could not determine; ``notes`` says why.
-    ``ci`` maps a term to ``(lower, upper)`` in SI; ``tau_used`` maps a term
-    to the τ (s) of the point it was read from (slope method only).
+    ``nan`` marks a term the method could not read; ``status`` says per term
+    ``resolved``, ``upper_bound`` or ``not_observed`` (the estimator is blind to
+    it); ``ci`` maps a term to ``(lower, upper)`` in SI; ``tau_used`` to the τ (s)
+    of the point it was read from; ``info`` holds per-term details for the
+    JSON (local slope, share of the variance, ...); ``stats`` the fit's
+    statistics. ``estimator``, ``rate_hz`` and ``n_samples`` are those of the
+    curve, so :meth:`avar` draws the model in the curve's own statistic.
     """
 
     Q: float = 0.0
@@ -74,8 +131,14 @@ class NoiseTerms:
     ci: dict[str, tuple[float, float]] = field(default_factory=dict)
     tau_used: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    status: dict[str, str] = field(default_factory=dict)
+    info: dict[str, dict[str, Any]] = field(default_factory=dict)
+    stats: dict[str, Any] = field(default_factory=dict)
+    estimator: str = "overlapping"
+    rate_hz: float | None = None
+    n_samples: int | None = None
 
-    def value(self, term: Term) -> float:
+    def value(self, term: Term | str) -> float:
         return float(getattr(self, term))
 
     def as_dict(self) -> dict[str, float]:
@@ -83,36 +146,55 @@ class NoiseTerms:
         return {t: self.value(t) for t in TERMS}
 
     def avar(self, tau: ArrayLike) -> NDArray[np.float64]:
-        """Model Allan variance of these terms (undetermined terms count as 0)."""
-        vals = {t: (v if math.isfinite(v) else 0.0) for t, v in self.as_dict().items()}
-        return avar_terms(tau, **vals)
+        """Model variance of these terms in the curve's own statistic (nan terms count as 0)."""
+        return theory.variance(
+            self.as_dict(), tau, self.estimator, rate_hz=self.rate_hz, n_samples=self.n_samples
+        )
 
     def adev(self, tau: ArrayLike) -> NDArray[np.float64]:
-        """Model Allan deviation of these terms."""
+        """Model deviation of these terms in the curve's own statistic."""
         return np.sqrt(self.avar(tau))
 
     def to_json(self, kind: SensorKind) -> dict[str, Any]:
-        """JSON form: per term ``{"value", "unit", "ieee": {"value", "unit"}, "ci", ...}``."""
-        out: dict[str, Any] = {"method": self.method}
+        """JSON form: per term ``{"value", "unit", "status", "ieee", "datasheet", "ci", ...}``."""
+        out: dict[str, Any] = {"method": self.method, "estimator": self.estimator}
         for t in TERMS:
             v = self.value(t)
-            finite = math.isfinite(v)
-            iv, iu = to_ieee(kind, t, v) if finite else (None, to_ieee(kind, t, 1.0)[1])
-            entry: dict[str, Any] = {
-                "value": v if finite else None,
-                "unit": SI_UNITS[kind][t],
-                "ieee": {"value": iv, "unit": iu},
-            }
-            if t in self.ci:
-                lo, hi = self.ci[t]
-                entry["ci"] = [lo, hi]
-                entry["ieee"]["ci"] = [to_ieee(kind, t, lo)[0], to_ieee(kind, t, hi)[0]]
+            entry = term_entry(kind, t, v if math.isfinite(v) else None, self.ci.get(t))
+            if t in self.status:
+                entry["status"] = self.status[t]
             if t in self.tau_used:
                 entry["tau_s"] = self.tau_used[t]
+            entry.update(self.info.get(t, {}))
             out[t] = entry
+        if self.stats:
+            out["stats"] = dict(self.stats)
         if self.notes:
             out["notes"] = list(self.notes)
         return out
+
+
+def term_entry(
+    kind: SensorKind, term: str, value: float | None, ci: tuple[float, float] | None = None
+) -> dict[str, Any]:
+    """``{"value", "unit", "ieee": {...}, "datasheet": {...}, "ci"}`` for one SI term value."""
+    t: Term = term  # type: ignore[assignment]
+    iv, iu = to_ieee(kind, t, value) if value is not None else (None, to_ieee(kind, t, 1.0)[1])
+    dv, du = (
+        to_datasheet(kind, t, value) if value is not None else (None, DATASHEET_UNITS[kind][t][0])
+    )
+    entry: dict[str, Any] = {
+        "value": value,
+        "unit": SI_UNITS[kind][t],
+        "ieee": {"value": iv, "unit": iu},
+        "datasheet": {"value": dv, "unit": du},
+    }
+    if ci is not None:
+        lo, hi = float(ci[0]), float(ci[1])
+        entry["ci"] = [lo, hi]
+        entry["ieee"]["ci"] = [to_ieee(kind, t, lo)[0], to_ieee(kind, t, hi)[0]]
+        entry["datasheet"]["ci"] = [to_datasheet(kind, t, lo)[0], to_datasheet(kind, t, hi)[0]]
+    return entry
 
 
 def avar_terms(
@@ -123,21 +205,41 @@ def avar_terms(
     K: float = 0.0,
     R: float = 0.0,
 ) -> NDArray[np.float64]:
-    """Allan variance σ²(τ) of the five IEEE 952 terms (τ in s, terms in SI)."""
+    """Allan variance σ²(τ) of the five IEEE 952 terms (τ in s, terms in SI, continuous time).
+
+    Other estimators: :func:`imubounds.stationary.theory.variance`.
+    """
     t = np.asarray(tau, dtype=np.float64)
     return (
         3.0 * Q * Q / t**2 + N * N / t + (B_FACTOR * B) ** 2 + K * K * t / 3.0 + R * R * t**2 / 2.0
     )
 
 
-def _basis(tau: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Columns f_j(τ) with σ² = Σ c_j f_j, c = (Q², N², B², K², R²)."""
-    return np.column_stack(
-        [3.0 / tau**2, 1.0 / tau, np.full_like(tau, B_FACTOR**2), tau / 3.0, tau**2 / 2.0]
-    )
+# --------------------------------------------------------------------------
+# the curve
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Curve:
+    tau: NDArray[np.float64]
+    dev: NDArray[np.float64]
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    edf: NDArray[np.float64]
+    estimator: str
+    rate_hz: float | None
+    n_samples: int | None
+    basis: NDArray[np.float64]  # (k, 5) responses per unit term²
+
+    @property
+    def avar(self) -> NDArray[np.float64]:
+        return self.dev**2
+
+    def observable(self) -> list[bool]:
+        return [theory.observable(t, self.estimator) and bool(np.any(self.basis[:, j] > 0))
+                for j, t in enumerate(TERMS)]  # fmt: skip
 
 
-def _curve_arrays(curve: AllanCurve) -> tuple[NDArray[np.float64], ...]:
+def _curve(curve: AllanCurve) -> _Curve:
     tau = np.asarray(curve.tau, dtype=np.float64)
     dev = np.asarray(curve.dev, dtype=np.float64)
     lo = np.asarray(curve.ci_lower, dtype=np.float64)
@@ -148,7 +250,31 @@ def _curve_arrays(curve: AllanCurve) -> tuple[NDArray[np.float64], ...]:
         raise AnalysisError(
             "the Allan curve has fewer than 2 usable points; use a longer log or a denser tau grid"
         )
-    return tau[ok], dev[ok], lo[ok], hi[ok], edf[ok]
+    estimator = str(getattr(curve, "estimator", "overlapping"))
+    rate = getattr(curve, "rate_hz", None)
+    n = getattr(curve, "n_samples", None)
+    rate_f = float(rate) if rate is not None else None
+    n_i = int(n) if n is not None else None
+    tau = tau[ok]
+    return _Curve(
+        tau=tau,
+        dev=dev[ok],
+        lo=lo[ok],
+        hi=hi[ok],
+        edf=np.where(np.isfinite(edf[ok]) & (edf[ok] > 0), edf[ok], 1.0),
+        estimator=estimator,
+        rate_hz=rate_f,
+        n_samples=n_i,
+        basis=theory.basis(tau, estimator, rate_hz=rate_f, n_samples=n_i),
+    )
+
+
+def _curve_fields(c: _Curve) -> dict[str, Any]:
+    return {"estimator": c.estimator, "rate_hz": c.rate_hz, "n_samples": c.n_samples}
+
+
+def _term_fields(values: Mapping[str, float]) -> dict[str, Any]:
+    return {t: float(values[t]) for t in TERMS}
 
 
 def local_slopes(tau: ArrayLike, dev: ArrayLike) -> NDArray[np.float64]:
@@ -160,166 +286,645 @@ def local_slopes(tau: ArrayLike, dev: ArrayLike) -> NDArray[np.float64]:
     return np.gradient(ld, lt)
 
 
-def fit_slopes(curve: AllanCurve, *, tolerance: float = SLOPE_TOLERANCE) -> NoiseTerms:
-    """IEEE 952 slope read-off of Q, N, B, K and R.
+def _log_sd(edf: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Standard deviation of ln(σ²_est) for a chi-squared estimate with ``edf`` dof."""
+    return np.sqrt(special.polygamma(1, np.maximum(edf, 0.5) / 2.0))
 
-    For a term of slope s, the point of the curve whose local slope is closest
-    to s is taken; if it is within ``tolerance`` of s, the line of slope s
-    through it is read at the term's characteristic τ. The confidence interval
-    of that point scales the read value. B is the minimum of the curve divided
-    by 0.664, with the CI of that point. A term whose slope does not appear on
-    the curve is ``nan`` with a note.
+
+def _upper_points(c: _Curve, level: float = UPPER_BOUND_LEVEL) -> NDArray[np.float64]:
+    """Per-point upper ends of σ at ``level`` (two-sided) from each point's EDF."""
+    p = 1.0 - level
+    return np.asarray(c.dev * np.sqrt(c.edf / stats.chi2.ppf(p / 2.0, c.edf)), dtype=np.float64)
+
+
+def curve_upper_bound(curve: AllanCurve | _Curve, term: str) -> tuple[float, float]:
+    """Upper bound of one term from the curve's intervals, and the τ (s) that sets it.
+
+    ``min_τ σ_hi(τ)/√f_term(τ)`` over the points with EDF ≥ :data:`EDF_MIN`
+    (all points when none has it), σ_hi the 99 % upper end
+    (:data:`UPPER_BOUND_LEVEL`): every other term only adds variance, so the
+    term cannot exceed this wherever the interval holds. Points with fewer
+    degrees of freedom are left out: their chi-squared intervals are too
+    uncertain to bound anything (a two-term point can sit at 3 % of its
+    expectation). ``(inf, nan)`` when the estimator is blind to the term.
     """
-    tau, dev, lo, hi, _ = _curve_arrays(curve)
-    slopes = local_slopes(tau, dev)
-    values: dict[str, float] = {}
-    ci: dict[str, tuple[float, float]] = {}
-    tau_used: dict[str, float] = {}
-    notes: list[str] = []
-    for term in TERMS:
-        if term == "B":
-            i = int(np.argmin(dev))
-            interior = 0 < i < tau.size - 1 or abs(slopes[i]) <= tolerance
-            if not interior:
-                values[term] = math.nan
-                notes.append(
-                    f"B: the curve has no minimum inside the tau range (lowest point at "
-                    f"tau={tau[i]:.4g} s, slope {slopes[i]:+.2f}); extend the log or the tau grid"
-                )
-                continue
-            values[term] = dev[i] / B_FACTOR
-            ci[term] = (lo[i] / B_FACTOR, hi[i] / B_FACTOR)
-            tau_used[term] = float(tau[i])
-            continue
-        s = SLOPES[term]
-        i = int(np.argmin(np.abs(slopes - s)))
-        if abs(slopes[i] - s) > tolerance:
-            values[term] = math.nan
-            notes.append(
-                f"{term}: no part of the curve has slope {s:+.1f} (closest {slopes[i]:+.2f} at "
-                f"tau={tau[i]:.4g} s); term not observed"
-            )
-            continue
-        scale = (READ_TAU[term] / tau[i]) ** s
-        values[term] = dev[i] * scale
-        ci[term] = (lo[i] * scale, hi[i] * scale)
-        tau_used[term] = float(tau[i])
-    return NoiseTerms(
-        method="slope", ci=ci, tau_used=tau_used, notes=notes, **{t: values[t] for t in TERMS}
-    )
+    c = curve if isinstance(curve, _Curve) else _curve(curve)
+    j = TERMS.index(term)
+    f = c.basis[:, j]
+    if not np.any(f > 0):
+        return math.inf, math.nan
+    ok = (f > 0) & (c.edf >= EDF_MIN)
+    if not np.any(ok):  # a very short log: every point, however few its dof
+        ok = f > 0
+    up = _upper_points(c)
+    cand = up[ok] / np.sqrt(f[ok])
+    i = int(np.argmin(cand))
+    return float(cand[i]), float(c.tau[ok][i])
 
 
-#: Smallest relative standard deviation given to any Allan-variance point in
-#: the fit. Real curves deviate from the five-term model by more than the
-#: statistical error of their short-τ points (edf in the millions); without a
-#: floor those points dictate the fit and the mid-range is missed by 2-3x.
-REL_FLOOR = 0.1
-#: Reduced chi-squared above which the floor is applied (the model misfits).
-CHI2_MISFIT = 4.0
-
-
-def _avar_sigma(
-    avar: NDArray[np.float64], edf: NDArray[np.float64], rel_floor: float = REL_FLOOR
+# --------------------------------------------------------------------------
+# robust weighted fit
+# --------------------------------------------------------------------------
+def _nnls_weighted(
+    A: NDArray[np.float64], b: NDArray[np.float64], sw: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """Standard deviation of an Allan-variance estimate: σ²·max(√(2/edf), floor)."""
-    e = np.where(np.isfinite(edf) & (edf > 0), edf, 1.0)
-    return avar * np.maximum(np.sqrt(2.0 / e), rel_floor)
+    """NNLS of ``(A x - b)·sw`` with column scaling; returns x ≥ 0."""
+    Aw = A * sw[:, None]
+    bw = b * sw
+    scale = np.linalg.norm(Aw, axis=0)
+    scale[scale == 0] = 1.0
+    x, _ = nnls(Aw / scale, bw, maxiter=50 * A.shape[1])
+    return np.asarray(x / scale, dtype=np.float64)
 
 
-def _irls(
-    A_full: NDArray[np.float64],
+def _tukey(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    u = r / TUKEY_C
+    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+
+
+def _eta_from_residuals(
+    lr: NDArray[np.float64], sd: NDArray[np.float64], w: NDArray[np.float64]
+) -> float:
+    """Relative misfit η with median |lr/√(sd² + η²)| = 0.6745 over the kept points."""
+    keep = w > 0
+    if np.count_nonzero(keep) < 3:
+        return 0.0
+    a = np.abs(lr[keep])
+    s = sd[keep]
+    target = float(stats.norm.ppf(0.75))
+    if float(np.median(a / s)) <= target:
+        return 0.0
+    lo, hi = 0.0, float(np.max(a)) * 10.0 + 1e-12
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if float(np.median(a / np.sqrt(s * s + mid * mid))) > target:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+def _grid_density(tau: NDArray[np.float64]) -> float:
+    """Points per octave of the τ grid (neighbouring points share data beyond one)."""
+    if tau.size < 2:
+        return 1.0
+    octaves = math.log2(float(tau[-1] / tau[0]))
+    return max(1.0, (tau.size - 1) / octaves) if octaves > 0 else 1.0
+
+
+#: At most this fraction of the points may be rejected by the robust weights; when
+#: more disagree with the model, the misfit is global and η grows instead.
+MAX_REJECTED = 0.25
+
+
+def _smoothed(avar: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Three-point running median of a curve (ends kept): a start that one notch cannot move."""
+    if avar.size < 3:
+        return avar
+    mid = np.median(np.stack((avar[:-2], avar[1:-1], avar[2:])), axis=0)
+    return np.concatenate(([avar[0]], mid, [avar[-1]]))
+
+
+def _robust_fit(
+    A: NDArray[np.float64],
     avar: NDArray[np.float64],
-    edf: NDArray[np.float64],
-    rel_floor: float,
+    sd_stat: NDArray[np.float64],
+    robust: bool,
     iterations: int,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Iteratively re-weighted NNLS; returns coefficients and the final point sigmas."""
-    sigma = _avar_sigma(avar, edf, rel_floor)
-    coef = np.zeros(A_full.shape[1])
-    for _ in range(max(1, iterations)):
-        A = A_full / sigma[:, None]
-        b = avar / sigma
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        x, _ = nnls(A / scale, b, maxiter=50 * A_full.shape[1])
-        coef = x / scale
-        model = A_full @ coef
-        if not np.all(np.isfinite(model)) or np.any(model <= 0):
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Iteratively reweighted NNLS: coefficients, robust weights and the misfit η.
+
+    Starts from weights of a smoothed curve, iterates model-based weights
+    (plain IRLS), then Tukey weights; never rejects more than
+    :data:`MAX_REJECTED` of the points (η grows instead).
+    """
+    coef = _nnls_weighted(A, avar, 1.0 / (_smoothed(avar) * sd_stat))
+    w = np.ones(avar.size)
+    eta = 0.0
+    n_iter = max(1, iterations)
+    for it in range(n_iter):
+        model = A @ coef
+        model = np.where(np.isfinite(model) & (model > 0), model, avar * 1e-12)
+        lr = np.log(avar / model)
+        use_robust = robust and it >= n_iter // 3
+        eta = _eta_from_residuals(lr, sd_stat, w if use_robust else np.ones_like(w))
+        if use_robust:
+            cap = int(MAX_REJECTED * avar.size)
+            a = np.sort(np.abs(lr) / TUKEY_C)[::-1]  # |lr| / c per point, largest first
+            if cap < a.size and a[cap] > 0:
+                # the (cap+1)-th largest residual must stay inside the Tukey window
+                need = a[cap] ** 2 - float(np.min(sd_stat)) ** 2
+                eta = max(eta, math.sqrt(need) if need > 0 else 0.0)
+        sd = np.sqrt(sd_stat**2 + eta**2)
+        w = _tukey(lr / sd) if use_robust else np.ones(avar.size)
+        if np.count_nonzero(w > 0) < A.shape[1] + 1:
+            w = np.ones(avar.size)
+        new = _nnls_weighted(A, avar, np.sqrt(w) / (model * sd))
+        done = it >= n_iter // 3 and np.allclose(new, coef, rtol=1e-7, atol=1e-300)
+        coef = new
+        if done:
             break
-        sigma = _avar_sigma(model, edf, rel_floor)
-    return coef, sigma
+    return coef, w, eta
 
 
 def fit_terms(
     curve: AllanCurve,
     *,
     terms: tuple[Term, ...] = TERMS,
-    iterations: int = 4,
     confidence: float = 0.683,
-    rel_floor: float = REL_FLOOR,
+    robust: bool = True,
+    iterations: int = 30,
 ) -> NoiseTerms:
-    """Weighted non-negative least-squares fit of the noise terms to σ²(τ).
+    """Robust weighted non-negative least-squares fit of the noise terms to σ²(τ).
 
-    Minimises Σ_i ((σ²_model(τ_i) − σ²_i)/s_i)² over c = (Q², N², B², K², R²) ≥ 0,
-    where s_i = σ²·max(√(2/edf_i), ``rel_floor``) is the standard deviation of
-    the i-th Allan variance estimate. When the curve departs from the
-    five-term model by more than its statistical error (reduced χ² above
-    :data:`CHI2_MISFIT`, typical of real sensors whose short-τ points have
-    edf in the millions), the fit is repeated with s_i floored at
-    ``rel_floor`` relative, so that no handful of points dictates the fit;
-    a note says so. The weights are first taken from the measured curve
-    and then re-computed from the model (iteratively re-weighted), which avoids
-    the downward bias of weighting by the data themselves.
+    Minimises Σ_i w_i ((Σ_j c_j f_j(τ_i) − σ²_i)/s_i)² over c = (Q², N², B², K², R²) ≥ 0,
+    with f_j the responses of the curve's estimator (:mod:`.theory`),
+    s_i = model_i·√(ψ₁(edf_i/2) + η²) (ψ₁ the trigamma function: the spread
+    of ln σ² for a chi-squared estimate) and w_i Tukey biweights of the
+    standardised log residuals (all 1 when ``robust`` is False). η, the
+    model misfit, is re-estimated at every iteration from the median
+    residual.
 
-    Confidence intervals come from the covariance of the weighted fit on the
-    active (non-zero) coefficients, mapped through c ↦ √c; a coefficient
-    pinned at zero gets the interval ``(0, upper)`` from a one-sided bound.
+    The weights and η of the full five-term fit are then kept fixed, and terms
+    the curve does not support are removed one at a time: the one whose removal
+    raises χ² least, while that rise (divided by the covariance inflation) is
+    below :data:`RESOLVE_Z`² — a likelihood-ratio test at about 2σ — so that an
+    unsupported R does not blur K, nor Q blur N, and two terms that can stand
+    in for each other do not both vanish. A kept term is ``resolved`` when it carries at least
+    its :data:`SHARE_VISIBLE` share of the model variance at some point with
+    EDF ≥ :data:`EDF_MIN`; a removed or hidden one is an ``upper_bound``
+    (the bound itself comes from :func:`select_terms`).
+
+    Returns
+    -------
+    NoiseTerms
+        ``method="fit"``; values are √c; ``stats`` holds ``chi2_dof`` (with the
+        misfit), ``chi2_dof_statistical`` (without), ``misfit_rel`` (η),
+        ``points_downweighted``, ``cov_inflation`` and ``removed`` terms.
     """
-    tau, dev, _, _, edf = _curve_arrays(curve)
-    avar = dev**2
-    cols = [TERMS.index(t) for t in terms]
-    A_full = _basis(tau)[:, cols]
-    notes: list[str] = []
-    coef, sigma = _irls(A_full, avar, edf, 0.0, iterations)
-    dof = max(tau.size - int(np.count_nonzero(coef)), 1)
-    chi2 = float(np.sum(((A_full @ coef - avar) / sigma) ** 2)) / dof
-    if rel_floor > 0 and chi2 > CHI2_MISFIT:
-        coef, sigma = _irls(A_full, avar, edf, rel_floor, iterations)
-        notes.append(
-            f"fit: the curve departs from the five-term model beyond its statistical error "
-            f"(chi2/dof = {chi2:.3g}); point weights floored at {rel_floor:.0%} relative"
-        )
-    A = A_full / sigma[:, None]
-    # Inflate the covariance by the final reduced chi-squared when the model misfits.
-    chi2_final = float(np.sum(((A_full @ coef - avar) / sigma) ** 2)) / dof
-    inflate = max(1.0, chi2_final)
-    z = float(norm.ppf(0.5 + confidence / 2.0))
-    values = {t: 0.0 for t in TERMS}
+    c = _curve(curve)
+    avar = c.avar
+    obs = c.observable()
+    candidates = [j for j, t in enumerate(TERMS) if t in terms and obs[j]]
+    sd_stat = _log_sd(c.edf)
+    z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    density = _grid_density(c.tau)
+    # 1. the full model, robustly: its weights and misfit are then kept fixed
+    full, w, eta = _robust_fit(c.basis[:, candidates], avar, sd_stat, robust, iterations)
+    model_full = c.basis[:, candidates] @ full
+    model_full = np.where(model_full > 0, model_full, avar * 1e-12)
+    sd = np.sqrt(sd_stat**2 + eta**2)
+    sw = np.sqrt(w) / (model_full * sd)
+    kept = max(float(np.sum(w)), 1.0)
+    chi2_full = float(np.sum((sw * (model_full - avar)) ** 2)) / max(kept - len(candidates), 1.0)
+    inflate = density * max(1.0, chi2_full)
+
+    def objective(cols: list[int]) -> tuple[NDArray[np.float64], float]:
+        x = _nnls_weighted(c.basis[:, cols], avar, sw)
+        return x, float(np.sum((sw * (c.basis[:, cols] @ x - avar)) ** 2))
+
+    # 2. backward elimination by the rise of chi-squared when a term is dropped
+    active = list(candidates)
+    removed: list[int] = []
+    coef, obj = objective(active)
+    while len(active) > 1:
+        rises = []
+        for j in active:
+            rest = [k for k in active if k != j]
+            _, o = objective(rest)
+            rises.append((o - obj) / inflate)
+        k_min = int(np.argmin(rises))
+        if rises[k_min] >= RESOLVE_Z**2:
+            break
+        removed.append(active.pop(k_min))
+        coef, obj = objective(active)
+    A = c.basis[:, active]
+    model = A @ coef
+    model = np.where(model > 0, model, avar * 1e-12)
+    lr = np.log(avar / model)
+    pos = coef > 0
+    dof = max(kept - int(np.count_nonzero(pos)), 1.0)
+    chi2 = float(np.sum(w * (lr / sd) ** 2)) / dof
+    J = A * sw[:, None]
+    cov = np.full((len(active), len(active)), np.nan)
+    if np.any(pos):
+        Ja = J[:, pos]
+        idx = np.flatnonzero(pos)
+        cov[np.ix_(idx, idx)] = np.linalg.pinv(Ja.T @ Ja) * inflate
+    sd_c = np.sqrt(np.where(np.isfinite(np.diag(cov)), np.diag(cov), np.inf))
+    chi2_stat = float(np.sum(w * (lr / sd_stat) ** 2)) / dof
+    shares = _shares(c, coef, active)
+    adequate = c.edf >= EDF_MIN
+    values: dict[str, float] = {t: 0.0 for t in TERMS}
     ci: dict[str, tuple[float, float]] = {}
-    active = coef > 0
-    cov = np.full((len(cols), len(cols)), np.nan)
-    if np.any(active):
-        Aa = A[:, active]
-        try:
-            cov_a = np.linalg.inv(Aa.T @ Aa) * inflate
-            idx = np.flatnonzero(active)
-            cov[np.ix_(idx, idx)] = cov_a
-        except np.linalg.LinAlgError:
-            pass
-    for j, t in enumerate(terms):
-        c = float(coef[j])
-        values[t] = math.sqrt(c)
-        var_c = cov[j, j]
-        if active[j] and math.isfinite(var_c) and var_c >= 0:
-            sd = math.sqrt(var_c)
-            ci[t] = (math.sqrt(max(c - z * sd, 0.0)), math.sqrt(c + z * sd))
+    status: dict[str, str] = {}
+    info: dict[str, dict[str, Any]] = {}
+    notes: list[str] = []
+    for j, t in enumerate(TERMS):
+        if not obs[j]:
+            values[t] = math.nan
+            status[t] = "not_observed"
+            info[t] = {"reason": f"the {c.estimator} estimator is blind to {t}"}
+            continue
+        if j not in active:
+            ub, tau_ub = curve_upper_bound(c, t)
+            status[t] = "upper_bound"
+            ci[t] = (0.0, ub)
+            info[t] = {"removed": True, "upper_bound": ub, "upper_bound_tau_s": tau_ub}
+            continue
+        k = active.index(j)
+        cj = float(coef[k])
+        values[t] = math.sqrt(cj)
+        share = shares[:, k]
+        best = float(np.max(share[adequate])) if np.any(adequate) else 0.0
+        i_best = int(np.argmax(np.where(adequate, share, -1.0)))
+        sdk = float(sd_c[k])
+        ci[t] = (math.sqrt(max(cj - z * sdk, 0.0)), math.sqrt(cj + z * sdk))
+        status[t] = "resolved" if best >= SHARE_VISIBLE[t] else "upper_bound"
+        info[t] = {
+            "max_share": best,
+            "tau_max_share_s": float(c.tau[i_best]),
+            "rel_se": sdk / cj / 2.0 if cj > 0 else None,
+        }
+    down = int(np.count_nonzero(w < 0.5))
+    if down:
+        where = ", ".join(f"{x:.3g}" for x in c.tau[w < 0.5][:6])
+        notes.append(
+            f"fit: {down} point(s) disagree with the model beyond their uncertainty and were "
+            f"down-weighted (tau = {where} s)"
+        )
+    if eta > 0.05:
+        notes.append(
+            f"fit: the curve departs from the five-term model by about {eta:.0%} beyond its "
+            "statistical error; the term intervals include that misfit"
+        )
+    gone = [TERMS[j] for j in removed]
+    if gone:
+        notes.append(
+            "fit: " + ", ".join(gone) + " not supported by the curve (removed from the fit;"
+            " upper bounds from the curve are used)"
+        )
+    return NoiseTerms(
+        method="fit",
+        ci=ci,
+        notes=notes,
+        status=status,
+        info=info,
+        stats={
+            "chi2_dof": chi2,
+            "chi2_dof_statistical": chi2_stat,
+            "misfit_rel": eta,
+            "points": int(avar.size),
+            "points_downweighted": down,
+            "cov_inflation": inflate,
+            "removed": gone,
+            "point_weights": [float(v) for v in w],
+            "robust": bool(robust),
+            "confidence": confidence,
+        },
+        **_curve_fields(c),
+        **_term_fields(values),
+    )
+
+
+def _shares(c: _Curve, coef: NDArray[np.float64], cols: list[int]) -> NDArray[np.float64]:
+    """Share of the model variance of each fitted term at each point, shape (k, len(cols))."""
+    parts = c.basis[:, cols] * coef[None, :]
+    tot = parts.sum(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(tot > 0, parts / tot, 0.0)
+
+
+def _full_shares(c: _Curve, fit: NoiseTerms) -> NDArray[np.float64]:
+    vals = np.array([fit.value(t) if math.isfinite(fit.value(t)) else 0.0 for t in TERMS])
+    return _shares(c, vals**2, list(range(len(TERMS))))
+
+
+# --------------------------------------------------------------------------
+# read-off where each term lives
+# --------------------------------------------------------------------------
+def expected_slope(term: str, estimator: str, tau_s: float, **kw: Any) -> float:
+    """Log-log slope of the term's deviation line for this estimator at τ (numerical)."""
+    t = np.array([tau_s / 1.05, tau_s * 1.05])
+    r = theory.response(term, estimator, t, **kw)
+    if np.any(r <= 0):
+        return math.nan
+    return float(0.5 * (math.log(r[1]) - math.log(r[0])) / math.log(1.05**2))
+
+
+def _fit_weights(fit: NoiseTerms, size: int) -> NDArray[np.float64]:
+    w = np.asarray(fit.stats.get("point_weights", np.ones(size)), dtype=np.float64)
+    return w if w.shape == (size,) else np.ones(size)
+
+
+def sigma_min(curve: AllanCurve | _Curve, weights: ArrayLike | None = None) -> dict[str, Any]:
+    """The lowest point of the curve among points with EDF ≥ :data:`EDF_MIN`.
+
+    ``weights`` (the robust fit's point weights) leave out points the fit set
+    aside (weight < 0.5: a notch is not a bias stability). Returns
+    ``{"value", "tau_s", "ci", "edf", "index"}`` (value in the unit of the
+    curve). Falls back to all points when none qualifies (and says so).
+    """
+    c = curve if isinstance(curve, _Curve) else _curve(curve)
+    ok = c.edf >= EDF_MIN
+    if weights is not None:
+        ok &= np.asarray(weights, dtype=np.float64) >= 0.5
+    note = None
+    if not np.any(ok):
+        ok = np.ones(c.dev.size, dtype=bool)
+        note = f"no kept point has EDF >= {EDF_MIN:g}; the minimum is taken over all points"
+    idx = np.flatnonzero(ok)
+    i = int(idx[np.argmin(c.dev[ok])])
+    out: dict[str, Any] = {
+        "value": float(c.dev[i]),
+        "tau_s": float(c.tau[i]),
+        "ci": [float(c.lo[i]), float(c.hi[i])],
+        "edf": float(c.edf[i]),
+        "index": i,
+        "at_edge": bool(i == idx[0] or i == idx[-1]),
+    }
+    if note:
+        out["note"] = note
+    return out
+
+
+def fit_slopes(
+    curve: AllanCurve, *, fit: NoiseTerms | None = None, tolerance: float = SLOPE_TOLERANCE
+) -> NoiseTerms:
+    """IEEE 952 read-off of Q, N, B, K and R, each where it lives.
+
+    The home of a term is where ``fit`` (computed when not given) gives it at
+    least half of the variance, the EDF is at least :data:`EDF_MIN` and the
+    robust fit kept the point (weight ≥ 0.5: a notch, a bump or a first
+    sample shaped by the sensor's own filter is no place to read). Inside
+    it the tangent line of the term's slope touches the curve at the point
+    minimising ``σ²/f_term``; the term is ``σ/√f_term`` there (for N on an Allan
+    curve: ``σ(τ)·√τ``, the line read at τ = 1 s). The CI of that point scales
+    the value. B is σ_min over √f_B at σ_min's τ (0.664 for Allan). A term with
+    no home is ``nan`` with status ``upper_bound`` and its curve bound in
+    ``info``.
+    """
+    c = _curve(curve)
+    if fit is None:
+        fit = fit_terms(curve)
+    shares = _full_shares(c, fit)
+    slopes = local_slopes(c.tau, c.dev)
+    weights = _fit_weights(fit, c.tau.size)
+    # points the robust fit set aside (a notch, a bump, a filtered first sample) are no home
+    adequate = (c.edf >= EDF_MIN) & (weights >= 0.5)
+    kw = {"rate_hz": c.rate_hz, "n_samples": c.n_samples}
+    values: dict[str, float] = {}
+    ci: dict[str, tuple[float, float]] = {}
+    tau_used: dict[str, float] = {}
+    status: dict[str, str] = {}
+    info: dict[str, dict[str, Any]] = {}
+    notes: list[str] = []
+    smin = sigma_min(c, weights)
+    for j, term in enumerate(TERMS):
+        f = c.basis[:, j]
+        if not np.any(f > 0) or not theory.observable(term, c.estimator):
+            values[term] = math.nan
+            status[term] = "not_observed"
+            info[term] = {"reason": f"the {c.estimator} estimator is blind to {term}"}
+            continue
+        if term == "B":
+            i = int(smin["index"])
+            home_ok = shares[i, j] >= SHARE_MIN
         else:
-            # Pinned at zero: a one-sided upper bound from the column's own information.
-            col = A[:, j]
-            info = float(col @ col)
-            if info > 0:
-                ci[t] = (0.0, math.sqrt(z / math.sqrt(info)))
-    pinned = [t for j, t in enumerate(terms) if not active[j]]
-    if pinned:
-        notes.append("fit: " + ", ".join(pinned) + " not supported by the curve (fitted as 0)")
-    return NoiseTerms(method="fit", ci=ci, notes=notes, **values)
+            home = np.flatnonzero(adequate & (shares[:, j] >= SHARE_MIN) & (f > 0))
+            if home.size == 0:
+                ub, tau_ub = curve_upper_bound(c, term)
+                values[term] = math.nan
+                status[term] = "upper_bound"
+                info[term] = {"upper_bound": ub, "upper_bound_tau_s": tau_ub}
+                notes.append(
+                    f"{term}: dominates nowhere on the curve with EDF >= {EDF_MIN:g}; "
+                    f"not read (upper bound {ub:.4g} from the curve at tau = {tau_ub:.4g} s)"
+                )
+                continue
+            i = int(home[np.argmin(c.avar[home] / f[home])])
+            home_ok = True
+        scale = 1.0 / math.sqrt(float(f[i]))
+        values[term] = float(c.dev[i]) * scale
+        ci[term] = (float(c.lo[i]) * scale, float(c.hi[i]) * scale)
+        tau_used[term] = float(c.tau[i])
+        exp_slope = expected_slope(term, c.estimator, float(c.tau[i]), **kw)
+        entry: dict[str, Any] = {
+            "local_slope": float(slopes[i]),
+            "expected_slope": exp_slope,
+            "share": float(shares[i, j]),
+            "edf": float(c.edf[i]),
+        }
+        warnings: list[str] = []
+        if math.isfinite(exp_slope) and abs(slopes[i] - exp_slope) > tolerance:
+            warnings.append(
+                f"local slope {slopes[i]:+.2f} at tau = {c.tau[i]:.4g} s, expected "
+                f"{exp_slope:+.2f}: other terms contribute there, the value is an upper estimate"
+            )
+        if term == "B":
+            entry["sigma_min"] = smin["value"]
+            entry["b_factor"] = math.sqrt(float(f[i]))
+            if not home_ok:
+                warnings.append(
+                    f"the minimum (tau = {c.tau[i]:.4g} s) is not a flicker floor (B carries "
+                    f"{shares[i, j]:.0%} of the variance there): sigma_min/{math.sqrt(f[i]):.3f}"
+                    " is only an upper bound of B"
+                )
+            if smin["at_edge"]:
+                warnings.append(
+                    f"the lowest point with EDF >= {EDF_MIN:g} is at the end of the curve "
+                    f"(tau = {c.tau[i]:.4g} s): the floor may lie beyond it"
+                )
+        resolved = home_ok and fit.status.get(term) == "resolved"
+        if home_ok and not resolved:
+            warnings.append(
+                "the fit does not resolve this term (too uncertain): the read value is not used"
+            )
+        status[term] = "resolved" if resolved else "upper_bound"
+        if warnings:
+            entry["warnings"] = warnings
+            notes.extend(f"{term}: {w}" for w in warnings)
+        info[term] = entry
+    return NoiseTerms(
+        method="slope",
+        ci=ci,
+        tau_used=tau_used,
+        notes=notes,
+        status=status,
+        info=info,
+        **_curve_fields(c),
+        **_term_fields(values),
+    )
+
+
+# --------------------------------------------------------------------------
+# the terms used downstream
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SelectedTerm:
+    """One term as used for bounds and imu.yaml.
+
+    ``value`` in SI (``None`` only when ``status`` is ``not_observed``);
+    ``source`` says where it came from: ``"fit"``, ``"slope"`` or
+    ``"curve_ci"`` (an upper bound from the curve's intervals).
+    """
+
+    value: float | None
+    status: str
+    source: str
+    ci: tuple[float, float] | None = None
+    tau_s: float | None = None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The selected Q, N, B, K, R and σ_min of one channel (see :func:`select_terms`)."""
+
+    terms: dict[str, SelectedTerm]
+    sigma_min: dict[str, Any]
+    estimator: str
+    notes: list[str] = field(default_factory=list)
+
+    def value(self, term: str) -> float:
+        """SI value used downstream (0 only for a term the estimator cannot see)."""
+        v = self.terms[term].value
+        return 0.0 if v is None else float(v)
+
+    def status(self, term: str) -> str:
+        return self.terms[term].status
+
+    def to_json(self, kind: SensorKind) -> dict[str, Any]:
+        """The ``noise.selected`` block of noise.json."""
+        from imubounds.units import si_unit_of_signal, signal_to_datasheet
+
+        out: dict[str, Any] = {}
+        for t in TERMS:
+            s = self.terms[t]
+            e = term_entry(kind, t, s.value, s.ci)
+            e["status"] = s.status
+            e["from"] = s.source
+            if s.tau_s is not None:
+                e["tau_s"] = s.tau_s
+            if s.note:
+                e["note"] = s.note
+            out[t] = e
+        unit = si_unit_of_signal(kind)
+        n_val = self.terms["N"].value
+        if n_val is not None:
+            dv, du = signal_to_datasheet(kind, n_val)
+            out["N"]["adev_at_1s"] = {
+                "value": n_val,
+                "unit": unit,
+                "datasheet": {"value": dv, "unit": du},
+                "convention": "Allan deviation of the white part at tau = 1 s (equals N)",
+            }
+        sm = self.sigma_min
+        dv, du = signal_to_datasheet(kind, sm["value"])
+        b_fac = math.sqrt(float(theory.B_VAR_FACTOR[theory.FAMILY[self.estimator]]))
+        out["sigma_min"] = {
+            "value": sm["value"],
+            "unit": unit,
+            "tau_s": sm["tau_s"],
+            "ci": sm["ci"],
+            "edf": sm["edf"],
+            "datasheet": {"value": dv, "unit": du},
+            "estimator": self.estimator,
+            "convention": (
+                f"minimum of the measured {self.estimator} deviation over points with EDF >= "
+                f"{EDF_MIN:g} (the 'bias stability' most datasheets quote); "
+                f"B = sigma_min/{b_fac:.3f} is the IEEE 952 bias instability "
+                "(sigma_min/0.664 on an Allan curve)"
+            ),
+        }
+        if self.notes:
+            out["notes"] = list(self.notes)
+        return out
+
+
+def select_terms(
+    curve: AllanCurve,
+    fit: NoiseTerms,
+    slope: NoiseTerms,
+    prefer: str = "fit",
+) -> Selection:
+    """The terms used for bounds and imu.yaml, never 0 unless the estimator cannot see them.
+
+    A term resolved by the preferred estimate (``"fit"`` or ``"slope"``) takes
+    its value and CI; else one resolved by the other estimate; else the
+    curve's upper bound (:func:`curve_upper_bound`), status ``upper_bound``,
+    with a note that bounds built on it are conservative.
+    """
+    if prefer not in ("fit", "slope"):
+        raise OptionError(f"terms_from must be 'fit' or 'slope', got {prefer!r}")
+    c = _curve(curve)
+    first, second = (fit, slope) if prefer == "fit" else (slope, fit)
+    out: dict[str, SelectedTerm] = {}
+    notes: list[str] = []
+    for t in TERMS:
+        if first.status.get(t) == "not_observed":
+            out[t] = SelectedTerm(None, "not_observed", first.method, note=f"blind to {t}")
+            continue
+        chosen = None
+        for est in (first, second):
+            v = est.value(t)
+            if est.status.get(t) == "resolved" and math.isfinite(v) and v > 0:
+                chosen = est
+                break
+        if chosen is not None:
+            v = chosen.value(t)
+            note = "" if chosen is first else f"{t} from the {chosen.method} estimate"
+            out[t] = SelectedTerm(
+                v, "resolved", chosen.method, chosen.ci.get(t), chosen.tau_used.get(t), note
+            )
+            continue
+        ub, tau_ub = curve_upper_bound(c, t)
+        fv = fit.value(t)
+        if math.isfinite(fv) and fv > ub:
+            ub = fv
+        note = (
+            f"{t} is not resolved by the curve; the upper bound {ub:.4g} (from the curve's "
+            f"{UPPER_BOUND_LEVEL:.0%} intervals at tau = {tau_ub:.4g} s) is used, which is "
+            "conservative"
+        )
+        out[t] = SelectedTerm(ub, "upper_bound", "curve_ci", (0.0, ub), tau_ub, note)
+        if t in ("N", "B", "K"):
+            notes.append(note)
+    smin = sigma_min(c, _fit_weights(fit, c.tau.size))
+    return Selection(terms=out, sigma_min=smin, estimator=c.estimator, notes=notes)
+
+
+def analyse_curve(
+    curve: AllanCurve, *, prefer: str = "fit", confidence: float = 0.683, robust: bool = True
+) -> tuple[NoiseTerms, NoiseTerms, Selection]:
+    """Fit, read-off and selection of one curve: ``(fit, slope, selected)``."""
+    fit = fit_terms(curve, confidence=confidence, robust=robust)
+    slope = fit_slopes(curve, fit=fit)
+    return fit, slope, select_terms(curve, fit, slope, prefer)
+
+
+def selected_terms(noise_doc: Mapping[str, Any], channel: str) -> dict[str, Any]:
+    """The terms used for bounds of one channel, from a loaded noise.json document.
+
+    Returns ``noise_doc["channels"][channel]["noise"]["selected"]``: per term
+    ``{"value" (SI or None), "unit", "status", "from", "ci", "ieee", "datasheet"}``
+    and ``sigma_min``. :class:`~imubounds.errors.InputError` names what is
+    missing (an older noise.json without ``selected``, an unknown channel).
+    """
+    if not isinstance(noise_doc, Mapping) or "channels" not in noise_doc:
+        raise InputError("not a noise.json document from 'imubounds static' (no 'channels')")
+    chans = noise_doc["channels"]
+    if channel not in chans:
+        raise InputError(
+            f"noise.json has no channel {channel!r}; available: {', '.join(map(str, chans))}"
+        )
+    sel = ((chans[channel] or {}).get("noise") or {}).get("selected")
+    if not isinstance(sel, Mapping):
+        raise InputError(
+            f"noise.json channel {channel} has no noise.selected block; re-run 'imubounds static'"
+            " with this version"
+        )
+    for t in TERMS:
+        if t not in sel or "status" not in sel[t]:
+            raise InputError(f"noise.json channel {channel}: noise.selected.{t} is incomplete")
+    return dict(sel)
