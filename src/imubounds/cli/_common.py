@@ -325,7 +325,7 @@ def tau_grid(text: str) -> str:
     try:
         parse_taus(text)
     except OptionError as err:
-        raise argparse.ArgumentTypeError(str(err).split(": ", 1)[-1]) from None
+        raise argparse.ArgumentTypeError(str(err)) from None
     return text
 
 
