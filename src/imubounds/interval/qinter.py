@@ -15,7 +15,8 @@ returns its hull:
   intersections of all ``C(m, m - q)`` choices of ``m - q`` boxes. Exact but
   combinatorial; refused beyond ``max_subsets`` choices.
 
-Empty input boxes count as outliers (they contain no point). With
+:func:`qinter_1d` is the compiled scalar form for one dimension (used inside the
+estimators' numba loops). Empty input boxes count as outliers (they contain no point). With
 ``q >= m`` every point qualifies and the result is the whole space.
 """
 
@@ -25,9 +26,42 @@ import itertools
 import math
 
 import numpy as np
+from numba import njit
 
 from imubounds.errors import OptionError
 from imubounds.interval.array import IntervalArray
+
+
+@njit(cache=True)
+def qinter_1d(lo: np.ndarray, hi: np.ndarray, m: int, q: int) -> tuple[float, float]:
+    """Hull of the points lying in at least ``m - q`` of the closed intervals ``[lo_i, hi_i]``.
+
+    Exact in one dimension (coverage only changes at endpoints); empty intervals
+    count as outliers; empty result if no point is covered often enough.
+    """
+    need = m - q
+    if need <= 0:
+        return -np.inf, np.inf
+    best_lo = np.inf
+    best_hi = -np.inf
+    for i in range(m):
+        if not (lo[i] <= hi[i]):
+            continue
+        c_lo = 0
+        c_hi = 0
+        for j in range(m):
+            if lo[j] <= hi[j]:
+                if lo[j] <= lo[i] <= hi[j]:
+                    c_lo += 1
+                if lo[j] <= hi[i] <= hi[j]:
+                    c_hi += 1
+        if c_lo >= need and lo[i] < best_lo:
+            best_lo = lo[i]
+        if c_hi >= need and hi[i] > best_hi:
+            best_hi = hi[i]
+    if best_lo > best_hi:
+        return np.inf, -np.inf
+    return best_lo, best_hi
 
 
 def _per_dim_lower(lo: np.ndarray, hi: np.ndarray, need: int) -> np.ndarray:

@@ -59,6 +59,21 @@ def rounding(mode: int) -> Iterator[None]:
             _fesetround(old)
 
 
+@contextmanager
+def nearest() -> Iterator[None]:
+    """Run a block in round-to-nearest (what every interval rule needs) and restore the
+    caller's rounding mode afterwards, whatever it was (e.g. round-upward after
+    ``import codac``). The interval kernels of the estimator run inside it."""
+    old = rounding_mode()
+    if _fesetround is not None and old != FE_TONEAREST:
+        _fesetround(FE_TONEAREST)
+    try:
+        yield
+    finally:
+        if _fesetround is not None and rounding_mode() != old:
+            _fesetround(old)
+
+
 def check_rounding() -> None:
     """Raise :class:`AnalysisError` unless the rounding mode is round-to-nearest."""
     if _fegetround is not None and _fegetround() != FE_TONEAREST:
