@@ -175,19 +175,14 @@ def _heading(s: np.ndarray, cfg: TripConfig) -> tuple[np.ndarray, np.ndarray, np
     return psi, kap, dk
 
 
-def _rot(psi: np.ndarray, th: np.ndarray, ph: np.ndarray) -> np.ndarray:
-    """Body FLU -> ENU rotation matrices R = Rz(psi) Ry(-theta) Rx(phi), (n, 3, 3)."""
-    cps, sps = np.cos(psi), np.sin(psi)
-    ct, st = np.cos(th), np.sin(th)
-    cp, sp = np.cos(ph), np.sin(ph)
-    R = np.empty(psi.shape + (3, 3))
-    R[:, :, 0] = np.stack([ct * cps, ct * sps, st], -1)
-    R[:, :, 1] = np.stack([-st * sp * cps - cp * sps, -st * sp * sps + cp * cps, ct * sp], -1)
-    R[:, :, 2] = np.stack([-st * cp * cps + sp * sps, -st * cp * sps - sp * cps, ct * cp], -1)
-    return R
-
-
 def _truth(cfg: TripConfig, tf: np.ndarray) -> dict[str, np.ndarray]:
+    """Truth on the fine grid ``tf``: positions, attitude, body specific force and rate.
+
+    Body FLU, ENU nav, R = Rz(psi) Ry(-pitch) Rx(roll) (pitch nose up, roll right side
+    down); body rates from the Euler rates: p = roll' + psi' sin(pitch),
+    q = -pitch' cos(roll) + psi' sin(roll) cos(pitch),
+    r = pitch' sin(roll) + psi' cos(roll) cos(pitch).
+    """
     T, D = cfg.ramp_s, cfg.duration_s
     V = cfg.distance_m / (D - T)
     vh, ah = _speed(tf, V, T, D)
@@ -196,57 +191,48 @@ def _truth(cfg: TripConfig, tf: np.ndarray) -> dict[str, np.ndarray]:
     if cfg.hills:
         A, lam = 15.0, 1500.0
         kk = 2 * math.pi / lam
-        h = A * np.sin(kk * sig)
         tanth = A * kk * np.cos(kk * sig)
-        dtan = -A * kk * kk * np.sin(kk * sig)  # d tan(theta) / d sigma
-        roll = 2.0 * DEG * np.sin(2 * math.pi * sig / 900.0)
+        dtan = -A * kk * kk * np.sin(kk * sig)  # d tan(pitch) / d sigma
+        lr = 900.0
+        roll = 2.0 * DEG * np.sin(2 * math.pi * sig / lr)
+        droll = 2.0 * DEG * (2 * math.pi / lr) * np.cos(2 * math.pi * sig / lr)
     else:
-        h = np.zeros_like(sig)
         tanth = np.zeros_like(sig)
         dtan = np.zeros_like(sig)
         roll = np.zeros_like(sig)
+        droll = np.zeros_like(sig)
     th = np.arctan(tanth)
-    # positions: horizontal by the trapezoid rule on the fine grid
     dt = np.diff(tf)
-    ce, sn = vh * np.cos(psi), vh * np.sin(psi)
+    cps, sps = np.cos(psi), np.sin(psi)
+    ce, sn = vh * cps, vh * sps
     east = np.concatenate([[0.0], np.cumsum(0.5 * (ce[1:] + ce[:-1]) * dt)])
     north = np.concatenate([[0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * dt)])
-    # nav acceleration (analytic)
-    an = np.stack(
-        [
-            ah * np.cos(psi) - vh * vh * kap * np.sin(psi),
-            ah * np.sin(psi) + vh * vh * kap * np.cos(psi),
-            ah * tanth + vh * vh * dtan,
-        ],
-        -1,
+    an = (
+        ah * cps - vh * vh * kap * sps,
+        ah * sps + vh * vh * kap * cps,
+        ah * tanth + vh * vh * dtan + G,
     )
-    R = _rot(psi, th, roll)
-    f = np.einsum("nji,nj->ni", R, an + np.array([0.0, 0.0, G]))
-    u = vh / np.cos(th)
+    ct, st = np.cos(th), np.sin(th)
+    cp, sp = np.cos(roll), np.sin(roll)
+    xb = (ct * cps, ct * sps, st)
+    yb = (-st * sp * cps - cp * sps, -st * sp * sps + cp * cps, ct * sp)
+    zb = (-st * cp * cps + sp * sps, -st * cp * sps - sp * cps, ct * cp)
+    f = np.stack([b[0] * an[0] + b[1] * an[1] + b[2] * an[2] for b in (xb, yb, zb)], -1)
+    psid = kap * vh
+    thd = dtan * vh / (1.0 + tanth * tanth)
+    rold = droll * vh
+    w = np.stack([rold + psid * st, -thd * cp + psid * sp * ct, thd * sp + psid * cp * ct], -1)
     return {
         "t": tf,
         "east": east,
         "north": north,
-        "up": h,
         "psi": psi,
         "pitch": th,
         "roll": roll,
-        "u": u,
-        "R": R,
+        "u": vh / ct,
         "f": f,
+        "w": w,
     }
-
-
-def _body_rate_increments(R: np.ndarray) -> np.ndarray:
-    """Body-rate integrals over each fine step: log(R_k^T R_{k+1}) as a vector."""
-    M = np.einsum("nji,njk->nik", R[:-1], R[1:])
-    w = 0.5 * np.stack(
-        [M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]], -1
-    )
-    s = np.linalg.norm(w, axis=1)
-    ang = np.arcsin(np.clip(s, 0.0, 1.0))
-    fac = np.where(s > 1e-15, ang / np.maximum(s, 1e-300), 1.0)
-    return w * fac[:, None]
 
 
 # -------------------------------------------------------------------------- trip
@@ -256,15 +242,15 @@ def make_trip(variant: str = "paper", seed: int = 0, **kw: Any) -> tuple[Drive, 
     """A simulated trip (see the module docstring) and its true errors."""
     cfg = variant_config(variant, **kw)
     rng = np.random.default_rng(seed)
-    sub = 5
+    sub = 4
     dti = 1.0 / cfg.imu_hz
     n = int(round(cfg.duration_s * cfg.imu_hz))
     tf = np.arange(n * sub + 1) * (dti / sub)
     tr = _truth(cfg, tf)
     # IMU sample k covers (t_k - dt, t_k], t_k = (k + 1) dt: means over the fine grid
-    f = tr["f"]
+    f, w = tr["f"], tr["w"]
     fm = 0.5 * (f[1:] + f[:-1]).reshape(n, sub, 3).mean(axis=1)
-    om = _body_rate_increments(tr["R"]).reshape(n, sub, 3).sum(axis=1) / dti
+    om = 0.5 * (w[1:] + w[:-1]).reshape(n, sub, 3).mean(axis=1)
     t_imu = (np.arange(n) + 1) * dti
     truth_mean = {
         "accel_x": fm[:, 0],

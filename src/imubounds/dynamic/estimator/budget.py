@@ -393,6 +393,44 @@ def kernel_variance(cn: ChannelNoise, c: np.ndarray, dt: float, with_turn_on: bo
     return v * (1.0 + 1e-9)
 
 
+def _gm_row_excess(m: int, a: float) -> float:
+    """``max_j sum_k (phi^|j-k| - phi^(m-1))`` over an m x m Gauss-Markov correlation
+    (phi = exp(-a)): a Gershgorin bound of the correlation minus its smallest entry."""
+    if m <= 1:
+        return 1.0
+    q = -math.expm1(-a)
+    j = (m - 1) // 2
+    left = -math.expm1(-a * (j + 1)) / q
+    right = -math.expm1(-a * (m - j)) / q
+    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + 1e-12)
+
+
+def centered_ms_bound(cn: ChannelNoise, m: int, dt: float, p: float) -> float:
+    """Upper bound, holding with probability >= 1 - p, of the mean square of the noise
+    deviation from its own mean over ``m`` consecutive samples,
+    ``(1/m) sum_k (n_k - mean n)^2`` with ``n`` = white + quantization + flicker (the
+    turn-on bias, constant, drops out).
+
+    Gaussian quadratic form ``z' M z`` with ``M = C^(1/2) P C^(1/2)``, ``P`` the centring
+    projection: Laurent & Massart (2000), ``P(z'Mz > tr M + 2 sqrt(tr(M^2) x) + 2 ||M|| x)
+    <= exp(-x)``, with ``tr M = tr C - 1'C1/m`` exact, ``||M|| <= ||P (C - a J) P||``
+    bounded per component by Gershgorin (a slow component is nearly constant over the
+    window, so it contributes little), ``tr(M^2) <= ||M|| tr M``.
+    """
+    if m <= 1:
+        return 0.0
+    x = -math.log(p)
+    var = cn.N * cn.N / dt + 2 * cn.Q * cn.Q / (dt * dt)
+    norm = cn.N * cn.N / dt + 4 * cn.Q * cn.Q / (dt * dt)
+    for s, b in cn.gm_terms():
+        var += s * s
+        norm += s * s * _gm_row_excess(m, b * dt)
+    tr = m * var - box_sum_variance(cn, m, dt, False) / (dt * dt) * (1 - 2e-9)
+    tr = max(tr, 0.0)
+    bound = tr + 2 * math.sqrt(norm * tr * x) + 2 * norm * x
+    return bound / m * (1 + 1e-9)
+
+
 # ----------------------------------------------------------------------------- alpha
 
 
@@ -429,6 +467,12 @@ class AlphaPlan:
         lv = self.level_counts[family]
         n_levels = sum(1 for x in lv if x > 0)
         return k_two_sided(self.share() / max(1, n_levels), lv[level])
+
+    def p_level(self, family: str, level: int) -> float:
+        """Per-item probability of a level of a split family (two-sided bounds use half)."""
+        lv = self.level_counts[family]
+        n_levels = sum(1 for x in lv if x > 0)
+        return self.share() / max(1, n_levels) / max(1, lv[level])
 
     def p_radial(self, family: str) -> float:
         """Per-item exceedance probability of a radial (2-D Rayleigh) bound of the family."""

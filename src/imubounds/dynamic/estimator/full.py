@@ -326,7 +326,9 @@ def _plan_windows(ctx: Context) -> None:
         for li, lp in enumerate(p.levels):
             gi = int(np.argmin([abs(math.log(lp.tau_s / g)) for g in grid]))
             ctx.level_index[(ch, li)] = gi
-            level_counts[gi] += lp.n
+            # accelerometer windows carry two bounded events: the band's noise and the
+            # gyro's deviation bound of the transport term
+            level_counts[gi] += lp.n * (2 if ch in ("accel_x", "accel_y") else 1)
     ctx.alpha.counts["imu_windows"] = max(1, sum(level_counts))
     ctx.alpha.level_counts["imu_windows"] = level_counts
     ctx.plans = plans
@@ -536,7 +538,7 @@ def _smoother_inputs(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         roll, pitch = IA(rl, rh), IA(pl, ph)
         sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
         uh = cp * u - sr * sp * v - cr * sp * w
-        vh = cr * v + sr * w
+        vh = cr * v - sr * w
         meas[i, SM.UH] = np.stack([uh.lo, uh.hi], -1)
         meas[i, SM.VH] = np.stack([vh.lo, vh.hi], -1)
         has[i, SM.G_BODY] = True
@@ -598,8 +600,18 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
     ctx = build_context(drive, noise, options)
     mb = MarginBuilder(ctx)
-    margins = {ch: mb.evaluate(p) for ch, p in ctx.plans.items()}
+    order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
+    margins: dict[str, ChannelMargins] = {}
     notes: list[str] = []
+    for ch in order:
+        margins[ch] = mb.evaluate(ctx.plans[ch])
+        if ch == "gyro_z" and margins[ch].verdict == "exceeds":
+            mb.fine_r = False
+            notes.append(
+                "gyro_z exceeds its stationary band: the accelerometers' transport terms use "
+                "the gyro's per-sample error bound, not its window-centred bound"
+            )
+    margins = {ch: margins[ch] for ch in ctx.plans}
     bv = mb.body_velocity()
     if bv is not None and bv["dropped"]:
         notes.append(

@@ -148,6 +148,26 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
 # --------------------------------------------------------------------------- IMU
 
 
+class Locator:
+    """Segment index of times on fixed boundaries, cached by the query (several signals
+    on the same segments ask for the same window ends)."""
+
+    def __init__(self, bnd: np.ndarray) -> None:
+        self.bnd = bnd
+        self._cache: dict[bytes, np.ndarray] = {}
+
+    def locate(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        key = t.tobytes() + bytes(str(t.shape), "ascii")
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = np.clip(np.searchsorted(self.bnd, t, side="right") - 1, 0, self.bnd.size - 2)
+            if len(self._cache) > 512:
+                self._cache.clear()
+            self._cache[key] = hit
+        return hit
+
+
 class PiecewiseSignal:
     """A signal constant on segments ``[bnd[i], bnd[i+1])`` with rigorous integrals.
 
@@ -158,9 +178,15 @@ class PiecewiseSignal:
     """
 
     def __init__(
-        self, bnd: np.ndarray, y: np.ndarray, unknown: np.ndarray | None = None, xmax: float = 0.0
+        self,
+        bnd: np.ndarray,
+        y: np.ndarray,
+        unknown: np.ndarray | None = None,
+        xmax: float = 0.0,
+        locator: Locator | None = None,
     ) -> None:
         self.bnd = np.asarray(bnd, dtype=float)
+        self.locator = locator if locator is not None else Locator(self.bnd)
         self.unknown = (
             np.zeros(self.bnd.size - 1, dtype=bool) if unknown is None else np.asarray(unknown)
         )
@@ -181,8 +207,7 @@ class PiecewiseSignal:
         return int(self.bnd.size - 1)
 
     def locate(self, t: np.ndarray) -> np.ndarray:
-        i = np.searchsorted(self.bnd, t, side="right") - 1
-        return np.clip(i, 0, self.n - 1)
+        return self.locator.locate(t)
 
     def cum(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``Y(t) = int_{bnd[0]}^t y`` (float), its rounding-error bound, and the length by
@@ -327,13 +352,16 @@ class ImuSeries:
         }
         sig: dict[str, PiecewiseSignal] = {}
         avail: dict[str, bool] = {}
+        loc = Locator(bnd)
         for ch in CHANNELS:
             vals = np.asarray(raw[ch], dtype=float)
             if gaps.size:
                 vals = np.insert(vals, gaps + 1, np.nan)
             bad = ~np.isfinite(vals) | is_gap
             avail[ch] = bool(np.any(~bad))
-            sig[ch] = PiecewiseSignal(bnd, np.where(bad, 0.0, vals), bad, vehicle.signal_bound(ch))
+            sig[ch] = PiecewiseSignal(
+                bnd, np.where(bad, 0.0, vals), bad, vehicle.signal_bound(ch), locator=loc
+            )
         ln = np.diff(bnd)
         return cls(
             t0=t0,

@@ -59,7 +59,9 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
             e, n, _ = pymap3d.geodetic2enu(lat, lon, alt, origin[0], origin[1], origin[2])
             e, n = np.asarray(e, float), np.asarray(n, float)
     elif origin is None:
-        e, n = e - e[0], n - n[0]
+        # no GNSS: positions relative to the state at the first requested time
+        e = e - np.interp(t_abs[0], tt, e)
+        n = n - np.interp(t_abs[0], tt, n)
     out: dict[str, Any] = {"east": at(e), "north": at(n)}
     if tr.heading_rad is not None:
         psi = np.unwrap(0.5 * math.pi - np.asarray(tr.heading_rad, float))
@@ -72,9 +74,12 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
 
 
 def _inside_angle(lo: np.ndarray, hi: np.ndarray, x: np.ndarray) -> np.ndarray:
-    m = np.round((0.5 * (lo + hi) - x) / (2 * math.pi))
+    """x (rad) inside [lo, hi] modulo 2 pi (an unbounded interval contains everything)."""
+    fin = np.isfinite(lo) & np.isfinite(hi)
+    mid = np.where(fin, 0.5 * (np.where(fin, lo, 0) + np.where(fin, hi, 0)), x)
+    m = np.round((mid - x) / (2 * math.pi))
     xx = x + 2 * math.pi * m
-    return (lo <= xx) & (xx <= hi)
+    return ~fin & (lo <= hi) | ((lo <= xx) & (xx <= hi))
 
 
 @dataclass
@@ -278,7 +283,7 @@ def _states(ctx: Any, sm: Any) -> dict[str, Any]:
     vh = IA(X[:, SM.VH, 0], X[:, SM.VH, 1])
     wb = veh.vertical_bound
     w = IA(np.full(sm.te.size, -wb), np.full(sm.te.size, wb))
-    v = (vh - sr * w) / cr
+    v = (vh + sr * w) / cr
     if veh.lateral_bound is not None:
         lb = veh.lateral_bound
         v = v & IA(np.full(v.shape, -lb), np.full(v.shape, lb))

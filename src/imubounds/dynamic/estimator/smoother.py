@@ -526,7 +526,7 @@ def preintegrate(
     length ``l``:
 
     * heading-frame specific force a = (cos p fx - sin r sin p fy - cos r sin p fz,
-      cos r fy + sin r fz), rotated by the gyro's own increment from ``te[j]`` at the
+      cos r fy - sin r fz), rotated by the gyro's own increment from ``te[j]`` at the
       segment's middle (nominal, bias ``beta_r_mid`` removed; its error is in the
       budget); ``FH += a l``, ``QH += a l (te[j+1] - mid)``;
     * ``YR += gr l``; ``AA[j] = (int |a|, int |gr|)`` upper bounds.
@@ -575,7 +575,7 @@ def preintegrate(
                 af = c.sub(t[0], t[1], u[0], u[1])
                 t = c.mul(crl, crh, fy[kk, 0], fy[kk, 1])
                 u = c.mul(srl, srh, fz[kk, 0], fz[kk, 1])
-                al = c.add(t[0], t[1], u[0], u[1])
+                al = c.sub(t[0], t[1], u[0], u[1])
                 cl_, ch_ = c.cos(ph_mid, ph_mid)
                 sl_, sh_ = c.sin(ph_mid, ph_mid)
                 ax0, ax1, ay0, ay1 = _rot(cl_, ch_, sl_, sh_, af[0], af[1], al[0], al[1])

@@ -69,7 +69,7 @@ def preintegrate_reference(
             cr, sr, cp, sp = icos(roll), isin(roll), icos(pitch), isin(pitch)
             ax, ay, az = Iv(*fx[k]), Iv(*fy[k]), Iv(*fz[k])
             a_fwd = cp * ax - (sr * sp) * ay - (cr * sp) * az
-            a_left = cr * ay + sr * az
+            a_left = cr * ay - sr * az
             c, s = icos(Iv.pt(ph_mid)), isin(Iv.pt(ph_mid))
             r0, r1 = rot(c, s, a_fwd, a_left)
             F[0] = F[0] + r0 * L

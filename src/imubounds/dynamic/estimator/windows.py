@@ -33,8 +33,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 
-from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
+from imubounds.dynamic.estimator.budget import (
+    box_sum_variance,
+    centered_ms_bound,
+    kernel_variance,
+)
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal, RangeExt
 from imubounds.interval import IntervalArray as IA
 from imubounds.interval import atan2, cos, sin, sqr, sqrt
@@ -125,9 +130,11 @@ def plan_channel(
     n_imu = bnd.size - 1
     for tau in tau_grid(dt, duration):
         if tau < 0.999 * gap or epochs.size < 2:
+            # shorter than the aiding period: only the vehicle's bounds (gross faults);
+            # fewer windows are enough
             m = max(1, int(round(tau / dt)))
             starts = np.arange(0, n_imu - m + 1, max(1, m // 2))
-            starts = _subsample(starts, cap)
+            starts = _subsample(starts, min(cap, 256))
             a = bnd[starts]
             b = bnd[starts + m]
             z = np.zeros(a.size, dtype=np.int64)
@@ -283,21 +290,34 @@ class TiltSignals:
     pitch: IA
     sig: dict[str, tuple[Any, Any]] = field(default_factory=dict)
     ext: dict[str, RangeExt] = field(default_factory=dict)
+    funcs: dict[str, Any] = field(default_factory=dict)
 
     def add(self, name: str, val: IA) -> None:
         lo = np.where(np.isfinite(val.lo), val.lo, -1e300)
         hi = np.where(np.isfinite(val.hi), val.hi, 1e300)
-        self.sig[name] = (PiecewiseSignal(self.bnd, lo), PiecewiseSignal(self.bnd, hi))
+        if not hasattr(self, "_loc"):
+            from imubounds.dynamic.estimator.inputs import Locator
+
+            self._loc = Locator(self.bnd)
+        self.sig[name] = (
+            PiecewiseSignal(self.bnd, lo, locator=self._loc),
+            PiecewiseSignal(self.bnd, hi, locator=self._loc),
+        )
         self.ext[name] = RangeExt(lo, hi)
 
+    def _get(self, name: str) -> tuple[Any, Any]:
+        if name not in self.sig:
+            self.add(name, self.funcs[name]())
+        return self.sig[name]
+
     def kmean(self, name: str, lp: LevelPlan, tau: np.ndarray) -> IA:
-        lo_s, hi_s = self.sig[name]
+        lo_s, hi_s = self._get(name)
         lo = lo_s.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, tau).lo
         hi = hi_s.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, tau).hi
         return IA(lo, hi)
 
     def hull(self, name: str, a: np.ndarray, b: np.ndarray) -> IA:
-        lo_s, _ = self.sig[name]
+        lo_s, _ = self._get(name)
         i, j = lo_s.locate(a), lo_s.locate(b)
         mn, mx = self.ext[name].query(i, j)
         return IA(mn, mx)
@@ -321,18 +341,20 @@ def build_tilt(ctx: Any) -> TiltSignals:
     ts = TiltSignals(bnd, roll, pitch)
     g = IA(G_LO, G_HI)
     sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
-    ts.add("g_sinp", g * sp)
-    ts.add("g_sinr_cosp", g * sr * cp)
-    ts.add("g_cosr_cosp", g * cr * cp)
-    ts.add("cosp_over_cosr", cp / cr)
-    ts.add("abs_tanr", abs(sr / cr))
-    ts.add("abs_sinr", abs(sr))
-    ts.add("abs_sinp", abs(sp))
-    ts.add("cosr", cr)
-    ts.add("sec_p_minus_1", 1.0 / cp - 1.0)
-    ts.add("sec_r_minus_1", 1.0 / cr - 1.0)
-    ts.add("abs_tanr_tanp", abs(sr * sp / (cr * cp)))
-    ts.add("abs_tanp", abs(sp / cp))
+    ts.funcs = {
+        "g_sinp": lambda: g * sp,
+        "g_sinr_cosp": lambda: g * sr * cp,
+        "g_cosr_cosp": lambda: g * cr * cp,
+        "cosp_over_cosr": lambda: cp / cr,
+        "abs_tanr": lambda: abs(sr / cr),
+        "abs_sinr": lambda: abs(sr),
+        "abs_sinp": lambda: abs(sp),
+        "cosr": lambda: cr,
+        "sec_p_minus_1": lambda: 1.0 / cp - 1.0,
+        "sec_r_minus_1": lambda: 1.0 / cr - 1.0,
+        "abs_tanr_tanp": lambda: abs(sr * sp / (cr * cp)),
+        "abs_tanp": lambda: abs(sp / cp),
+    }
     return ts
 
 
@@ -349,6 +371,8 @@ class MarginBuilder:
         self.ag = ctx.aiding
         self.tilt: TiltSignals = ctx.tilt
         self._bodyvel: Any = None
+        self.fine_r = True  # False once the gyro_z verdict is 'exceeds'
+        self.p_window = 1e-6  # per-window probability of the current level
 
     # -- IMU-side helpers ----------------------------------------------------------
     def mag_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -479,7 +503,7 @@ class MarginBuilder:
             roll, pitch = IA(rl, rh), IA(pl, ph)
             sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
             w = pm(np.full(t.size, veh.vertical_bound))
-            v = (vh - sr * w) / cr
+            v = (vh + sr * w) / cr
             if vl is not None:
                 v = v & pm(np.full(t.size, vl))
             u = (uh + sr * sp * v + cr * sp * w) / cp
@@ -495,6 +519,7 @@ class MarginBuilder:
             keep = ~bad
             t, u, v, w = t[keep], u[keep], v[keep], w[keep]
         gaps = np.diff(t) if t.size > 1 else np.zeros(0)
+        gu, gv = self._gap_growth(t, u, v)
         self._bodyvel = {
             "t": t,
             "u": u,
@@ -505,6 +530,8 @@ class MarginBuilder:
             "vabs": RangeExt(abs(v).hi),
             "wabs": RangeExt(abs(w).hi),
             "gaps": RangeExt(gaps if gaps.size else np.zeros(1)),
+            "gu": RangeExt(gu if gu.size else np.zeros(1)),
+            "gv": RangeExt(gv if gv.size else np.zeros(1)),
             "dropped": int(np.sum(bad)),
         }
         return self._bodyvel
@@ -522,19 +549,86 @@ class MarginBuilder:
         gi = np.clip(i, 0, max(0, t.size - 2))
         gj = np.clip(j - 1, 0, max(0, t.size - 2))
         _, gmax = bv["gaps"].query(gi, np.maximum(gj, gi))
+        _, gu = bv["gu"].query(gi, np.maximum(gj, gi))
+        _, gv = bv["gv"].query(gi, np.maximum(gj, gi))
         # outside the epoch span the growth is over the distance to the nearest epoch
         ext = np.maximum(t[i] - a, 0.0) + np.maximum(b - t[j], 0.0)
         g = self.growth(np.maximum(gmax, 2 * ext))
+        single = t.size < 2
+        g_u = np.where((ext > 0) | single, g, np.minimum(g, gu))
+        g_v = np.where((ext > 0) | single, g, np.minimum(g, gv))
         vl = self.veh.lateral_bound
-        vmax = vmax + g
+        vmax = vmax + g_v
         if vl is not None:
             vmax = np.minimum(vmax, vl)
         return {
-            "u_lo": ulo - g,
-            "u_hi": uhi + g,
+            "u_lo": ulo - g_u,
+            "u_hi": uhi + g_u,
             "v_max": _up(vmax),
             "w_max": _up(wmax + g) if self.veh.kind != "ground" else np.zeros(a.shape),
         }
+
+    def _gap_growth(self, t: np.ndarray, u: IA, v: IA) -> tuple[np.ndarray, np.ndarray]:
+        """How far u and v can leave the hull of their values at two consecutive velocity
+        epochs: half their total variation over the gap, bounded with the magnitudes of
+        the other IMU channels (|u'| <= |f_x| + |r| |v| + g |sin pitch|, |v'| <= |f_y| +
+        |r| |u| + g |sin roll|; a magnitude use in a second-order term), and the
+        vehicle's acceleration and jerk bounds."""
+        if t.size < 2:
+            return np.zeros(0), np.zeros(0)
+        veh = self.veh
+        a, b = t[:-1], t[1:]
+        g = b - a
+        r_int = self.mag_mean("gyro_z", a, b) * g
+        fx_int = self.mag_mean("accel_x", a, b) * g
+        fy_int = self.mag_mean("accel_y", a, b) * g
+        sp = self.tilt.hull("abs_sinp", a, b).hi
+        sr = self.tilt.hull("abs_sinr", a, b).hi
+        vmax = np.maximum(abs(v).hi[:-1], abs(v).hi[1:])
+        umax = np.maximum(abs(u).hi[:-1], abs(u).hi[1:])
+        vl = veh.lateral_bound
+        vcap = vl if vl is not None else veh.max_speed
+        base = self.growth(g)
+        tv_u = fx_int + np.minimum(vmax + base, vcap) * r_int + G_HI * sp * g
+        tv_v = fy_int + np.minimum(umax + base, veh.max_speed) * r_int + G_HI * sr * g
+        return _up(np.minimum(base, tv_u / 2)), _up(np.minimum(base, tv_v / 2))
+
+    def r_abs(self, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
+        """Bound of the kernel mean of |r| (true yaw rate) over each window: the gyro's
+        magnitude centred on its own mean error over the window's support (known from
+        the heading), plus a bound of the noise's deviation from its mean (Gaussian
+        quadratic form); the per-sample bound if the gyro is judged faulty or there is
+        no heading. Used only in second-order (transport) terms of the accelerometers."""
+        coarse = self.kernel_mag("gyro_z", lp, tau)
+        if not self.fine_r or not self.ag.has_heading or not self.imu.available["gyro_z"]:
+            return coarse
+        s0, s1 = lp.a1, lp.b2
+        L = s1 - s0
+        sup = LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j)
+        sig = self.imu.sig["gyro_z"]
+        ylo, yhi = sig.integral(s0, s1)
+        ybox = IA(ylo, yhi) / IA(L)
+        p0, p1 = self.heading_at(s0), self.heading_at(s1)
+        xbox = self._r_from_psidot((p1 - p0) / IA(L), sup, L, own_q=True)
+        e = ybox - xbox
+        fin = np.isfinite(e.lo) & np.isfinite(e.hi)
+        c0 = np.where(fin, e.mid(), 0.0)
+        rad = np.where(fin, e.radius(), np.inf)
+        dev = abs_dev_integral(
+            sig.bnd, sig.y, sig.unknown, sig.xmax, s0, s1, np.ascontiguousarray(c0)
+        ) / L
+        cn = self.ctx.noise["gyro_z"]
+        m = self.imu.count(s0, s1)
+        uc, inv = np.unique(m, return_inverse=True)
+        p = self.p_window
+        ms = np.array([centered_ms_bound(cn, int(mm), self.imu.dt, p) for mm in uc])[inv]
+        ratio = max(1.0, self.imu.max_len / self.imu.dt)
+        det = 2 * self.ctx.D_KR["gyro_z"] + 2 * cn.scale * self.mag_mean("gyro_z", s0, s1)
+        for other in ("gyro_x", "gyro_y"):
+            det = det + 2 * cn.misalignment_rad * self.mag_mean(other, s0, s1)
+        fine = dev + rad + np.sqrt(ms) * ratio + det
+        fine = _up(fine * L / tau)
+        return np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))
 
     # -- channels ------------------------------------------------------------------
     def aided(self, ch: str, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
@@ -546,7 +640,11 @@ class MarginBuilder:
         if ch in ("gyro_x", "gyro_y", "accel_z"):
             return self._three_d(ch, lp, tau)
         bv = self.body_velocity()
-        earth = pm(2 * EARTH_RATE * veh.max_speed + veh.max_speed**2 / R_EARTH)
+        rng = self._ranges(lp, bv)
+        smax = np.maximum(np.abs(rng["u_lo"]), np.abs(rng["u_hi"])) + rng["v_max"]
+        smax = np.minimum(smax, veh.max_speed)
+        # Coriolis and transport rate of the Earth frame, at the window's speed bound
+        earth = pm(2 * EARTH_RATE * smax + smax * smax / R_EARTH)
         if plan.trapezoid:
             ends = self._position_means(lp, tau)
         else:
@@ -557,8 +655,7 @@ class MarginBuilder:
                 "v2": bv["v"][lp.j],
             }
         if ch == "accel_x":
-            rng = self._ranges(lp, bv)
-            r_mag = self.kernel_mag("gyro_z", lp, tau)
+            r_mag = self.r_abs(lp, tau)
             transport = pm(rng["v_max"] * r_mag)
             grav = self.tilt.kmean("g_sinp", lp, tau)
             x = (ends["u2"] - ends["u1"]) / IA(tau) - transport + grav + earth
@@ -566,8 +663,7 @@ class MarginBuilder:
                 x = x + pm(rng["w_max"] * self.kernel_mag("gyro_y", lp, tau))
             return x
         # accel_y: (v2 - v1)/tau + mean(r u) + g mean(sin(roll) cos(pitch))
-        rng = self._ranges(lp, bv)
-        r_mag = self.kernel_mag("gyro_z", lp, tau)
+        r_mag = self.r_abs(lp, tau)
         mean_r = self._mean_r_from_heading(lp, tau, plan.trapezoid)
         u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
         du = _up(0.5 * (rng["u_hi"] - rng["u_lo"]))
@@ -720,7 +816,7 @@ class MarginBuilder:
         p2 = IA(ag.att_pitch[lp.j] - h, ag.att_pitch[lp.j] + h)
         supp = lp.b2 - lp.a1
         if ch == "gyro_x":
-            # p = roll' - psi' sin(pitch)
+            # p = roll' + psi' sin(pitch)
             psid = _up(self.psi_dot_abs(lp.a1, lp.b2) * supp / tau)
             sp = self.tilt.hull("abs_sinp", lp.a1, lp.b2).hi
             return (r2 - r1) / IA(tau) + pm(psid * sp) + earth
@@ -741,7 +837,8 @@ class MarginBuilder:
         return x
 
     def _q_mean(self, lp: LevelPlan, tau: np.ndarray, p1: IA, p2: IA) -> IA:
-        """Kernel mean of q = pitch' cos(roll) + psi' cos(pitch) sin(roll)."""
+        """Kernel mean of q = -pitch' cos(roll) + psi' cos(pitch) sin(roll) (FLU body, pitch
+        positive nose up: a nose-up pitch rate is a negative rate about body y)."""
         c = self.tilt.hull("cosr", lp.a1, lp.b2)
         c0 = c.mid()
         cdev = _up(np.maximum(c.hi - c0, c0 - c.lo))
@@ -749,7 +846,7 @@ class MarginBuilder:
         rate = _up(self.veh.max_rate * supp / tau)
         psid = _up(self.psi_dot_abs(lp.a1, lp.b2, own_q=False) * supp / tau)
         sr = self.tilt.hull("abs_sinr", lp.a1, lp.b2).hi
-        return (p2 - p1) / IA(tau) * IA(c0) + pm(rate * cdev) + pm(psid * sr)
+        return (p1 - p2) / IA(tau) * IA(c0) + pm(rate * cdev) + pm(psid * sr)
 
     def _vehicle_bound(self, ch: str, lp: LevelPlan, tau: np.ndarray) -> IA:
         """Windows shorter than the aiding period: only the vehicle's bounds."""
@@ -773,7 +870,9 @@ class MarginBuilder:
             if lp.n == 0:
                 continue
             tau = lp.tau
-            k = self.ctx.alpha.k_level(fam, self.ctx.level_index[(ch, li)])
+            gi = self.ctx.level_index[(ch, li)]
+            k = self.ctx.alpha.k_level(fam, gi)
+            self.p_window = self.ctx.alpha.p_level(fam, gi)
             x = self.aided(ch, plan, lp, tau)
             y = self.imu_mean(ch, lp, tau)
             band, band_nto = self.band(ch, lp, tau, k)
@@ -798,6 +897,40 @@ class MarginBuilder:
         if plan.reason and not levels:
             verdict, reason = "undecided", plan.reason
         return ChannelMargins(ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc)
+
+
+@njit(cache=True)
+def abs_dev_integral(
+    bnd: np.ndarray,
+    y: np.ndarray,
+    unknown: np.ndarray,
+    xmax: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+) -> np.ndarray:
+    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
+    segments ``bnd``; an unknown segment counts ``xmax + |c|``). Plain float sums
+    inflated by ``(n + 2) * 2^-52`` relative for rounding."""
+    out = np.empty(a.size)
+    nseg = bnd.size - 1
+    for w in range(a.size):
+        lo = np.searchsorted(bnd, a[w], side="right") - 1
+        if lo < 0:
+            lo = 0
+        acc = 0.0
+        cnt = 0
+        k = lo
+        while k < nseg and bnd[k] < b[w]:
+            s0 = bnd[k] if bnd[k] > a[w] else a[w]
+            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
+            if s1 > s0:
+                v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
+                acc += v * (s1 - s0)
+                cnt += 1
+            k += 1
+        out[w] = acc * (1.0 + (cnt + 4) * 2.3e-16)
+    return out
 
 
 def course(ve: IA, vn: IA) -> IA:
