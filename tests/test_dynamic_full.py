@@ -259,7 +259,7 @@ def test_assumptions_and_budget_are_stated() -> None:
     assert any("non-holonomic" in a for a in d["assumptions"])
     for ch in ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"):
         terms = {row["term"]: row for row in d["budget"][ch]}
-        assert terms["turn-on bias (1 sigma)"]["source"] == "drive.yaml"
+        assert terms["turn-on bias bound"]["source"] == "drive.yaml"
         assert terms["white noise density N"]["source"].startswith("preset")
         for row in d["budget"][ch]:
             assert set(row) == {"term", "value", "unit", "source", "assumption"}

@@ -23,8 +23,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.special import ndtri
 
 from imubounds.dynamic.aiding.geodesy import enu_to_geodetic
+from imubounds.dynamic.estimator.budget import ChannelNoise, box_sum_variance
 from imubounds.io.drive import (
     AttitudeStream,
     Drive,
@@ -74,6 +76,7 @@ class TripConfig:
     dvl_sigma: float = 0.02
     dvl_bound: float = 0.1
     lateral_bound: float | None = 0.3
+    state_drift: bool = False
     scale_bound: float = 0.002
     imu_noise_scale: float = 1.0
     faults: list[tuple[str, float, float]] = field(default_factory=list)  # (ch, bias, t0)
@@ -299,8 +302,17 @@ def make_trip(variant: str = "paper", seed: int = 0, **kw: Any) -> tuple[Drive, 
 
     settings = DriveSettings()
     settings.imu.preset = "mtx"
-    settings.imu.accel_turn_on_mps2 = XSENS_MTX.accel["B"] * cfg.imu_noise_scale
-    settings.imu.gyro_turn_on_dps = XSENS_MTX.gyro["B"] / DEG * cfg.imu_noise_scale
+    # stated like the simulator: turn-on bound k(6) sigma, drift bound over 1 s windows
+    k6 = float(-ndtri(0.01 / 12))
+    settings.imu.accel_turn_on_mps2 = k6 * XSENS_MTX.accel["B"] * cfg.imu_noise_scale
+    settings.imu.gyro_turn_on_dps = k6 * XSENS_MTX.gyro["B"] / DEG * cfg.imu_noise_scale
+    if cfg.state_drift:
+        kd = float(-ndtri(0.01 / (2 * 6 * cfg.duration_s)))
+        for kind, key in (("accel", "accel_bias_drift_mps2"), ("gyro", "gyro_bias_drift_dps")):
+            cn = ChannelNoise(kind + "_x", B=XSENS_MTX.kind(kind)["B"] * cfg.imu_noise_scale)
+            sd = math.sqrt(box_sum_variance(cn, 1, 1.0)) / 1.0  # the flicker's 1 s mean
+            setattr(settings.imu, key, kd * sd / (DEG if kind == "gyro" else 1.0))
+        settings.imu.bias_drift_window_s = 1.0
     settings.imu.scale_factor = cfg.scale_bound
     settings.imu.misalignment_deg = mis / DEG
     settings.gnss.cep_m = cfg.cep_m
@@ -443,7 +455,7 @@ def record(result: Any, errs: TripErrors) -> dict[str, int]:
         rec["velocity"] = int(np.sum(np.abs(errs.dvl_err) > ag.bvel_h[:, None]))
     k_to = ctx.alpha.k("imu_turn_on")
     rec["imu_turn_on"] = int(
-        sum(abs(errs.turn_on[ch]) > k_to * ctx.noise[ch].turn_on for ch in CHANS)
+        sum(abs(errs.turn_on[ch]) > ctx.noise[ch].turn_on_bound(k_to) for ch in CHANS)
     )
     rec["imu_samples"] = int(
         sum(np.sum(np.abs(errs.imu_error[ch]) > ctx.E0[ch]) for ch in CHANS)

@@ -65,9 +65,9 @@ def register(sub: Any) -> None:
         help="whole-trip probability that some stated probabilistic bound fails (0.01)",
     )
     f.add_argument("--turn-on-accel", type=nonneg_float, metavar="M/S2",
-                   help="1-sigma turn-on bias of the accelerometers")
+                   help="turn-on bias bound of the accelerometers")
     f.add_argument("--turn-on-gyro", type=nonneg_float, metavar="DEG/S",
-                   help="1-sigma turn-on bias of the gyros")
+                   help="turn-on bias bound of the gyros")
     f.add_argument("--scale", type=nonneg_float, metavar="FRACTION",
                    help="scale-factor error bound (0.005 = 0.5 %%)")
     f.add_argument("--misalignment", type=nonneg_float, metavar="DEG",
@@ -153,7 +153,7 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     reader = getattr(io_pkg, "read_drive", None)
     if reader is not None:
-        return reader(paths)
+        return reader(paths, mount=mount)
     from imubounds.io.drive_readers import detect_layout
 
     legacy = None

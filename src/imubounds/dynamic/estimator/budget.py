@@ -9,12 +9,15 @@ sample period)::
 
     y_k = (1 + s) x_k + m . x_perp,k + b_TO + d_F,k + d_KR,k + w_k + q_k
 
-* ``b_TO``: turn-on bias, constant over the trip, Gaussian with 1-sigma ``turn_on``
-  (the smoother's bias state);
+* ``b_TO``: turn-on bias, constant over the trip (the smoother's bias state): within a
+  stated bound (``drive.yaml`` ``imu.accel_turn_on_mps2``/``gyro_turn_on_dps``, a preset's
+  ``turn_on_bias``, an option), or, when no figure is given, Gaussian with 1-sigma ``B``;
 * ``d_F``: in-run bias instability, the flicker process of the Allan model (flat
   Allan deviation ``0.664 B`` over ``flicker_tau_range_s``), represented as the sum
   of first-order Gauss-Markov processes of :func:`imubounds.stationary.noise_sim.
-  flicker_gm_terms` (what ``imubounds simulate-noise`` generates);
+  flicker_gm_terms` (what ``imubounds simulate-noise`` generates); where drive.yaml
+  states a drift bound (``imu.accel_bias_drift_mps2``, over windows of at least
+  ``bias_drift_window_s``) a window at least that long may use it instead;
 * ``d_KR``: rate random walk ``K`` from the trip start and rate ramp ``R``, bounded
   uniformly over the trip by ``k_K K sqrt(T) + R T``;
 * ``w``: white noise of density ``N``; ``q``: quantization ``Q``;
@@ -97,8 +100,11 @@ class Term:
 class ChannelNoise:
     """Noise figures of one IMU channel in SI, with where each came from.
 
-    ``turn_on`` is a 1-sigma figure; ``scale`` (fraction) and ``misalignment_rad``
-    are bounds. ``sources`` maps each field name to its source.
+    ``turn_on`` is a bound (``turn_on_kind="bound"``) or a 1-sigma figure
+    (``"sigma"``, the default taken when no figure is given); ``scale`` (fraction) and
+    ``misalignment_rad`` are bounds; ``drift_bound`` (None: not stated) bounds the mean
+    in-run bias wander over any window of at least ``drift_window_s``. ``sources`` maps
+    each field name to its source.
     """
 
     channel: str
@@ -108,6 +114,9 @@ class ChannelNoise:
     K: float = 0.0
     R: float = 0.0
     turn_on: float = 0.0
+    turn_on_kind: str = "sigma"
+    drift_bound: float | None = None
+    drift_window_s: float = 1.0
     scale: float = DEFAULT_SCALE
     misalignment_rad: float = DEFAULT_MISALIGNMENT_RAD
     flicker_tau_range_s: tuple[float, float] = DEFAULT_FLICKER_RANGE_S
@@ -120,6 +129,18 @@ class ChannelNoise:
     def gm_terms(self) -> list[tuple[float, float]]:
         """(sigma, beta) of the Gauss-Markov processes representing the flicker ``B``."""
         return _gm_terms(self.B, self.flicker_tau_range_s)
+
+    def turn_on_bound(self, k: float) -> float:
+        """Bound of the turn-on bias: the stated bound, or ``k`` sigma."""
+        return self.turn_on if self.turn_on_kind == "bound" else k * self.turn_on
+
+    def turn_on_var(self) -> float:
+        """Variance of the turn-on bias when it is a Gaussian figure (0 for a bound)."""
+        return 0.0 if self.turn_on_kind == "bound" else self.turn_on**2
+
+    def turn_on_det(self) -> float:
+        """The turn-on bound when it is a deterministic bound (0 for a Gaussian figure)."""
+        return self.turn_on if self.turn_on_kind == "bound" else 0.0
 
     def flicker_sigma(self) -> float:
         """Marginal standard deviation of the flicker process (signal units)."""
@@ -205,7 +226,7 @@ def resolve_noise(
 
     ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` may hold
     ``imu_spec`` (preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``),
-    ``accel_turn_on``/``gyro_turn_on`` (SI, 1-sigma), ``scale`` (fraction),
+    ``accel_turn_on``/``gyro_turn_on`` (SI, bounds), ``scale`` (fraction),
     ``misalignment_deg``, ``flicker_tau_range_s``.
     """
     from imubounds.presets import get_preset
@@ -265,6 +286,7 @@ def resolve_noise(
         key = f"{kind}_turn_on"
         yaml_key = "accel_turn_on_mps2" if kind == "accel" else "gyro_turn_on_dps"
         yv = getattr(imu_s, yaml_key, None) if imu_s is not None else None
+        cn.turn_on_kind = "bound"
         if overrides.get(key) is not None:
             cn.turn_on, srcs["turn_on"] = float(overrides[key]), "option"
         elif yv is not None:
@@ -273,11 +295,21 @@ def resolve_noise(
         elif "turn_on_bias" in pre:
             cn.turn_on, srcs["turn_on"] = float(pre["turn_on_bias"]), f"preset {preset.key}"
         else:
-            cn.turn_on, srcs["turn_on"] = cn.B, "default (= B)"
+            cn.turn_on, srcs["turn_on"] = cn.B, "default (1 sigma = B)"
+            cn.turn_on_kind = "sigma"
             assumed.append(
-                f"{ch}: no turn-on bias figure: 1-sigma turn-on bias taken equal to the "
-                f"bias instability B = {cn.B:.3g} {TERM_UNITS[kind]['B']}"
+                f"{ch}: no turn-on bias figure: the turn-on bias is taken Gaussian with "
+                f"1-sigma equal to the bias instability B = {cn.B:.3g} {TERM_UNITS[kind]['B']}"
             )
+        dkey = "accel_bias_drift_mps2" if kind == "accel" else "gyro_bias_drift_dps"
+        dv = getattr(imu_s, dkey, None) if imu_s is not None else None
+        if dv is not None:
+            cn.drift_bound = float(dv) * (1.0 if kind == "accel" else DEG)
+            srcs["drift_bound"] = "drive.yaml"
+            w = getattr(imu_s, "bias_drift_window_s", None)
+            cn.drift_window_s = float(w) if w is not None else 1.0
+        else:
+            srcs["drift_bound"] = "not stated"
         # scale factor and misalignment
         yv = getattr(imu_s, "scale_factor", None) if imu_s is not None else None
         if overrides.get("scale") is not None:
@@ -355,7 +387,9 @@ def _gm_pair_sum(m: int, a: float) -> float:
     return (m * (1.0 + phi) * q - 2.0 * phi * Q) / (q * q)
 
 
-def box_sum_variance(cn: ChannelNoise, m: int, dt: float, with_turn_on: bool = False) -> float:
+def box_sum_variance(
+    cn: ChannelNoise, m: int, dt: float, with_turn_on: bool = False, with_flicker: bool = True
+) -> float:
     """Variance of ``sum_{k<m} (noise_k) * dt`` over ``m`` consecutive samples of period
     ``dt`` (signal units x s)^2: white ``N``, quantization ``Q``, flicker ``B`` and
     (optionally) the turn-on bias. Exact for the discrete model; inflated by 1e-9
@@ -365,10 +399,11 @@ def box_sum_variance(cn: ChannelNoise, m: int, dt: float, with_turn_on: bool = F
     v = cn.N * cn.N * m * dt  # (N^2/dt) * m * dt^2
     if cn.Q > 0:
         v += 2.0 * cn.Q * cn.Q
-    for s, b in cn.gm_terms():
-        v += s * s * dt * dt * _gm_pair_sum(m, b * dt)
+    if with_flicker:
+        for s, b in cn.gm_terms():
+            v += s * s * dt * dt * _gm_pair_sum(m, b * dt)
     if with_turn_on:
-        v += (cn.turn_on * m * dt) ** 2
+        v += cn.turn_on_var() * (m * dt) ** 2
     return v * (1.0 + 1e-9)
 
 
@@ -389,7 +424,7 @@ def kernel_variance(cn: ChannelNoise, c: np.ndarray, dt: float, with_turn_on: bo
         g = lfilter([1.0], [1.0, -phi], c[::-1])[::-1]
         v += s * s * float(np.dot(c, f + g - c))
     if with_turn_on:
-        v += (cn.turn_on * float(np.sum(c))) ** 2
+        v += cn.turn_on_var() * float(np.sum(c)) ** 2
     return v * (1.0 + 1e-9)
 
 

@@ -186,6 +186,9 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     """Budget, inputs and window plans of mode full (see the module docstring)."""
     if drive.imu is None:
         raise InputError(f"{drive.source}: no IMU stream")
+    st_time = getattr(drive.settings.imu, "sample_time", None)
+    if "imu_stamp" not in opts and st_time in ("end", "start", "centre"):
+        opts = {**opts, "imu_stamp": st_time}
     o = check_options(opts)
     vehicle, vnotes = vehicle_from(drive.settings, o)
     base = Path(drive.source) if Path(str(drive.source)).is_dir() else None
@@ -236,8 +239,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     for ch in CHANNELS:
         cn = noise_terms[ch]
         D_KR[ch] = k_K * cn.K * math.sqrt(T) + cn.R * T
-        s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2 + cn.turn_on**2
-        E0[ch] = k_ps * math.sqrt(s2) + D_KR[ch]
+        s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2 + cn.turn_on_var()
+        E0[ch] = k_ps * math.sqrt(s2) + D_KR[ch] + cn.turn_on_det()
     # misalignment in the per-sample bound: other axes' largest measured magnitude
     for ch in CHANNELS:
         cn = noise_terms[ch]
@@ -437,7 +440,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     rx, ry, rz = gauss("accel_x", True), gauss("accel_y", True), gauss("accel_z", True)
     dx, dy, dz = det("accel_x"), det("accel_y"), det("accel_z")
     k_to = ctx.alpha.k("imu_turn_on")
-    to_z = k_to * ctx.noise["accel_z"].turn_on
+    to_z = ctx.noise["accel_z"].turn_on_bound(k_to)
     bx = np.max(np.abs(beta0[0]))
     by = np.max(np.abs(beta0[1]))
     e_fwd = gx + dx + spr * (gy + dy + by * D) + sp * (gz + dz + to_z * D)
@@ -505,7 +508,7 @@ def _smoother_inputs(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if ag.has_gvel:
             okv = ok & ag.gvel_ok
             iv = idx[okv]
-            hv = ag.gvel_h + lev * veh.max_rate
+            hv = ag.gvel_hi[okv] + lev * veh.max_rate
             meas[iv, SM.VE] = np.stack([ag.gvel_e[okv] - hv, ag.gvel_e[okv] + hv], -1)
             meas[iv, SM.VN] = np.stack([ag.gvel_n[okv] - hv, ag.gvel_n[okv] + hv], -1)
             has[iv, SM.G_VEL] = True
@@ -552,7 +555,7 @@ def _beta_from_windows(ctx: Context, margins: dict[str, ChannelMargins]) -> tupl
     out = np.empty((3, 2))
     notes = []
     for r, ch in enumerate(("accel_x", "accel_y", "gyro_z")):
-        b = k_to * ctx.noise[ch].turn_on
+        b = ctx.noise[ch].turn_on_bound(k_to)
         lo, hi = -b, b
         m = margins.get(ch)
         cand_lo, cand_hi = [], []
@@ -671,18 +674,28 @@ def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:
         Term("rate random walk K", cn.K, tu["K"], src["K"], "random walk from the trip start"),
         Term("rate ramp R", cn.R, tu["R"], src["R"], "deterministic drift from the start"),
         Term(
-            "turn-on bias (1 sigma)",
+            "turn-on bias" + (" bound" if cn.turn_on_kind == "bound" else " (1 sigma)"),
             cn.turn_on,
             unit,
             src["turn_on"],
-            "constant over the trip, Gaussian across switch-ons",
+            "constant over the trip"
+            + ("" if cn.turn_on_kind == "bound" else ", Gaussian across switch-ons"),
         ),
         Term(
-            "turn-on bias bound",
-            k_to * cn.turn_on,
+            "turn-on bias bound used",
+            cn.turn_on_bound(k_to),
             unit,
-            "computed",
-            f"k = {k_to:.3g} (prior of the bias state)",
+            "computed" if cn.turn_on_kind == "sigma" else src["turn_on"],
+            (f"k = {k_to:.3g} x sigma; " if cn.turn_on_kind == "sigma" else "")
+            + "prior of the bias state",
+        ),
+        Term(
+            "bias drift bound",
+            cn.drift_bound if cn.drift_bound is not None else float("nan"),
+            unit,
+            src.get("drift_bound", "not stated"),
+            f"mean in-run wander over any window of at least {cn.drift_window_s:g} s "
+            "(used instead of the flicker model for windows that long, where smaller)",
         ),
         Term(
             "drift bound k_K K sqrt(T) + R T",

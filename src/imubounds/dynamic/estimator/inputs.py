@@ -408,6 +408,7 @@ class Aiding:
     gvel_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
     gvel_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     gvel_h: float = 0.0
+    gvel_hi: np.ndarray = field(default_factory=lambda: np.zeros(0))  # per fix
     # heading (model convention, CCW from east), unwrapped centres
     head_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     head_c: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -547,8 +548,9 @@ def build_aiding(
             hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
             drms = hd * cep_to_drms(cep)
             if g.h_acc_m is not None:
+                # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
                 ha = g.h_acc_m[ok].astype(float)
-                drms = np.where(np.isfinite(ha) & (ha > 0), ha, drms)
+                drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
             p = alpha.p_radial("gnss_position")
             fac = math.sqrt(-math.log(p))
             ag.gnss_h = _up(drms * fac * (1 + 1e-12))
@@ -561,8 +563,8 @@ def build_aiding(
                     "x DRMS",
                     "alpha plan",
                     f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
-                    f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = h_acc_m where given, "
-                    "else HDOP x CEP / sqrt(ln 2)",
+                    f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
+                    "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
                 ),
                 Term(
                     "median box half-width",
@@ -582,7 +584,13 @@ def build_aiding(
                     ag.gvel_ok = good
                     ag.gvel_e = np.where(good, ve, np.nan)
                     ag.gvel_n = np.where(good, vn, np.nan)
+                    sig_i = np.full(good.size, sig)
+                    va = getattr(g, "vel_acc_mps", None)
+                    if va is not None and not opts.get("gnss_vel_sigma"):
+                        va = np.asarray(va, dtype=float)[ok]
+                        sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
                     ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12))))
+                    ag.gvel_hi = _up(k * sig_i * (1 + 1e-12))
                     ag.budget["gnss_velocity"] = [
                         Term(
                             "velocity sigma per component",

@@ -193,7 +193,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
         else:
-            b = k_to * cn.turn_on
+            b = cn.turn_on_bound(k_to)
             lo, hi = -b, b
             src = "turn-on prior (not contracted)"
         bias[ch] = {
@@ -202,7 +202,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "over_trip": [float(np.nextafter(lo - wander, -np.inf)),
                           float(np.nextafter(hi + wander, np.inf))],
             "wander_bound": wander,
-            "constant_part_prior": [-k_to * cn.turn_on, k_to * cn.turn_on],
+            "constant_part_prior": [-cn.turn_on_bound(k_to), cn.turn_on_bound(k_to)],
             "source": src,
         }
     out["bias"] = bias
@@ -380,7 +380,7 @@ def _contracted(ctx: Any, sm: Any) -> dict[str, Any]:
             con = 0.5 * np.maximum(
                 X[i, SM.VE, 1] - X[i, SM.VE, 0], X[i, SM.VN, 1] - X[i, SM.VN, 0]
             )
-            out["velocity"] = stats(np.full(int(okv.sum()), ag.gvel_h), con[okv], "m/s")
+            out["velocity"] = stats(ag.gvel_hi[okv], con[okv], "m/s")
     if ag.has_heading:
         i = np.searchsorted(te, ag.head_t).clip(0, te.size - 1)
         ok = te[i] == ag.head_t
@@ -397,7 +397,7 @@ def _contracted(ctx: Any, sm: Any) -> dict[str, Any]:
         from imubounds.interval import IntervalArray as IA
         from imubounds.interval import sqrt
 
-        hv = ag.gvel_h
+        hv = ag.gvel_hi[ok]
         ve = IA(ag.gvel_e[ok] - hv, ag.gvel_e[ok] + hv)
         vn = IA(ag.gvel_n[ok] - hv, ag.gvel_n[ok] + hv)
         s_in = sqrt(ve**2 + vn**2)
@@ -411,18 +411,22 @@ def _contracted(ctx: Any, sm: Any) -> dict[str, Any]:
 
 def _margins_truth(run: Any, drive: Any) -> dict[str, Any]:
     """Share of windows whose aided interval [x_W] contains the true kernel mean, when
-    the truth carries the true signal (truth.extra 'true_<ch>' at the IMU samples)."""
+    the truth carries the true signal's sample means at the IMU samples (truth.extra
+    ``true_<ch>``, or ``<ch>`` on the IMU's time stamps)."""
     out: dict[str, Any] = {}
     ex = drive.truth.extra
     ctx = run.ctx
     from imubounds.dynamic.estimator.inputs import PiecewiseSignal
 
+    imu_t = np.asarray(drive.imu.t, dtype=float)
+    tt = np.asarray(drive.truth.t, dtype=float)
+    same_t = tt.size == imu_t.size and bool(np.allclose(tt, imu_t, rtol=0, atol=1e-9))
     for ch, m in run.margins.items():
-        key = f"true_{ch}"
-        if key not in ex:
+        key = f"true_{ch}" if f"true_{ch}" in ex else (ch if ch in ex and same_t else None)
+        if key is None:
             continue
         x = np.asarray(ex[key], dtype=float)
-        if x.size != ctx.imu.n:
+        if x.size != ctx.imu.n or ctx.imu.n_gaps:
             continue
         sig = PiecewiseSignal(ctx.imu.bnd, x)
         n_ok = n_all = 0

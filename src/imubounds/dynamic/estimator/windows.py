@@ -399,24 +399,38 @@ class MarginBuilder:
         imu = self.imu
         dt = imu.dt
         ratio = max(1.0, imu.max_len / dt)
-        if lp.a1[0] == lp.b1[0] and (lp.a1 == lp.b1).all():
+        boxcar = bool((lp.a1 == lp.b1).all())
+        if boxcar:
             cnt = imu.count(lp.a1, lp.a2)
             uc, inv = np.unique(cnt, return_inverse=True)
             v_to = np.array([box_sum_variance(cn, int(m), dt, True) for m in uc])[inv]
             v_no = np.array([box_sum_variance(cn, int(m), dt, False) for m in uc])[inv]
             sd_to = np.sqrt(v_to) * ratio / tau
             sd_no = np.sqrt(v_no) * ratio / tau
+            noise_to, noise_no = k * sd_to, k * sd_no
+            if cn.drift_bound is not None:
+                # the stated drift bound replaces the flicker model for windows as long as
+                # its window (where it is the smaller)
+                w_to = np.array([box_sum_variance(cn, int(m), dt, True, False) for m in uc])[inv]
+                w_no = np.array([box_sum_variance(cn, int(m), dt, False, False) for m in uc])[inv]
+                long_ = tau >= cn.drift_window_s
+                alt_to = k * np.sqrt(w_to) * ratio / tau + cn.drift_bound
+                alt_no = k * np.sqrt(w_no) * ratio / tau + cn.drift_bound
+                noise_to = np.where(long_, np.minimum(noise_to, alt_to), noise_to)
+                noise_no = np.where(long_, np.minimum(noise_no, alt_no), noise_no)
         else:
             c = _trapezoid_weights(lp, tau, dt)
-            sd_to = np.full(tau.shape, math.sqrt(kernel_variance(cn, c, dt, True)) * 1.01 * ratio)
-            sd_no = np.full(tau.shape, math.sqrt(kernel_variance(cn, c, dt, False)) * 1.01 * ratio)
+            sd_to = math.sqrt(kernel_variance(cn, c, dt, True)) * 1.01 * ratio
+            sd_no = math.sqrt(kernel_variance(cn, c, dt, False)) * 1.01 * ratio
+            noise_to = np.full(tau.shape, k * sd_to)
+            noise_no = np.full(tau.shape, k * sd_no)
         det = self.ctx.D_KR[ch]
         det = det + cn.scale * self.kernel_mag(ch, lp, tau)
         for other in _perp(ch):
             det = det + cn.misalignment_rad * self.kernel_mag(other, lp, tau)
         edge = (imu.edge(lp.a1) + imu.edge(lp.b2)) * imu.rate_bound[ch] * imu.max_len / tau
         det = det + edge
-        return _up(k * sd_to + det), _up(k * sd_no + det)
+        return _up(noise_to + det + cn.turn_on_det()), _up(noise_no + det)
 
     # -- aiding helpers ------------------------------------------------------------
     def gyro_abs_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -488,7 +502,7 @@ class MarginBuilder:
         elif ag.has_gvel:
             ok = ag.gvel_ok
             t = ag.gnss_t[ok]
-            hv = ag.gvel_h
+            hv = ag.gvel_hi[ok]
             ve = IA(ag.gvel_e[ok] - hv, ag.gvel_e[ok] + hv)
             vn = IA(ag.gvel_n[ok] - hv, ag.gvel_n[ok] + hv)
             S = sqrt(sqr(ve) + sqr(vn))
