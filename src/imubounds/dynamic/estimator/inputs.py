@@ -192,15 +192,43 @@ class PiecewiseSignal:
         )
         self.y = np.where(self.unknown, 0.0, np.asarray(y, dtype=float))
         self.xmax = float(xmax)
-        ln = np.diff(self.bnd)
-        x = self.y * ln
+        self._len = np.diff(self.bnd)
+        x = self.y * self._len
         self.S = np.concatenate([[0.0], np.cumsum(x)])
         self.A = np.concatenate([[0.0], np.cumsum(np.abs(x))])
-        self.UL = np.concatenate([[0.0], np.cumsum(np.where(self.unknown, ln, 0.0))])
-        inc = self.S[:-1] * ln + 0.5 * self.y * ln * ln
-        self.Z = np.concatenate([[0.0], np.cumsum(inc)])
-        self.ZA = np.concatenate([[0.0], np.cumsum(np.abs(inc))])
-        self.AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * ln)])
+        self._any_unknown = bool(np.any(self.unknown))
+        self._UL: np.ndarray | None = None
+        self._Z: np.ndarray | None = None
+        self._ZA: np.ndarray | None = None
+        self._AB: np.ndarray | None = None
+
+    # prefix sums computed on first use
+    @property
+    def UL(self) -> np.ndarray:
+        if self._UL is None:
+            ul = np.where(self.unknown, self._len, 0.0)
+            self._UL = np.concatenate([[0.0], np.cumsum(ul)])
+        return self._UL
+
+    @property
+    def Z(self) -> np.ndarray:
+        if self._Z is None:
+            inc = self.S[:-1] * self._len + 0.5 * self.y * self._len * self._len
+            self._Z = np.concatenate([[0.0], np.cumsum(inc)])
+            self._ZA = np.concatenate([[0.0], np.cumsum(np.abs(inc))])
+        return self._Z
+
+    @property
+    def ZA(self) -> np.ndarray:
+        self.Z  # noqa: B018 - computes both
+        assert self._ZA is not None
+        return self._ZA
+
+    @property
+    def AB(self) -> np.ndarray:
+        if self._AB is None:
+            self._AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * self._len)])
+        return self._AB
 
     @property
     def n(self) -> int:
@@ -233,6 +261,8 @@ class PiecewiseSignal:
 
     def unknown_len(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Length without a value inside ``[a, b]`` (whole segments touched, conservative)."""
+        if not self._any_unknown:
+            return np.zeros(np.broadcast(np.asarray(a), np.asarray(b)).shape)
         ia, ib = self.locate(np.asarray(a, float)), self.locate(np.asarray(b, float))
         return np.maximum(self.UL[ib + 1] - self.UL[ia], 0.0)
 
@@ -251,9 +281,13 @@ class PiecewiseSignal:
         b = np.asarray(b, dtype=float)
         L = b - a
         ya, ea, _ = self.cum(a)
+        if not np.any(L > 0):
+            return _dn(ya - ea), _up(ya + ea)
         za, zea = self.zcum(a)
         zb, zeb = self.zcum(b)
         pos = L > 0
+        if not np.any(pos):
+            return _dn(ya - ea), _up(ya + ea)
         Ls = np.where(pos, L, 1.0)
         num = zb - za
         m = np.where(pos, num / Ls, ya)
@@ -476,32 +510,27 @@ class Aiding:
         if not hasattr(self, "_att_ext"):
             self._att_ext = (RangeExt(self.att_roll), RangeExt(self.att_pitch))
         out = []
+        t_first, t_last = float(at[0]), float(at[-1])
+        # attitude samples strictly inside [s0, s1] (the chord's vertices)
+        i_in = np.searchsorted(at, s0, side="right")
+        j_in = np.searchsorted(at, s1, side="left") - 1
+        has = j_in >= i_in
         for arr, ext in zip((self.att_roll, self.att_pitch), self._att_ext, strict=True):
             vals = []
             for s in (s0, s1):
-                g = np.searchsorted(at, s, side="right") - 1
-                inside = (g >= 0) & (g < na - 1)
-                gi = np.clip(g, 0, max(na - 2, 0))
-                if na > 1:
-                    w = (s - at[gi]) / (at[gi + 1] - at[gi])
-                    chord = arr[gi] + (arr[gi + 1] - arr[gi]) * np.clip(w, 0.0, 1.0)
-                else:
-                    chord = np.full(s.shape, arr[0])
-                before = s < at[0]
-                after = s > at[-1]
-                val = np.where(before, arr[0], np.where(after, arr[-1], chord))
-                far = np.where(before, at[0] - s, np.where(after, s - at[-1], 0.0))
+                chord = np.interp(s, at, arr)  # clamps outside [first, last]
+                far = np.maximum(t_first - s, 0.0) + np.maximum(s - t_last, 0.0)
+                inside = far == 0.0
                 wid = self.att_bound + np.where(inside, dev, 0.0) + vehicle.max_rate * far
-                vals.append((val - wid, val + wid))
+                vals.append((chord - wid, chord + wid))
             lo = np.minimum(vals[0][0], vals[1][0])
             hi = np.maximum(vals[0][1], vals[1][1])
-            i = np.searchsorted(at, s0, side="left")
-            j = np.searchsorted(at, s1, side="right") - 1
-            has = j >= i
             if np.any(has):
-                mn, mx = ext.query(np.clip(i, 0, na - 1), np.clip(np.maximum(i, j), 0, na - 1))
-                lo = np.where(has, np.minimum(lo, mn - self.att_bound - dev), lo)
-                hi = np.where(has, np.maximum(hi, mx + self.att_bound + dev), hi)
+                ii = np.clip(i_in[has], 0, na - 1)
+                jj = np.clip(np.maximum(j_in[has], i_in[has]), 0, na - 1)
+                mn, mx = ext.query(ii, jj)
+                lo[has] = np.minimum(lo[has], mn - self.att_bound - dev)
+                hi[has] = np.maximum(hi[has], mx + self.att_bound + dev)
             lo = np.maximum(lo, -cap)
             hi = np.minimum(hi, cap)
             out += [_dn(lo * (1 + 1e-12) - 1e-15), _up(hi * (1 + 1e-12) + 1e-15)]
