@@ -642,6 +642,18 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     )
     if res.beta_note:
         notes.append(res.beta_note)
+    for t_s, miss in ctx.aiding.gnss_rejected:
+        res.dropped.insert(
+            0,
+            SM.Dropped(
+                t_s,
+                "gnss position",
+                miss,
+                "m",
+                "GNSS-only check: farther than 4 DRMS from every interpolation of its "
+                "neighbours (the miss is beyond that threshold)",
+            ),
+        )
     return FullRun(ctx, margins, res, beta0, links, notes)
 
 

@@ -464,6 +464,7 @@ class Aiding:
     att_source: str = ""
     budget: dict[str, list[Term]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    gnss_rejected: list[tuple[float, float]] = field(default_factory=list)
 
     @property
     def has_gnss(self) -> bool:
@@ -542,6 +543,99 @@ class Aiding:
         return self.tilt_range(t, t, vehicle)
 
 
+#: rejection threshold of the GNSS-only outlier test, in units of the residual's DRMS
+#: (Rayleigh: a good fix is rejected with probability exp(-16) ~ 1e-7; rejecting a good
+#: fix only loses information, never soundness)
+REJECT_K = 4.0
+
+
+def gnss_outliers(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
+) -> np.ndarray:
+    """Fixes that contradict most predictions from their kept GNSS neighbours (pairs of
+    the three nearest kept fixes on each side): the residual from a pair's linear
+    interpolation, less the acceleration-bounded departure from the chord, exceeds
+    ``REJECT_K`` times its DRMS (``drms_i sqrt(1 + w_a^2 + w_b^2)`` for independent fix
+    errors) for more than half of the pairs. The worst offenders (local maxima of the
+    median excess) are rejected first and the test repeated with them removed, so that
+    two outliers in a row do not vouch for each other. A test on the GNSS alone (no
+    IMU): rejecting a good fix loses information, never soundness."""
+    m = t.size
+    kept = np.ones(m, dtype=bool)
+    if m < 3:
+        return ~kept
+    for _ in range(m):
+        idx = np.flatnonzero(kept)
+        if idx.size < 3:
+            break
+        ratio, any_valid = _worst_ratio(t[idx], e[idx], n[idx], drms[idx], a_max)
+        bad = any_valid & (ratio > 1.0)
+        if not np.any(bad):
+            break
+        # reject the local maxima of the excess among the offenders (within 2 kept fixes)
+        r = np.where(bad, ratio, -np.inf)
+        pad = np.concatenate([[-np.inf, -np.inf], r, [-np.inf, -np.inf]])
+        neigh = np.max(np.stack([pad[k:k + r.size] for k in (0, 1, 3, 4)]), axis=0)
+        top = bad & (r >= neigh)
+        kept[idx[top]] = False
+    return ~kept
+
+
+def _worst_ratio(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per fix: the median over the pairs of its neighbours (up to three on each side) of
+    (residual - departure) / (REJECT_K DRMS) -- a fix next to an outlier still agrees
+    with most pairs --, and whether any pair was valid."""
+    ratios = []
+    any_valid = np.zeros(t.size, dtype=bool)
+    for da in (1, 2, 3):
+        for db in (1, 2, 3):
+            ce, cn, dev, res, valid = _pair_residual(t, e, n, drms, a_max, da, db)
+            d = (np.hypot(e - ce, n - cn) - dev) / (REJECT_K * res)
+            ratios.append(np.where(valid, d, np.nan))
+            any_valid |= valid
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(np.stack(ratios), axis=0)
+    return np.where(any_valid, med, 0.0), any_valid
+
+
+def _pair_residual(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float, da: int,
+    db: int,
+) -> tuple[np.ndarray, ...]:
+    """Interpolation of each fix from fixes i - da and i + db: centre, the chord's
+    departure bound ``a_max (t - t_a)(t_b - t)/2``, the residual's DRMS, validity."""
+    m = t.size
+    idx = np.arange(m)
+    ia, ib = idx - da, idx + db
+    valid = (ia >= 0) & (ib < m)
+    ia, ib = np.clip(ia, 0, m - 1), np.clip(ib, 0, m - 1)
+    span = np.where(valid, t[ib] - t[ia], 1.0)
+    w = np.where(valid, (t - t[ia]) / span, 0.0)
+    ce = e[ia] + (e[ib] - e[ia]) * w
+    cn = n[ia] + (n[ib] - n[ia]) * w
+    dev = a_max * (t - t[ia]) * (t[ib] - t) / 2
+    res = np.sqrt(drms**2 + ((1 - w) * drms[ia]) ** 2 + (w * drms[ib]) ** 2)
+    return ce, cn, dev, res, valid
+
+
+def _miss_of(ag: Aiding, drms: np.ndarray, out: np.ndarray, a_max: float) -> np.ndarray:
+    """By how much each rejected fix exceeds the test's threshold of its nearest pair (m)."""
+    best = np.full(ag.gnss_t.size, np.inf)
+    for da, db in ((1, 1), (2, 1), (1, 2), (2, 2)):
+        ce, cn, dev, res, valid = _pair_residual(
+            ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, a_max, da, db
+        )
+        d = np.hypot(ag.gnss_e - ce, ag.gnss_n - cn) - dev - REJECT_K * res
+        best = np.minimum(best, np.where(valid, d, np.inf))
+    return best[out]
+
+
 def _rel(t: np.ndarray, t0: float) -> np.ndarray:
     return np.asarray(t, dtype=float) - t0
 
@@ -603,6 +697,19 @@ def build_aiding(
                     "square box around the circle of that radius",
                 ),
             ]
+            out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
+            if np.any(out):
+                misses = _miss_of(ag, drms, out, vehicle.max_accel)
+                ag.gnss_rejected = [
+                    (float(ag.gnss_t[i] + t0), float(miss))
+                    for i, miss in zip(np.flatnonzero(out), misses, strict=True)
+                ]
+                keep = ~out
+                for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h"):
+                    setattr(ag, name, getattr(ag, name)[keep])
+                ok_idx = np.flatnonzero(ok)[keep]
+                ok = np.zeros_like(ok)
+                ok[ok_idx] = True
             vel = g.velocity_ne()
             if vel is not None and opts.get("use_gnss_velocity", True):
                 vn, ve = vel[0][ok], vel[1][ok]

@@ -806,6 +806,14 @@ def _screen(
         L_lo, L_hi = lo[:, vs_], hi[:, vs_]
         preds_meet = np.all(L_lo <= L_hi, axis=1)
         miss = np.any((m_lo > L_hi) | (m_hi < L_lo), axis=1)
+        if g == G_POS:
+            # a GNSS fix is a disc (its box circumscribes it): test the disc
+            with np.errstate(invalid="ignore", over="ignore"):
+                c = 0.5 * (m_lo + m_hi)
+                rad = 0.5 * np.max(m_hi - m_lo, axis=1)
+                gap = np.maximum(np.maximum(L_lo - c, c - L_hi), 0.0)
+                dist = np.hypot(gap[:, 0], gap[:, 1])
+            miss = miss | (np.isfinite(dist) & (dist > rad * (1 + 1e-9)))
         bad = has[:, g] & preds_meet & miss
         for e in np.flatnonzero(bad):
             gap = max(_gap(np.array([m_lo[e, i], m_hi[e, i]]), np.array([L_lo[e, i], L_hi[e, i]]))
