@@ -401,6 +401,6 @@ def _steps_table(res: Any) -> Any:
         for k, v in st.truth.items():
             df[f"truth_{k}"] = v
     cols = [c for c in df.columns if "_aided_" in c or "_err_" in c]
-    df.iloc[0, df.columns.get_indexer(cols)] = np.nan
+    df.loc[df.index[0], cols] = np.nan
     df["t"] = df["t"].map("{:.6f}".format)
     return df

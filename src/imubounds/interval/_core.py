@@ -35,6 +35,7 @@ Conventions
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from llvmlite import ir
 from numba import njit, types
@@ -60,7 +61,7 @@ _BIG_ARG = 2.0**40  # beyond this |x|, sin/cos/tan return their full range
 
 
 @intrinsic
-def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
+def _fma_ii(typingctx, a, b, c):  # pragma: no cover - compiled
     sig = types.float64(types.float64, types.float64, types.float64)
 
     def codegen(context, builder, signature, args):
@@ -70,7 +71,7 @@ def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
 
 
 @intrinsic
-def _f2i(typingctx, x):  # pragma: no cover - compiled
+def _f2i_ii(typingctx, x):  # pragma: no cover - compiled
     sig = types.int64(types.float64)
 
     def codegen(context, builder, signature, args):
@@ -80,13 +81,19 @@ def _f2i(typingctx, x):  # pragma: no cover - compiled
 
 
 @intrinsic
-def _i2f(typingctx, i):  # pragma: no cover - compiled
+def _i2f_ii(typingctx, i):  # pragma: no cover - compiled
     sig = types.float64(types.int64)
 
     def codegen(context, builder, signature, args):
         return builder.bitcast(args[0], ir.DoubleType())
 
     return sig, codegen
+
+
+# typed as plain callables (numba calls the intrinsics with the value arguments only)
+_fma: Any = _fma_ii
+_f2i: Any = _f2i_ii
+_i2f: Any = _i2f_ii
 
 
 # ---------------------------------------------------------------------------

@@ -14,7 +14,7 @@ stated bounds, which dwarf one ulp).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -137,7 +137,7 @@ class IntervalArray:
     def copy(self) -> IntervalArray:
         return IntervalArray._raw(self.lo.copy(), self.hi.copy())
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[IntervalArray]:
         for i in range(len(self)):
             yield self[i]
 
@@ -148,7 +148,7 @@ class IntervalArray:
             return f"IntervalArray([{float(self.lo)!r}, {float(self.hi)!r}])"
         return f"IntervalArray(lo={self.lo!r}, hi={self.hi!r})"
 
-    def __eq__(self, other: object) -> bool:  # type: ignore[override]
+    def __eq__(self, other: object) -> bool:
         """True if all intervals are identical sets (all empties compare equal)."""
         if not isinstance(other, IntervalArray) or other.shape != self.shape:
             return False

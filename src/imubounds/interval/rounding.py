@@ -18,11 +18,14 @@ import ctypes
 import ctypes.util
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 from imubounds.errors import AnalysisError
 
 FE_TONEAREST = 0  #: glibc/x86-64 and aarch64 value of FE_TONEAREST
 
+_fegetround: Any
+_fesetround: Any
 try:
     _libm = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
     _fegetround = _libm.fegetround

@@ -15,6 +15,7 @@ nothing; :func:`save` writes one as PNG and SVG atomically.
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +37,16 @@ COLORS = {
 }
 
 
+def _savefig(fig: Figure, ext: str, path: Path) -> None:
+    fig.savefig(path, format=ext, dpi=130)
+
+
 def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``stem.png`` and ``stem.svg`` in ``out_dir`` (atomically)."""
     paths = []
     for ext in ("png", "svg"):
         dest = Path(out_dir) / f"{stem}.{ext}"
-        write_with(dest, lambda p, e=ext: fig.savefig(p, format=e, dpi=130))
+        write_with(dest, partial(_savefig, fig, ext))
         paths.append(dest)
     return paths
 
@@ -121,7 +126,7 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
         lo, hi = lv.e_lo * f, lv.e_hi * f
         fin = np.isfinite(lo) & np.isfinite(hi)
         segs = np.stack([np.column_stack([t[fin], lo[fin]]), np.column_stack([t[fin], hi[fin]])], 1)
-        ax.add_collection(LineCollection(segs, colors="0.45", linewidths=1.2))
+        ax.add_collection(LineCollection(list(segs), colors="0.45", linewidths=1.2))
         ax.fill_between(t, -lv.band * f, lv.band * f, color="tab:green", alpha=0.2, step="mid")
         ex = lv.exceeds
         if ex.any():
@@ -221,7 +226,9 @@ def plot_intervals(res: Any, title: str = "") -> Figure:
         fin = np.isfinite(lo) & np.isfinite(hi)
         segs = np.stack([np.column_stack([t[fin], lo[fin]]), np.column_stack([t[fin], hi[fin]])], 1)
         lw = max(0.6, min(4.0, 500.0 / max(t.size, 1)))
-        ax.add_collection(LineCollection(segs, colors="0.6", linewidths=lw, label="aided interval"))
+        ax.add_collection(
+            LineCollection(list(segs), colors="0.6", linewidths=lw, label="aided interval")
+        )
         ax.plot(t, meas, ".", color="red", ms=2.5, label="measured")
         key = {"accel_x": "accel_x", "accel_y": "accel_y", "gyro_z": "r"}[ch]
         if st.truth is not None and key in st.truth:

@@ -484,8 +484,8 @@ def _smoother_inputs(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     prior[..., 0] = -np.inf
     prior[..., 1] = np.inf
     vm = veh.max_speed
-    for v in (SM.VE, SM.VN, SM.UH):
-        prior[:, v] = (-vm, vm)
+    for iv_ in (SM.VE, SM.VN, SM.UH):
+        prior[:, iv_] = (-vm, vm)
     vl = veh.lateral_bound if veh.lateral_bound is not None else vm
     prior[:, SM.VH] = (-vl, vl)
     if not ag.has_gnss:

@@ -32,7 +32,7 @@ _U = 2.0**-53
 EARTH_RATE = 7.2921159e-5  #: rad/s
 
 
-def _up(x: np.ndarray) -> np.ndarray:
+def _up(x: Any) -> Any:
     return np.nextafter(x, np.inf)
 
 
