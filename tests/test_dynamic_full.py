@@ -298,6 +298,23 @@ def test_informative_gnss_position_and_velocity() -> None:
     assert m100b <= 0.05, f"median half-width at 100 s with |v| <= 0.1 m/s: {m100b:.4f}"
 
 
+def test_heading_from_the_gnss_course_without_a_heading_sensor() -> None:
+    """GNSS position + velocity only (no compass, no attitude): the heading comes from the
+    course (lateral bound, no reversing), the truth stays inside, the gyro gets margins
+    and the accelerometer margins stay informative; --reverses turns the course off."""
+    drive, errs = make_trip("pos_vel", 23, imu_hz=50.0, compass=False, attitude=False, **SHORT)
+    r = dynamic_margins(drive, max_tilt_deg=0.2)  # a flat trip
+    d = r.to_dict()
+    assert not enclosed_everywhere(d), d["enclosure"]
+    assert r.full.margins["gyro_z"].source == "heading (GNSS course)"
+    assert d["verdict"]["gyro_z"] == "consistent"
+    assert _margin_at(d, "accel_x", 10.0) <= 0.5
+    assert any("GNSS course" in a for a in d["assumptions"] + d.get("notes", []))
+    d2 = dynamic_margins(drive, reverses=True, max_tilt_deg=0.2).to_dict()
+    assert d2["verdict"]["gyro_z"] == "undecided"
+    assert _margin_at(d2, "accel_x", 10.0) > 2 * _margin_at(d, "accel_x", 10.0)
+
+
 def test_informative_dvl() -> None:
     drive, _ = make_trip("dvl", 22)
     d = dynamic_margins(drive).to_dict()
@@ -323,6 +340,26 @@ def test_fault_detected_on_its_channel_only(fault: tuple[str, float] | None) -> 
     if fault is not None:
         first = d["verdict_detail"][fault[0]]["exceeding_windows"][0]
         assert first["t_start_s"] + first["tau_s"] > 396.0 - 1.0  # located after the fault
+
+
+def test_change_test_detects_a_step_inside_the_level_band() -> None:
+    """With a stated drift bound (as the simulator states it) the level band of an MTx
+    accelerometer is ~0.25 m/s^2; a 0.2 m/s^2 step at mid-trip stays inside it but the
+    change between adjacent windows (turn-on cancels, the flicker changes by its Allan
+    deviation) exceeds its band; the clean trip has no change outside."""
+    kw = dict(state_drift=True, dvl_bound=0.05)
+    drive, _ = make_trip("dvl", 32, **kw)
+    d = dynamic_margins(drive).to_dict()
+    assert "exceeds" not in d["verdict"].values(), d["verdict"]
+    drive, _ = make_trip("dvl", 32, faults=[("accel_x", 0.2, 396.0)], **kw)
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    assert d["verdict"]["accel_x"] == "exceeds" and d["verdict"]["gyro_z"] != "exceeds"
+    tests = {e["test"] for e in r.full.margins["accel_x"].exceeding}
+    assert "change" in tests
+    rows = {round(m["tau_s"]): m for m in d["margins"]["accel_x"]}
+    row = min(rows.values(), key=lambda m: abs(math.log(m["tau_s"] / 10.0)))
+    assert row["change_stationary"] < 0.6 * row["stationary"]
 
 
 def test_gyro_fault_does_not_make_the_accelerometers_exceed() -> None:
@@ -387,3 +424,37 @@ def test_result_frame_and_plot() -> None:
 
     ax = Figure().add_subplot(1, 1, 1)
     assert r.plot(ax=ax) is ax.figure
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ch", ["accel_x", "gyro_z"])
+def test_sensitivity_smallest_detected_bias(ch: str) -> None:
+    """The smallest bias step injected at mid-trip that gives ``exceeds`` on its channel
+    (and on no other), as a multiple of the channel's bias bound (turn-on bound + stated
+    drift bound, as the simulator states them), by bisection on the DVL + compass trip:
+    below one bias bound for both channels (the change test: turn-on cancels)."""
+    kw = dict(state_drift=True, imu_hz=50.0)
+
+    def detected(val: float) -> tuple[bool, object]:
+        drive, _ = make_trip("dvl", 33, faults=[(ch, val, 396.0)] if val else [], **kw)
+        r = dynamic_margins(drive)
+        v = r.to_dict()["verdict"]
+        assert all(x != "exceeds" for c, x in v.items() if c != ch), v
+        return v[ch] == "exceeds", r
+
+    clean, r0 = detected(0.0)
+    assert not clean
+    ctx = r0.full.ctx  # type: ignore[attr-defined]
+    cn = ctx.noise[ch]
+    bound = cn.turn_on_bound(ctx.alpha.k("imu_turn_on")) + float(cn.drift_bound or 0.0)
+    lo, hi = 0.0, 1.5 * bound
+    assert detected(hi)[0], f"{ch}: 1.5 bias bounds not detected"
+    for _ in range(5):
+        mid = 0.5 * (lo + hi)
+        if detected(mid)[0]:
+            hi = mid
+        else:
+            lo = mid
+    multiple = hi / bound
+    print(f"{ch}: smallest detected step {hi:.4g} (bias bound {bound:.4g}) = {multiple:.2f} x")
+    assert multiple <= 1.0, f"{ch}: smallest detected = {multiple:.2f} bias bounds"

@@ -315,12 +315,24 @@ def _margins_table(mode: dict[str, Any]) -> str:
                 f"{_num((r.get('stationary') or math.nan) * f, 3)}",
                 f"{_num(100 * (r.get('decidable_fraction') or 0), 3)} %",
                 f"{_num(100 * (r.get('exceeds_fraction') or 0), 3)} %",
+                _change_cell(r, f),
                 _e(unit),
             ])
     return _table(
         ["channel", "τ [s]", "median half-width", "worst half-width", "stationary band",
-         "decidable", "exceeds", "unit"],
+         "decidable", "exceeds", "change: median half-width / band / exceeds", "unit"],
         rows,
+    )
+
+
+def _change_cell(r: dict[str, Any], f: float) -> str:
+    """The change test between adjacent windows (turn-on cancels) of one tau row."""
+    if not r.get("n_changes"):
+        return "—"
+    return (
+        f"{_num((r.get('change_halfwidth_median') or math.nan) * f, 3)} / "
+        f"{_num((r.get('change_stationary') or math.nan) * f, 3)} / "
+        f"{_num(100 * (r.get('change_exceeds_fraction') or 0), 3)} %"
     )
 
 

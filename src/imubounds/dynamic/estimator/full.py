@@ -82,6 +82,7 @@ FULL_DEFAULTS: dict[str, Any] = {
     "use_gnss_velocity": True,
     "use_velocity": True,
     "use_attitude": True,
+    "reverses": False,
     "tol": 1e-3,
     "max_sweeps": 200,
     "max_windows": 2048,
@@ -159,6 +160,7 @@ class Context:
     notes: list[str] = field(default_factory=list)
     plans: dict[str, ChannelPlan] = field(default_factory=dict)
     level_index: dict[tuple[str, int], int] = field(default_factory=dict)
+    level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -208,23 +210,26 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         {
             "imu_samples": imu.n * 6,
             "imu_windows": 1,
+            "imu_changes": 1,
             "imu_intervals": 7 * (te.size - 1),
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
             "gnss_position": n_fix,
-            "gnss_velocity": 2 * n_vel,
+            "gnss_velocity": n_vel,
             "heading": n_head,
         },
         descriptions={
             "imu_samples": "each sample's error (per-sample bounds: magnitudes, bias over "
             "the trip)",
             "imu_windows": "the noise of each window mean (split equally over the tau levels)",
+            "imu_changes": "the noise change between each pair of adjacent windows (the "
+            "change test; split equally over the tau levels)",
             "imu_intervals": "the noise integrated over each link of the smoother (flat and "
             "ramp weights, per channel)",
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
             "gnss_position": "each fix's position error (Rayleigh radius)",
-            "gnss_velocity": "each velocity component of each fix",
+            "gnss_velocity": "each fix's velocity error (Rayleigh radius)",
             "heading": "each heading epoch's noise",
         },
     )
@@ -334,6 +339,16 @@ def _plan_windows(ctx: Context) -> None:
             level_counts[gi] += lp.n * (2 if ch in ("accel_x", "accel_y") else 1)
     ctx.alpha.counts["imu_windows"] = max(1, sum(level_counts))
     ctx.alpha.level_counts["imu_windows"] = level_counts
+    # the change test between adjacent windows: one bounded event per pair
+    change_counts = [0] * len(grid)
+    for ch, p in plans.items():
+        for li, lp in enumerate(p.levels):
+            if lp.kind == "aided" and lp.n_pairs:
+                gi = ctx.level_index[(ch, li)]
+                ctx.level_index_changes[(ch, li)] = gi
+                change_counts[gi] += lp.n_pairs
+    ctx.alpha.counts["imu_changes"] = max(1, sum(change_counts))
+    ctx.alpha.level_counts["imu_changes"] = change_counts
     ctx.plans = plans
 
 
@@ -495,20 +510,18 @@ def _smoother_inputs(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     meas[..., 0] = -np.inf
     meas[..., 1] = np.inf
     has = np.zeros((n, 4), dtype=bool)
-    lever = ctx.drive.settings.lever_arm_m
-    lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
     if ag.has_gnss:
         idx = np.searchsorted(te, ag.gnss_t)
         ok = (idx < n) & (te[np.minimum(idx, n - 1)] == ag.gnss_t)
         i = idx[ok]
-        h = ag.gnss_h[ok] + lev
+        h = ag.gnss_h[ok]  # the lever arm is in the aiding radius
         meas[i, SM.E] = np.stack([ag.gnss_e[ok] - h, ag.gnss_e[ok] + h], -1)
         meas[i, SM.N] = np.stack([ag.gnss_n[ok] - h, ag.gnss_n[ok] + h], -1)
         has[i, SM.G_POS] = True
         if ag.has_gvel:
             okv = ok & ag.gvel_ok
             iv = idx[okv]
-            hv = ag.gvel_hi[okv] + lev * veh.max_rate
+            hv = ag.gvel_hi[okv]
             meas[iv, SM.VE] = np.stack([ag.gvel_e[okv] - hv, ag.gvel_e[okv] + hv], -1)
             meas[iv, SM.VN] = np.stack([ag.gvel_n[okv] - hv, ag.gvel_n[okv] + hv], -1)
             has[iv, SM.G_VEL] = True

@@ -449,6 +449,7 @@ class Aiding:
     head_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
     head_source: str = "none"
     head_independent_of_imu: bool = True
+    head_from_course: bool = False  # heading derived from the GNSS course (same epochs)
     # body velocity (DVL / wheel), body frame
     bvel_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bvel_u: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -640,6 +641,68 @@ def _rel(t: np.ndarray, t0: float) -> np.ndarray:
     return np.asarray(t, dtype=float) - t0
 
 
+def lateral_h_bound(vehicle: Vehicle) -> float | None:
+    """Bound of the horizontal lateral velocity ``|cos(roll) v - sin(roll) w|`` (m/s),
+    None when no lateral bound is stated."""
+    if vehicle.lateral_bound is None:
+        return None
+    return float(_up(vehicle.lateral_bound + math.sin(vehicle.max_tilt) * vehicle.vertical_bound))
+
+
+def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
+    """Heading from the GNSS course when there is no heading sensor: with the lateral
+    velocity bound ``vl`` and a vehicle that does not reverse (the horizontal velocity
+    points forward), ``|psi - chi| <= asin(vl / S)``; with the velocity radius ``R``,
+    ``S >= |Vm| - R`` and ``|chi - chi_m| <= asin(R / |Vm|)``. Epochs slower than
+    ``R + vl`` give no heading. Holds on the GNSS-velocity event (no extra probability)."""
+    vh = lateral_h_bound(vehicle)
+    if vh is None:
+        ag.notes.append("no heading sensor and no lateral velocity bound: no heading")
+        return
+    if opts.get("reverses"):
+        ag.notes.append("the vehicle may reverse (--reverses): no heading from the GNSS course")
+        return
+    ok = ag.gvel_ok
+    ve, vn, R = ag.gvel_e, ag.gvel_n, ag.gvel_hi
+    s = np.hypot(np.nan_to_num(ve), np.nan_to_num(vn))
+    use = ok & (s * (1 - 1e-9) > R + vh)
+    if not np.any(use):
+        ag.notes.append("no GNSS velocity fast enough for a heading from the course")
+        return
+    s_u, R_u = s[use], R[use]
+    e_chi = np.arcsin(np.minimum(1.0, R_u / s_u))
+    d = np.arcsin(np.minimum(1.0, vh / ((s_u - R_u) * (1 - 1e-12))))
+    half = _up((e_chi + d) * (1 + 1e-9) + 1e-15)
+    chi = np.arctan2(vn[use], ve[use])
+    ag.head_t = ag.gnss_t[use]
+    ag.head_c = np.unwrap(chi)
+    ag.head_h = half
+    ag.head_source = "GNSS course"
+    ag.head_independent_of_imu = True
+    ag.head_from_course = True
+    ag.budget["heading"] = [
+        Term(
+            "lateral velocity bound",
+            vh,
+            "m/s",
+            vehicle.sources.get("lateral_bound", "default"),
+            "|horizontal lateral velocity| (vehicle bound, plus sin(max tilt) x vertical bound)",
+        ),
+        Term(
+            "median half-width",
+            float(np.median(half)) / DEG,
+            "deg",
+            "computed",
+            "asin(R / |Vm|) + asin(vl / (|Vm| - R)) at fixes faster than R + vl",
+        ),
+    ]
+    ag.notes.append(
+        f"heading from the GNSS course at {int(use.sum())} of {int(ok.sum())} velocity "
+        "fixes: assumes the vehicle does not reverse and the lateral velocity bound "
+        "(--reverses turns it off)"
+    )
+
+
 def build_aiding(
     drive: Any,
     t0: float,
@@ -676,7 +739,9 @@ def build_aiding(
                 drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
             p = alpha.p_radial("gnss_position")
             fac = math.sqrt(-math.log(p))
-            ag.gnss_h = _up(drms * fac * (1 + 1e-12))
+            lever = getattr(st, "lever_arm_m", None)
+            lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
+            ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
             src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
             ag.budget["gnss_position"] = [
                 Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
@@ -688,6 +753,14 @@ def build_aiding(
                     f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
                     f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
                     "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
+                ),
+                Term(
+                    "lever arm",
+                    lev,
+                    "m",
+                    "drive.yaml" if lever is not None else "default",
+                    "horizontal antenna offset from the IMU, added to the position radius "
+                    "and (x the yaw-rate bound) to the velocity radius",
                 ),
                 Term(
                     "median box half-width",
@@ -716,7 +789,10 @@ def build_aiding(
                 good = np.isfinite(vn) & np.isfinite(ve)
                 if np.any(good):
                     sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
-                    k = alpha.k("gnss_velocity")
+                    # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
+                    # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
+                    p_v = alpha.p_radial("gnss_velocity")
+                    k = math.sqrt(-2.0 * math.log(p_v))
                     ag.gvel_ok = good
                     ag.gvel_e = np.where(good, ve, np.nan)
                     ag.gvel_n = np.where(good, vn, np.nan)
@@ -725,8 +801,10 @@ def build_aiding(
                     if va is not None and not opts.get("gnss_vel_sigma"):
                         va = np.asarray(va, dtype=float)[ok]
                         sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
-                    ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12))))
-                    ag.gvel_hi = _up(k * sig_i * (1 + 1e-12))
+                    # a lever arm adds omega x lever to the antenna velocity
+                    lv_v = lev * vehicle.max_rate
+                    ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
+                    ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
                     ag.budget["gnss_velocity"] = [
                         Term(
                             "velocity sigma per component",
@@ -736,13 +814,21 @@ def build_aiding(
                             "Gaussian error of north and east velocity",
                         ),
                         Term(
-                            "k",
+                            "radius factor",
                             k,
-                            "",
+                            "x sigma",
                             "alpha plan",
-                            f"Bonferroni over {2 * int(good.sum())} components",
+                            f"Rayleigh radial error, P(outside) = {p_v:.3g} per fix "
+                            f"({int(good.sum())} fixes)",
                         ),
-                        Term("half-width", ag.gvel_h, "m/s", "computed", "per component"),
+                        Term(
+                            "radius",
+                            ag.gvel_h,
+                            "m/s",
+                            "computed",
+                            "bounds the 2-D velocity error, hence each component, the speed "
+                            "and (asin(radius / speed)) the course",
+                        ),
                     ]
     # heading
     if heading is not None and heading.t.size:
@@ -775,6 +861,8 @@ def build_aiding(
             Term("half-width", half / DEG, "deg", "computed", "deviation + k x noise"),
         ]
         ag.notes += heading.notes
+    if not ag.has_heading and ag.has_gvel:
+        _course_heading(ag, vehicle, opts)
     # body velocity
     vel_s = drive.velocity
     if vel_s is not None and opts.get("use_velocity", True):

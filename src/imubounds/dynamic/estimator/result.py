@@ -263,9 +263,23 @@ def _assumptions(ctx: Any) -> list[str]:
         a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_bound:g} m/s")
     if not ctx.aiding.has_gnss:
         a.append("no GNSS: positions are relative to the start point (0, 0)")
+    if ctx.aiding.head_from_course:
+        a.append(
+            "the vehicle does not reverse (horizontal velocity pointing forward): heading "
+            "from the GNSS course within asin(lateral bound / speed) (--reverses turns it off)"
+        )
     lever = ctx.drive.settings.lever_arm_m
     if lever is None:
         a.append("GNSS antenna at the IMU (no lever arm given)")
+    else:
+        a.append(
+            "GNSS lever arm: its horizontal length is added to the position radius and, times "
+            "the yaw-rate bound, to the velocity radius"
+        )
+    a.append(
+        "change test: the in-run bias (flicker) changes between adjacent windows as its "
+        "model says (the Allan statistic); the turn-on bias cancels"
+    )
     return a + list(ctx.assumptions)
 
 

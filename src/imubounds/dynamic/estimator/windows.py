@@ -40,7 +40,7 @@ from imubounds.dynamic.estimator.budget import (
     centered_ms_bound,
     kernel_variance,
 )
-from imubounds.dynamic.estimator.inputs import PiecewiseSignal, RangeExt
+from imubounds.dynamic.estimator.inputs import PiecewiseSignal, RangeExt, lateral_h_bound
 from imubounds.interval import IntervalArray as IA
 from imubounds.interval import atan2, cos, sin, sqr, sqrt
 
@@ -75,10 +75,17 @@ class LevelPlan:
     b2: np.ndarray
     i: np.ndarray  # epoch index of the window start (aided)
     j: np.ndarray  # epoch index of the window end (aided)
+    #: adjacent pairs (window p1[q] ends where window p2[q] starts) for the change test
+    p1: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    p2: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def n(self) -> int:
         return int(self.a1.size)
+
+    @property
+    def n_pairs(self) -> int:
+        return int(self.p1.size)
 
     @property
     def tau(self) -> np.ndarray:
@@ -144,7 +151,13 @@ def plan_channel(
         last = epochs.size - 1 - (2 * m if trapezoid else m)
         if last < 0:
             continue
-        starts = _subsample(np.arange(0, last + 1, max(1, m // 2)), cap)
+        if trapezoid:
+            starts = _subsample(np.arange(0, last + 1, max(1, m // 2)), cap)
+        else:
+            step = max(1, m // 2)
+            while m % step:  # a divisor of m: window s + m is a start too (change test)
+                step -= 1
+            starts = _subsample_pairs(np.arange(0, last + 1, step), m, last, cap)
         if trapezoid:
             a1, b1 = epochs[starts], epochs[starts + m]
             a2, b2 = epochs[starts + m], epochs[starts + 2 * m]
@@ -153,8 +166,25 @@ def plan_channel(
             a1 = b1 = epochs[starts]
             a2 = b2 = epochs[starts + m]
             j = starts + m
-        plan.levels.append(LevelPlan(tau, "aided", a1, b1, a2, b2, starts, j))
+        lp = LevelPlan(tau, "aided", a1, b1, a2, b2, starts, j)
+        if not trapezoid:
+            q = np.searchsorted(starts, j)
+            ok = q < starts.size
+            ok[ok] = starts[q[ok]] == j[ok]
+            lp.p1 = np.flatnonzero(ok).astype(np.int64)
+            lp.p2 = q[ok].astype(np.int64)
+        plan.levels.append(lp)
     return plan
+
+
+def _subsample_pairs(idx: np.ndarray, m: int, last: int, cap: int) -> np.ndarray:
+    """Like :func:`_subsample`, but the kept starts come in adjacent pairs (s, s + m)
+    so that the change test has windows to compare."""
+    if idx.size <= cap:
+        return idx
+    first = idx[idx + m <= last]
+    pick = _subsample(first, max(1, cap // 2))
+    return np.unique(np.concatenate([pick, pick + m]))
 
 
 # ------------------------------------------------------------------------- evaluation
@@ -175,6 +205,30 @@ class LevelResult:
     band: np.ndarray
     band_nto: np.ndarray
     k: float
+    #: change test: adjacent pairs (window indices), the stationary band of the change
+    #: of the window means (turn-on bias cancels), its k
+    p1: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    p2: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    c_band: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    c_k: float = 0.0
+
+    @property
+    def d_lo(self) -> np.ndarray:
+        """Lower end of ``[E_W2] - [E_W1]`` over the adjacent pairs."""
+        return np.nextafter(self.e_lo[self.p2] - self.e_hi[self.p1], -np.inf)
+
+    @property
+    def d_hi(self) -> np.ndarray:
+        return np.nextafter(self.e_hi[self.p2] - self.e_lo[self.p1], np.inf)
+
+    @property
+    def c_exceeds(self) -> np.ndarray:
+        return (self.d_lo > self.c_band) | (self.d_hi < -self.c_band)
+
+    @property
+    def c_decidable(self) -> np.ndarray:
+        xw = 0.5 * (self.x_hi - self.x_lo)
+        return xw[self.p1] + xw[self.p2] <= self.c_band
 
     @property
     def e_lo(self) -> np.ndarray:
@@ -210,6 +264,20 @@ class LevelResult:
             "n_windows": int(self.band.size),
             "k": self.k,
             "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
+            **self._change_summary(),
+        }
+
+    def _change_summary(self) -> dict[str, Any]:
+        if self.p1.size == 0:
+            return {"n_changes": 0}
+        hw = 0.5 * (self.d_hi - self.d_lo)
+        fin = np.isfinite(hw)
+        return {
+            "n_changes": int(self.p1.size),
+            "change_halfwidth_median": float(np.median(hw[fin])) if fin.any() else None,
+            "change_stationary": float(np.median(self.c_band)),
+            "change_exceeds_fraction": float(np.mean(self.c_exceeds)),
+            "change_k": self.c_k,
         }
 
 
@@ -245,31 +313,70 @@ def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str,
     exc: list[dict[str, Any]] = []
     n_exc = 0
     any_dec = False
+    n_lev = n_chg = 0
     for lv in levels:
         ex = lv.exceeds
         any_dec |= bool(np.any(lv.decidable))
         for w in np.flatnonzero(ex):
-            n_exc += 1
+            n_lev += 1
             if len(exc) < max_list:
                 exc.append(
                     {
+                        "test": "level",
                         "t_start_s": float(lv.t_start[w]),
                         "tau_s": float(lv.tau[w]),
                         "interval": [float(lv.e_lo[w]), float(lv.e_hi[w])],
                         "stationary": float(lv.band[w]),
                     }
                 )
+    for lv in levels:
+        if lv.p1.size == 0:
+            continue
+        any_dec |= bool(np.any(lv.c_decidable))
+        cex = lv.c_exceeds
+        d_lo, d_hi = lv.d_lo, lv.d_hi
+        for q in np.flatnonzero(cex):
+            n_chg += 1
+            if len(exc) < max_list:
+                w1, w2 = int(lv.p1[q]), int(lv.p2[q])
+                exc.append(
+                    {
+                        "test": "change",
+                        "t_start_s": float(lv.t_start[w1]),
+                        "t_change_s": float(lv.t_start[w2]),
+                        "tau_s": float(lv.tau[w1]),
+                        "interval": [float(d_lo[q]), float(d_hi[q])],
+                        "stationary": float(lv.c_band[q]),
+                    }
+                )
+    n_exc = n_lev + n_chg
     if n_exc:
-        first = exc[0]
-        return (
-            "exceeds",
-            f"{n_exc} window(s) lie entirely outside the stationary band (first at "
-            f"t = {first['t_start_s']:.1f} s, tau = {first['tau_s']:.3g} s)",
-            exc,
-            n_exc,
-        )
+        parts = []
+        if n_lev:
+            f = next(e for e in exc if e["test"] == "level") if any(
+                e["test"] == "level" for e in exc
+            ) else None
+            parts.append(
+                f"{n_lev} window(s) lie entirely outside the stationary band"
+                + (f" (first at t = {f['t_start_s']:.1f} s, tau = {f['tau_s']:.3g} s)" if f else "")
+            )
+        if n_chg:
+            f = next((e for e in exc if e["test"] == "change"), None)
+            parts.append(
+                f"{n_chg} change(s) between adjacent windows lie entirely outside the "
+                "stationary band of changes"
+                + (f" (first at t = {f['t_change_s']:.1f} s, tau = {f['tau_s']:.3g} s)"
+                   if f else "")
+            )
+        return "exceeds", "; ".join(parts), exc, n_exc
     if any_dec:
-        return "consistent", "every decidable window overlaps the stationary band", exc, 0
+        return (
+            "consistent",
+            "every decidable window, and every change between adjacent windows, lies "
+            "within its stationary band",
+            exc,
+            0,
+        )
     return (
         "undecided",
         "the aided interval is wider than the stationary band at every tau",
@@ -432,6 +539,85 @@ class MarginBuilder:
         det = det + edge
         return _up(noise_to + det + cn.turn_on_det()), _up(noise_no + det)
 
+    def _pair_noise_sd(
+        self, ch: str, m1: np.ndarray, m2: np.ndarray, t1: np.ndarray, t2: np.ndarray,
+        flicker: bool,
+    ) -> np.ndarray:
+        """Standard deviation of ``mean_W2 - mean_W1`` of the noise (white, quantization,
+        flicker; the turn-on bias cancels) over adjacent windows of ``m1``, ``m2`` samples:
+        ``V1/t1^2 + V2/t2^2 - 2 C/(t1 t2)`` with the covariance from the variance of the
+        joined box, ``2 C = V12 - V1 - V2`` (stationary model, exact). Inflated by
+        ``1 + 2/min(m)`` for the samples the window ends cut."""
+        cn = self.ctx.noise[ch]
+        dt = self.imu.dt
+        keys = np.stack([m1, m2], 1)
+        uk, inv = np.unique(keys, axis=0, return_inverse=True)
+        inv = np.asarray(inv).reshape(-1)
+        v1 = np.empty(len(uk))
+        v2 = np.empty(len(uk))
+        v12 = np.empty(len(uk))
+        for q, (a, b) in enumerate(uk):
+            v1[q] = box_sum_variance(cn, int(a), dt, False, flicker)
+            v2[q] = box_sum_variance(cn, int(b), dt, False, flicker)
+            v12[q] = box_sum_variance(cn, int(a + b), dt, False, flicker)
+        V1, V2, V12 = v1[inv], v2[inv], v12[inv]
+        var = V1 / (t1 * t1) + V2 / (t2 * t2) - (V12 - V1 - V2) / (t1 * t2)
+        # the joined-box identity is exact; guard the rounding of the subtraction
+        var = np.maximum(var, 0.0) + 1e-9 * (V1 / (t1 * t1) + V2 / (t2 * t2))
+        ratio = max(1.0, self.imu.max_len / dt)
+        infl = 1.0 + 2.0 / np.maximum(np.minimum(m1, m2), 1)
+        return np.sqrt(var) * ratio * infl
+
+    def _dtrue_bound(
+        self, o: str, lp: LevelPlan, tau: np.ndarray, w1: np.ndarray, w2: np.ndarray,
+        k: float,
+    ) -> np.ndarray:
+        """Bound of ``|mean_W2 x_o - mean_W1 x_o|`` (true signal of another axis, for the
+        misalignment term of the change band): the measured change plus the change of
+        the other axis' error (its change band without its own misalignment term),
+        never above the sum of the two magnitudes."""
+        cn = self.ctx.noise[o]
+        crude = self.kernel_mag(o, lp, tau)
+        crude = crude[w1] + crude[w2]
+        if not self.imu.available[o]:
+            return crude
+        y = self.imu_mean(o, lp, tau)
+        dy = abs(y[w2] - y[w1]).hi
+        m = self.imu.count(lp.a1, lp.a2)
+        sd = self._pair_noise_sd(o, m[w1], m[w2], tau[w1], tau[w2], True)
+        mag = self.kernel_mag(o, lp, tau)
+        err = k * sd + 2 * self.ctx.D_KR[o] + cn.scale * (mag[w1] + mag[w2])
+        for oo in _perp(o):
+            mm = self.kernel_mag(oo, lp, tau)
+            err = err + cn.misalignment_rad * (mm[w1] + mm[w2])
+        return np.minimum(crude, _up(dy + err))
+
+    def change_band(self, ch: str, lp: LevelPlan, tau: np.ndarray, k: float) -> np.ndarray:
+        """Stationary band of ``[E_W2] - [E_W1]`` for the adjacent pairs of a level: the
+        turn-on bias cancels and the flicker enters through its change between the two
+        windows (the Allan statistic: about ``sqrt(2) 0.664 B`` per k); a stated drift
+        bound gives the alternative ``2 x drift``; plus rate random walk, scale and
+        misalignment terms and the window-end edges."""
+        w1, w2 = lp.p1, lp.p2
+        if w1.size == 0:
+            return np.zeros(0)
+        cn = self.ctx.noise[ch]
+        imu = self.imu
+        m = imu.count(lp.a1, lp.a2)
+        t1, t2 = tau[w1], tau[w2]
+        noise = k * self._pair_noise_sd(ch, m[w1], m[w2], t1, t2, True)
+        if cn.drift_bound is not None:
+            long_ = np.minimum(t1, t2) >= cn.drift_window_s
+            alt = k * self._pair_noise_sd(ch, m[w1], m[w2], t1, t2, False) + 2 * cn.drift_bound
+            noise = np.where(long_, np.minimum(noise, alt), noise)
+        mag = self.kernel_mag(ch, lp, tau)
+        det = 2 * self.ctx.D_KR[ch] + cn.scale * (mag[w1] + mag[w2])
+        for other in _perp(ch):
+            det = det + cn.misalignment_rad * self._dtrue_bound(other, lp, tau, w1, w2, k)
+        e = imu.edge(lp.a1) + imu.edge(lp.b2)
+        edge = (e[w1] / t1 + e[w2] / t2) * imu.rate_bound[ch] * imu.max_len
+        return _up(noise + det + edge)
+
     # -- aiding helpers ------------------------------------------------------------
     def gyro_abs_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.minimum(self.mag_mean(ch, a, b), self.veh.max_rate)
@@ -502,16 +688,40 @@ class MarginBuilder:
         elif ag.has_gvel:
             ok = ag.gvel_ok
             t = ag.gnss_t[ok]
-            hv = ag.gvel_hi[ok]
-            ve = IA(ag.gvel_e[ok] - hv, ag.gvel_e[ok] + hv)
-            vn = IA(ag.gvel_n[ok] - hv, ag.gvel_n[ok] + hv)
-            S = sqrt(sqr(ve) + sqr(vn))
-            chi = course(ve, vn)
-            psi = self.heading_at(t)
-            fin = np.isfinite(psi.lo) & np.isfinite(psi.hi)
-            kk = np.where(fin, np.round((chi.mid() - np.where(fin, psi.mid(), 0.0)) / TWO_PI), 0)
-            psi = psi + IA(TWO_PI * kk) * IA(1.0 - 2**-50, 1.0 + 2**-50)
-            d = chi - psi
+            R = ag.gvel_hi[ok]
+            vem, vnm = IA(ag.gvel_e[ok]), IA(ag.gvel_n[ok])
+            # the radial bound R: ||V| - |Vm|| <= R and |chi - chi_m| <= asin(R / |Vm|)
+            sm = sqrt(sqr(vem) + sqr(vnm))
+            S = (sm + pm(R)) & IA(np.zeros(t.size), np.full(t.size, np.inf))
+            if ag.head_from_course:
+                # heading from this very course (no reversing): |psi - chi| <= asin(vh/S)
+                vhm = lateral_h_bound(veh)
+                assert vhm is not None
+                slo = S.lo
+                dm = np.where(
+                    slo > vhm,
+                    _up(np.arcsin(np.minimum(1.0, vhm / np.maximum(slo, 1e-300))) * (1 + 1e-9)),
+                    0.5 * math.pi * (1 + 1e-9),
+                )
+                d = pm(dm)
+            else:
+                smf = np.sqrt(ag.gvel_e[ok] ** 2 + ag.gvel_n[ok] ** 2)
+                fast = smf * (1 - 1e-9) > R
+                e_chi = np.where(
+                    fast,
+                    _up(np.arcsin(np.minimum(1.0, R / np.maximum(smf * (1 - 1e-9), 1e-300)))
+                        * (1 + 1e-9) + 1e-15),
+                    np.inf,
+                )
+                chi = course(vem, vnm) + pm(np.where(fast, e_chi, 0.0))
+                chi = IA(np.where(fast, chi.lo, -np.inf), np.where(fast, chi.hi, np.inf))
+                psi = self.heading_at(t)
+                fin = np.isfinite(psi.lo) & np.isfinite(psi.hi) & fast
+                kk = np.where(
+                    fin, np.round((chi.mid() - np.where(fin, psi.mid(), 0.0)) / TWO_PI), 0
+                )
+                psi = psi + IA(TWO_PI * kk) * IA(1.0 - 2**-50, 1.0 + 2**-50)
+                d = chi - psi
             uh, vh = S * cos(d), S * sin(d)
             rl, rh, pl, ph = ag.tilt(t, veh)
             roll, pitch = IA(rl, rh), IA(pl, ph)
@@ -892,6 +1102,12 @@ class MarginBuilder:
             band, band_nto = self.band(ch, lp, tau, k)
             xl = np.where(np.isfinite(x.lo), x.lo, -np.inf)
             xh = np.where(np.isfinite(x.hi), x.hi, np.inf)
+            c_band = np.zeros(0)
+            c_k = 0.0
+            if lp.n_pairs and lp.kind == "aided":
+                gc = self.ctx.level_index_changes[(ch, li)]
+                c_k = self.ctx.alpha.k_level("imu_changes", gc)
+                c_band = self.change_band(ch, lp, tau, c_k)
             levels.append(
                 LevelResult(
                     tau_s=lp.tau_s,
@@ -905,6 +1121,10 @@ class MarginBuilder:
                     band=band,
                     band_nto=band_nto,
                     k=k,
+                    p1=lp.p1 if c_band.size else np.zeros(0, np.int64),
+                    p2=lp.p2 if c_band.size else np.zeros(0, np.int64),
+                    c_band=c_band,
+                    c_k=c_k,
                 )
             )
         verdict, reason, exc, n_exc = verdict_of(levels)
