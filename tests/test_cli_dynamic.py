@@ -1,4 +1,4 @@
-"""``imubounds simulate`` and ``imubounds dynamic`` end to end."""
+"""``imubounds dynamic`` end to end: drive layouts, real drives, outputs, bad input."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import pandas as pd
 import pytest
 
 import imubounds.cli as cli
+from imubounds.io.drive_layout import write_layout
+from tests.trips import make_trip
 
 
 @pytest.fixture()
@@ -20,133 +22,122 @@ def main(monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
     return cli.main
 
 
-def _check_outputs(out: Path) -> dict:
+@pytest.fixture(scope="module")
+def layout_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    drive, _ = make_trip("paper", 7, duration_s=240.0, distance_m=2600.0, corner_m=80.0,
+                         imu_hz=50.0)
+    return write_layout(drive, tmp_path_factory.mktemp("drive") / "trip")
+
+
+def _schema(doc: dict, modes: set[str]) -> None:
+    assert doc["schema_version"] == "imubounds-dynamic/2"
+    assert set(doc["modes"]) == modes
+    for name, m in doc["modes"].items():
+        assert {"margins", "verdict", "budget"} <= set(m)
+        for ch in ("accel_x", "accel_y", "gyro_z"):
+            assert m["verdict"][ch] in ("consistent", "exceeds", "undecided")
+            for row in m["margins"][ch]:
+                assert {"tau_s", "halfwidth_max", "halfwidth_median", "stationary",
+                        "exceeds_fraction"} <= set(row)
+            assert m["budget"][ch], name
+        assert m["guaranteed"] is (name == "full")
+
+
+def test_dynamic_on_a_drive_layout(main, layout_dir: Path, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                   capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "out"
+    assert main(["dynamic", str(layout_dir), "-o", str(out), "--no-report"]) == 0
     names = {p.name for p in out.iterdir()}
-    for n in (
-        "dynamic.json",
-        "steps.csv",
-        "intervals.png",
-        "intervals.svg",
-        "trajectory.png",
-        "comparison.png",
-    ):
-        assert n in names
+    for n in ("dynamic.json", "margins.csv", "states.csv", "steps.csv", "run.json",
+              "margins.png", "windows.png", "trajectory.png", "intervals.png"):
+        assert n in names, n
     assert not [n for n in names if n.startswith(".")]  # no temporary leftovers
     doc = json.loads((out / "dynamic.json").read_text())
-    assert set(doc["modes"]) == {"paper", "full"}
-    for s in doc["modes"].values():
-        assert set(s["channels"]) == {"accel_x", "accel_y", "gyro_z"}
-    steps = pd.read_csv(out / "steps.csv")
-    assert len(steps) == doc["modes"]["full"]["n_steps"]
-    return doc
-
-
-def test_simulate_then_dynamic(main, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:  # type: ignore[no-untyped-def]
-    sim = tmp_path / "sim"
-    assert (
-        main(
-            [
-                "simulate",
-                "-o",
-                str(sim),
-                "--seed",
-                "5",
-                "--duration",
-                "200",
-                "--distance",
-                "2000",
-                "--bounded",
-                "--gps-cep",
-                "0.5",
-                # the per-step estimator: a 1 Hz IMU without bias, as before
-                "--rate",
-                "1",
-                "--no-bias",
-            ]
-        )
-        == 0
-    )
-    out = tmp_path / "out"
-    assert main(["dynamic", str(sim), "-o", str(out), "--passes", "3"]) == 0
-    doc = _check_outputs(out)
+    _schema(doc, {"full", "paper"})
     full = doc["modes"]["full"]
-    assert full["enclosure"]["position_box"] > 0.9
-    assert full["channels"]["gyro_z"]["enclosure"]["aided"] == 1.0
-    # the simulator's model-error bound is applied on request and reported by default
-    assert "with_model_error" in doc
-    assert doc["with_model_error"]["summary"]["enclosure"]["position_box"] == 1.0
+    for q in ("position", "heading", "u", "v", "bias_accel_x", "bias_gyro_z"):
+        assert full["enclosure"][q] == 1.0, (q, full["enclosure"])
+    margins = pd.read_csv(out / "margins.csv")
+    assert set(margins["channel"]) == set(full["margins"])
+    states = pd.read_csv(out / "states.csv")
+    assert {"time_s", "east_lo_m", "east_hi_m", "heading_lo_rad", "u_lo_mps"} <= set(states.columns)
+    assert len(states) == full["smoother"]["epochs"]
     err = capsys.readouterr().err
-    assert "truth inside position boxes" in err
-    steps = pd.read_csv(out / "steps.csv")
-    assert {"accel_x_aided_lo", "gyro_z_err_hi", "truth_east", "x_ins_lo"} <= set(steps.columns)
+    assert "mode full (guaranteed)" in err and "mode paper (NOT guaranteed)" in err
 
 
-def test_dynamic_vn100(main, shared_data: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    out = tmp_path / "vn"
-    d = shared_data / "dynamic" / "vn100_bu353_circle"
-    assert main(["dynamic", str(d), "-o", str(out), "-q", "--gps-box", "mean"]) == 0
-    doc = _check_outputs(out)
-    assert doc["input"]["layout"] == "vn100"
-    assert any("mounted backwards" in w for w in doc["input"]["warnings"])
-    # the two CSV files work too
-    files = sorted(str(p) for p in d.glob("*.csv"))
-    assert main(["dynamic", *files, "-o", str(tmp_path / "vn2"), "-q", "--no-plot"]) == 0
+def test_dynamic_mode_full_only_and_json(main, layout_dir: Path, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                         capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "o"
+    code = main(["dynamic", str(layout_dir), "-o", str(out), "--mode", "full", "--no-plot",
+                 "--no-report", "--json", "-q", "--lateral-speed-bound", "0.2", "--alpha", "0.05"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    _schema(doc, {"full"})
+    assert not (out / "steps.csv").exists()
+    assert doc["modes"]["full"]["alpha"]["alpha"] == 0.05
+    assert doc["modes"]["full"]["vehicle"]["lateral_speed_bound_mps"] == 0.2
 
 
-def test_dynamic_comma(main, shared_data: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    out = tmp_path / "c"
-    d = shared_data / "dynamic" / "comma2k19_example1"
-    assert (
-        main(
-            [
-                "dynamic",
-                str(d),
-                "-o",
-                str(out),
-                "-q",
-                "--imu-spec",
-                "accel_nd=0.02,accel_bs=0.5,gyro_nd=0.5,gyro_bs=1",
-            ]
-        )
-        == 0
-    )
-    doc = _check_outputs(out)
-    assert doc["modes"]["full"]["enclosure"]["position_box"] >= 0.95
-    assert doc["imu_bounds"]["source"] == "--imu-spec"
-
-
-def test_dynamic_static_json(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    sim = tmp_path / "sim"
-    main(
-        ["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q", "--rate", "1"]
-    )
+def test_dynamic_static_noise_json(main, layout_dir: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     noise = {
         "channels": {
             ch: {"stationary": {"N": n, "B": b}}
-            for ch, n, b in (
-                ("accel_x", 0.004, 0.01),
-                ("accel_y", 0.005, 0.01),
-                ("gyro_z", 0.001, 0.0001),
-            )
+            for ch, n, b in (("accel_x", 0.004, 0.03), ("accel_y", 0.005, 0.03),
+                             ("accel_z", 0.004, 0.03), ("gyro_x", 0.001, 0.02),
+                             ("gyro_y", 0.001, 0.02), ("gyro_z", 0.001, 0.02))
         }
     }
     nj = tmp_path / "noise.json"
     nj.write_text(json.dumps(noise))
     out = tmp_path / "o"
-    assert main(["dynamic", str(sim), "--static", str(nj), "-o", str(out), "-q", "--no-plot"]) == 0
+    assert main(["dynamic", str(layout_dir), "--static", str(nj), "-o", str(out), "-q",
+                 "--no-plot", "--no-report", "--mode", "full"]) == 0
     doc = json.loads((out / "dynamic.json").read_text())
-    hw = doc["imu_bounds"]["halfwidth_per_step"]
-    assert hw["accel_y"] > hw["accel_x"]  # per-channel N from the static run
-    assert doc["modes"]["full"]["channels"]["accel_y"]["stationary_level_95"] == pytest.approx(
-        1.96 * 0.005 * 60 * np.sqrt(100 / 3600), rel=1e-6
-    )
+    rows = {r["term"]: r for r in doc["modes"]["full"]["budget"]["accel_y"]}
+    assert rows["white noise density N"]["value"] == 0.005
+    assert rows["white noise density N"]["source"] == "noise.json"
 
 
-def test_bad_inputs(main, shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:  # type: ignore[no-untyped-def]
-    # an unknown directory
-    assert main(["dynamic", str(tmp_path), "-o", str(tmp_path / "o")]) == 2
-    assert "not a known drive-log directory" in capsys.readouterr().err
-    # GPS all missing
+def test_dynamic_vn100(main, shared_data: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "vn"
+    d = shared_data / "dynamic" / "vn100_bu353_circle"
+    assert main(["dynamic", str(d), "-o", str(out), "-q", "--no-report"]) == 0
+    doc = json.loads((out / "dynamic.json").read_text())
+    _schema(doc, {"full", "paper"})
+    assert any("mounted backwards" in w for w in doc["input"]["warnings"])
+    files = sorted(str(p) for p in d.glob("*.csv"))  # the two CSV files work too
+    assert main(["dynamic", *files, "-o", str(tmp_path / "vn2"), "-q", "--no-plot",
+                 "--no-report", "--mode", "paper"]) == 0
+
+
+def test_dynamic_comma2k19_encloses_truth(main, shared_data: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "c"
+    d = shared_data / "dynamic" / "comma2k19_example1"
+    assert main(["dynamic", str(d), "-o", str(out), "-q", "--no-report", "--no-plot"]) == 0
+    doc = json.loads((out / "dynamic.json").read_text())
+    enc = doc["modes"]["full"]["enclosure"]
+    assert (enc["position"], enc["speed"], enc["heading"]) == (1.0, 1.0, 1.0), enc
+    assert len(doc["modes"]["full"]["margins"]["gyro_z"]) >= 8
+
+
+def test_dynamic_simulator_directory(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """The directory written by imubounds simulate (the demo) runs."""
+    sim = tmp_path / "sim"
+    assert main(["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000",
+                 "-q"]) == 0
+    out = tmp_path / "o"
+    assert main(["dynamic", str(sim), "-o", str(out), "-q", "--no-plot", "--no-report"]) == 0
+    doc = json.loads((out / "dynamic.json").read_text())
+    assert doc["input"]["layout"] == "generic"
+    assert doc["modes"]["full"]["enclosure"]["position"] == 1.0
+
+
+def test_bad_inputs(main, shared_data: Path, tmp_path: Path,  # type: ignore[no-untyped-def]
+                    capsys: pytest.CaptureFixture) -> None:
+    assert main(["dynamic", str(tmp_path / "nope"), "-o", str(tmp_path / "o")]) == 2
+    assert "no such file or directory" in capsys.readouterr().err
+    # GPS all missing on the VN-100 layout
     vn = tmp_path / "vn"
     vn.mkdir()
     src = shared_data / "dynamic" / "vn100_bu353_circle"
@@ -156,16 +147,18 @@ def test_bad_inputs(main, shared_data: Path, tmp_path: Path, capsys: pytest.Capt
     g.to_csv(vn / "a_gps.csv", index=False)
     assert main(["dynamic", str(vn), "-o", str(tmp_path / "o")]) == 2
     assert "no usable GPS fix" in capsys.readouterr().err
-    # bad options
-    sim = tmp_path / "sim"
-    main(
-        ["simulate", "-o", str(sim), "--duration", "100", "--distance", "1000", "-q", "--rate", "1"]
-    )
-    assert main(["dynamic", str(sim), "-o", str(tmp_path / "o"), "--gps-box", "p=2"]) == 2
-    assert "--gps-box" in capsys.readouterr().err
-    assert main(["dynamic", str(sim), "-o", str(tmp_path / "o"), "--imu-spec", "x=1"]) == 2
-    assert "--imu-spec" in capsys.readouterr().err
-    assert main(["dynamic", str(sim), "-o", str(tmp_path / "o"), "--step", "0.2"]) == 2
-    assert "longer --step" in capsys.readouterr().err
-    assert main(["dynamic", str(src), "-o", str(tmp_path / "o"), "--model-error"]) == 2
-    assert "simulator directory" in capsys.readouterr().err
+    for argv, msg in (
+        (["--alpha", "2"], "--alpha"),
+        (["--max-tilt", "-1"], "--max-tilt"),
+        (["--imu-spec", "x=1"], "--imu-spec"),
+        (["--gps-box", "p=2"], "--gps-box"),
+        (["--static", str(tmp_path / "none.json")], "noise.json"),
+    ):
+        try:
+            code = main(["dynamic", str(src), "-o", str(tmp_path / "o"), "--no-plot", *argv])
+        except SystemExit as exc:  # argparse refuses a bad option value at parse time
+            code = exc.code
+        assert code == 2, argv
+        err = capsys.readouterr().err
+        assert msg in err, (argv, err)
+        assert "Traceback" not in err

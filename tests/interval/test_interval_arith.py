@@ -10,6 +10,7 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 import pytest
+from _hc4 import hc4_add
 from _iv_exact import MAXF, mp
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
@@ -27,8 +28,8 @@ SPECIAL = [-INF, -MAXF, -1e300, -3.0, -1.0, -1e-300, -TINY, -0.0, 0.0, TINY, 1e-
 SPECIAL_IV = [(a, b) for a, b in itertools.combinations_with_replacement(SPECIAL, 2)
               if a <= b and not (a == b and math.isinf(a))] + [(INF, -INF)]
 
-UNARY = ["neg", "absval", "sqr", "sqrt", "exp", "log", "sin", "cos", "tan", "asin", "acos"]
-BINARY = ["add", "sub", "mul", "div", "atan2", "imin", "imax", "inter", "hull"]
+UNARY = ["neg", "absval", "sqr", "sqrt", "sin", "cos"]
+BINARY = ["add", "sub", "mul", "div", "atan2", "inter", "hull"]
 
 
 def _grid_binary():
@@ -158,18 +159,14 @@ def test_exact_results_stay_exact() -> None:
     assert c.mul(1.5, 2.0, 2.0, 4.0) == (3.0, 8.0)
     assert c.div(1.0, 2.0, 4.0, 8.0) == (0.125, 0.5)
     assert c.sqrt(4.0, 9.0) == (2.0, 3.0)
-    assert c.exp(0.0, 0.0) == (1.0, 1.0) and c.log(1.0, 1.0) == (0.0, 0.0)
     assert c.atan2(0.0, 0.0, 1.0, 2.0) == (0.0, 0.0)
 
 
 def test_domains_of_partial_functions() -> None:
     assert c.sqrt(-2.0, -1.0) == (INF, -INF)
     assert c.sqrt(-2.0, 4.0) == (0.0, 2.0)
-    assert c.log(-1.0, 0.0) == (INF, -INF)
-    assert c.log(-1.0, 1.0) == (-INF, 0.0)
     assert c.asin(2.0, 3.0) == (INF, -INF)
     assert c.atan2(0.0, 0.0, 0.0, 0.0) == (INF, -INF)  # atan2(0, 0) undefined
-    assert c.tan(1.0, 2.0) == (-INF, INF)  # contains pi/2
 
 
 def test_atan2_branch_cases() -> None:
@@ -199,8 +196,6 @@ def test_set_operations_and_predicates() -> None:
     assert a.subset(b).tolist() == [False, False, True]  # empty is a subset of everything
     e = iv.IntervalArray.entire(())
     assert float(e.mid()) == 0.0
-    assert iv.minimum(iv.I(1, 3), iv.I(2, 4)).to_tuples() == [(1.0, 3.0)]
-    assert iv.maximum(iv.I(1, 3), iv.I(2, 4)).to_tuples() == [(2.0, 4.0)]
     assert abs(iv.I(-3, 2)).to_tuples() == [(0.0, 3.0)]
     assert (iv.I(-1, 2) ** 2).to_tuples() == [(0.0, 4.0)]
 
@@ -215,22 +210,10 @@ def test_constructor_rejects_bad_input() -> None:
     assert iv.IntervalArray(INF, -INF).is_empty()
 
 
-def test_decimal_inputs_are_enclosed() -> None:
-    for text in ["0.1", "0.2", "0.3", "1e-7", "-2.675", "1/3", "123456789.123456789"]:
-        r = iv.from_decimal(text)
-        q = Fraction(text)
-        lo, hi = float(r.lo), float(r.hi)
-        assert Fraction(lo) <= q <= Fraction(hi)
-        assert hi == lo or hi == math.nextafter(lo, INF)  # tightest
-    assert iv.I("0.5").to_tuples() == [(0.5, 0.5)]  # exact decimals stay exact
-    x = iv.I("0.1") + iv.I("0.2")
-    assert float(x.lo) <= 0.3 <= float(x.hi)  # real 0.3 and its double both inside
+def test_pi_encloses_pi() -> None:
     p = iv.pi()
     assert mp(float(p.lo)) < mpmath.pi < mp(float(p.hi))
     assert float(p.hi) == math.nextafter(float(p.lo), INF)
-    assert iv.I("0.1", "0.3").to_tuples()[0][0] < 0.1
-    with pytest.raises(OptionError):
-        iv.from_decimal("zero point one")
 
 
 def test_scalar_rules_run_inside_numba_and_match_arrays() -> None:
@@ -291,19 +274,25 @@ def test_inclusion_arith(x, y, op) -> None:
 
 @settings(max_examples=300, deadline=None)
 @given(interval_and_point(-800.0, 800.0),
-       st.sampled_from(["sqr", "sqrt", "exp", "log", "sin", "cos", "tan", "absval", "neg"]))
+       st.sampled_from(["sqr", "sqrt", "sin", "cos", "absval", "neg"]))
 def test_inclusion_unary(x, op) -> None:
     lo0, hi0, p = x
-    if op in ("sqrt", "log"):
-        assume(p > 0 or (op == "sqrt" and p == 0))
-    if op == "exp":
-        assume(p < 709)
+    if op == "sqrt":
+        assume(p >= 0)
     lo, hi = getattr(c, op)(lo0, hi0)
     P = mp(p)
-    f = {"sqr": lambda t: t * t, "sqrt": mpmath.sqrt, "exp": mpmath.exp, "log": mpmath.log,
-         "sin": mpmath.sin, "cos": mpmath.cos, "tan": mpmath.tan, "absval": abs,
-         "neg": lambda t: -t}[op]
+    f = {"sqr": lambda t: t * t, "sqrt": mpmath.sqrt, "sin": mpmath.sin, "cos": mpmath.cos,
+         "absval": abs, "neg": lambda t: -t}[op]
     assert _inside(lo, hi, f(P)), (op, lo0, hi0, p, lo, hi)
+
+
+@settings(max_examples=300, deadline=None)
+@given(interval_and_point(-1.5, 1.5))
+def test_inclusion_asin(x) -> None:
+    lo0, hi0, p = x
+    assume(-1.0 <= p <= 1.0)
+    lo, hi = c.asin(lo0, hi0)
+    assert _inside(lo, hi, mpmath.asin(mp(p))), (lo0, hi0, p, lo, hi)
 
 
 @settings(max_examples=300, deadline=None)
@@ -315,14 +304,6 @@ def test_inclusion_atan2(y, x) -> None:
     lo, hi = c.atan2(yl, yh, xl, xh)
     ex = mpmath.pi if (p == 0 and q < 0) else mpmath.atan2(mp(p), mp(q))
     assert _inside(lo, hi, ex)
-
-
-@settings(max_examples=200, deadline=None)
-@given(interval_and_point(), interval_and_point())
-def test_min_max_inclusion(x, y) -> None:
-    for f, g in ((c.imin, min), (c.imax, max)):
-        lo, hi = f(x[0], x[1], y[0], y[1])
-        assert lo <= g(x[2], y[2]) <= hi
 
 
 def test_bit_level_next_up_down_match_numpy() -> None:
@@ -345,6 +326,6 @@ def test_wrong_rounding_mode_is_refused_not_silently_wrong() -> None:
         with pytest.raises(AnalysisError):
             _ = iv.I(1, 2) + iv.I(3, 4)
         with pytest.raises(AnalysisError):
-            iv.hc4_add(iv.I(4, 6), iv.I(1, 2), iv.I(0, 5))
+            hc4_add(iv.I(4, 6), iv.I(1, 2), iv.I(0, 5))
     assert rounding_mode() == 0
     assert (iv.I(1, 2) + iv.I(3, 4)).to_tuples() == [(4.0, 6.0)]

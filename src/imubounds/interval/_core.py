@@ -20,11 +20,11 @@ Conventions
   the rounding error, so exact results stay exact and inexact ones move by
   exactly one ulp (the directed-rounding result). Near underflow/overflow,
   where the error-free transformations are not exact, the result is widened
-  by one ulp on both sides. The libm transcendental functions (exp, log,
-  sin, cos, tan, asin, acos, atan2) are widened by a relative margin of
+  by one ulp on both sides. The libm functions (sin, cos, asin,
+  atan2) are widened by a relative margin of
   ``1.25 * 2**-50`` (4.5 to 10 ulp, above the 4 ulp error bound of common libms)
   plus ``2**-1069`` absolute, except at a few exact points (sin 0 = 0,
-  cos 0 = 1, exp 0 = 1, log 1 = 0, atan2(0, x>0) = 0) and at the extrema of
+  cos 0 = 1, atan2(0, x>0) = 0) and at the extrema of
   sin/cos, which are exactly +-1.
 * The rules assume the default round-to-nearest mode (see
   :mod:`imubounds.interval.rounding`; the vectorised entry points check it,
@@ -35,6 +35,7 @@ Conventions
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from llvmlite import ir
 from numba import njit, types
@@ -60,7 +61,7 @@ _BIG_ARG = 2.0**40  # beyond this |x|, sin/cos/tan return their full range
 
 
 @intrinsic
-def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
+def _fma_ii(typingctx, a, b, c):  # pragma: no cover - compiled
     sig = types.float64(types.float64, types.float64, types.float64)
 
     def codegen(context, builder, signature, args):
@@ -70,7 +71,7 @@ def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
 
 
 @intrinsic
-def _f2i(typingctx, x):  # pragma: no cover - compiled
+def _f2i_ii(typingctx, x):  # pragma: no cover - compiled
     sig = types.int64(types.float64)
 
     def codegen(context, builder, signature, args):
@@ -80,13 +81,19 @@ def _f2i(typingctx, x):  # pragma: no cover - compiled
 
 
 @intrinsic
-def _i2f(typingctx, i):  # pragma: no cover - compiled
+def _i2f_ii(typingctx, i):  # pragma: no cover - compiled
     sig = types.float64(types.int64)
 
     def codegen(context, builder, signature, args):
         return builder.bitcast(args[0], ir.DoubleType())
 
     return sig, codegen
+
+
+# typed as plain callables (numba calls the intrinsics with the value arguments only)
+_fma: Any = _fma_ii
+_f2i: Any = _f2i_ii
+_i2f: Any = _i2f_ii
 
 
 # ---------------------------------------------------------------------------
@@ -555,44 +562,6 @@ def sqrt(lo: float, hi: float) -> tuple[float, float]:
 
 
 @njit(cache=True)
-def _exp_dn(x: float) -> float:
-    if x == 0.0:
-        return 1.0
-    v = lib_dn(math.exp(x))
-    return v if v > 0.0 else 0.0
-
-
-@njit(cache=True)
-def _exp_up(x: float) -> float:
-    if x == 0.0:
-        return 1.0
-    return lib_up(math.exp(x))
-
-
-@njit(cache=True)
-def exp(lo: float, hi: float) -> tuple[float, float]:
-    """``exp([x])``."""
-    if not (lo <= hi):
-        return EMPTY_LO, EMPTY_HI
-    return _exp_dn(lo), _exp_up(hi)
-
-
-@njit(cache=True)
-def log(lo: float, hi: float) -> tuple[float, float]:
-    """``log([x] & (0, inf))``; empty if ``hi <= 0``."""
-    if not (lo <= hi) or hi <= 0.0:
-        return EMPTY_LO, EMPTY_HI
-    if lo <= 0.0:
-        rlo = -INF
-    elif lo == 1.0:
-        rlo = 0.0
-    else:
-        rlo = lib_dn(math.log(lo))
-    rhi = 0.0 if hi == 1.0 else lib_up(math.log(hi))
-    return rlo, rhi
-
-
-@njit(cache=True)
 def _crit_range(lo: float, hi: float, offset: float, period: float) -> tuple[int, int]:
     # integers k with offset + k*period possibly in [lo, hi]: [kmin, kmax]
     # (conservative by a relative margin; empty if kmin > kmax)
@@ -681,21 +650,6 @@ def cos(lo: float, hi: float) -> tuple[float, float]:
 
 
 @njit(cache=True)
-def tan(lo: float, hi: float) -> tuple[float, float]:
-    """``tan([x])``; the whole line if ``[x]`` may contain a pole ``pi/2 + k pi``."""
-    if not (lo <= hi):
-        return EMPTY_LO, EMPTY_HI
-    if abs(lo) > _BIG_ARG or abs(hi) > _BIG_ARG or hi - lo >= PI_LO:
-        return -INF, INF
-    kmin, kmax = _crit_range(lo, hi, HALF_PI_LO, PI_LO)
-    if kmin <= kmax:
-        return -INF, INF
-    rlo = 0.0 if lo == 0.0 else lib_dn(math.tan(lo))
-    rhi = 0.0 if hi == 0.0 else lib_up(math.tan(hi))
-    return rlo, rhi
-
-
-@njit(cache=True)
 def asin(lo: float, hi: float) -> tuple[float, float]:
     """``asin([x] & [-1, 1])``."""
     if not (lo <= hi) or hi < -1.0 or lo > 1.0:
@@ -706,20 +660,6 @@ def asin(lo: float, hi: float) -> tuple[float, float]:
     rhi = 0.0 if hi == 0.0 else lib_up(math.asin(hi))
     rlo = rlo if rlo > -HALF_PI_HI else -HALF_PI_HI
     rhi = rhi if rhi < HALF_PI_HI else HALF_PI_HI
-    return rlo, rhi
-
-
-@njit(cache=True)
-def acos(lo: float, hi: float) -> tuple[float, float]:
-    """``acos([x] & [-1, 1])`` (decreasing)."""
-    if not (lo <= hi) or hi < -1.0 or lo > 1.0:
-        return EMPTY_LO, EMPTY_HI
-    lo = lo if lo > -1.0 else -1.0
-    hi = hi if hi < 1.0 else 1.0
-    rlo = 0.0 if hi == 1.0 else lib_dn(math.acos(hi))
-    rhi = lib_up(math.acos(lo))
-    rlo = rlo if rlo > 0.0 else 0.0
-    rhi = rhi if rhi < PI_HI else PI_HI
     return rlo, rhi
 
 
@@ -751,8 +691,8 @@ def atan2(ylo: float, yhi: float, xlo: float, xhi: float) -> tuple[float, float]
     ``atan2(0, 0)`` is undefined and excluded (the box ``[0,0] x [0,0]`` gives
     the empty set). The result is the hull over the closed quadrant pieces of
     the box; a box reaching the negative x axis from below (y < 0) and from
-    above/on it gives ``[-pi, pi]`` (use :mod:`imubounds.interval.angles` for
-    wrap-aware angle sets).
+    above/on it gives ``[-pi, pi]``; a caller with a course near +-pi rotates the box by
+    pi first and shifts the result back (as the estimator's course bound does).
     """
     if not (ylo <= yhi) or not (xlo <= xhi):
         return EMPTY_LO, EMPTY_HI
@@ -794,19 +734,3 @@ def atan2(ylo: float, yhi: float, xlo: float, xhi: float) -> tuple[float, float]
     rlo = rlo if rlo > -PI_HI else -PI_HI
     rhi = rhi if rhi < PI_HI else PI_HI
     return rlo, rhi
-
-
-@njit(cache=True)
-def imin(alo: float, ahi: float, blo: float, bhi: float) -> tuple[float, float]:
-    """``min([a], [b])`` = ``{min(a, b)}``."""
-    if not (alo <= ahi) or not (blo <= bhi):
-        return EMPTY_LO, EMPTY_HI
-    return (alo if alo < blo else blo), (ahi if ahi < bhi else bhi)
-
-
-@njit(cache=True)
-def imax(alo: float, ahi: float, blo: float, bhi: float) -> tuple[float, float]:
-    """``max([a], [b])`` = ``{max(a, b)}``."""
-    if not (alo <= ahi) or not (blo <= bhi):
-        return EMPTY_LO, EMPTY_HI
-    return (alo if alo > blo else blo), (ahi if ahi > bhi else bhi)

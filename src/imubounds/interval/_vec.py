@@ -11,7 +11,6 @@ import numpy as np
 from numba import njit
 
 from imubounds.interval import _core as c
-from imubounds.interval import _ctc as k
 
 
 @njit(cache=True)
@@ -55,26 +54,6 @@ def v_sqrt(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def v_exp(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = lo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.exp(lo[i], hi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
-def v_log(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = lo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.log(lo[i], hi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
 def v_sin(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = lo.size
     olo = np.empty(n)
@@ -91,36 +70,6 @@ def v_cos(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ohi = np.empty(n)
     for i in range(n):
         olo[i], ohi[i] = c.cos(lo[i], hi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
-def v_tan(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = lo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.tan(lo[i], hi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
-def v_asin(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = lo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.asin(lo[i], hi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
-def v_acos(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = lo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.acos(lo[i], hi[i])
     return olo, ohi
 
 
@@ -185,30 +134,6 @@ def v_atan2(
 
 
 @njit(cache=True)
-def v_imin(
-    alo: np.ndarray, ahi: np.ndarray, blo: np.ndarray, bhi: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    n = alo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.imin(alo[i], ahi[i], blo[i], bhi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
-def v_imax(
-    alo: np.ndarray, ahi: np.ndarray, blo: np.ndarray, bhi: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    n = alo.size
-    olo = np.empty(n)
-    ohi = np.empty(n)
-    for i in range(n):
-        olo[i], ohi[i] = c.imax(alo[i], ahi[i], blo[i], bhi[i])
-    return olo, ohi
-
-
-@njit(cache=True)
 def v_inter(
     alo: np.ndarray, ahi: np.ndarray, blo: np.ndarray, bhi: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -257,88 +182,3 @@ def v_radius(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     for i in range(n):
         out[i] = c.radius(lo[i], hi[i])
     return out
-
-
-@njit(cache=True)
-def v_revise(
-    op: int,
-    zlo: np.ndarray,
-    zhi: np.ndarray,
-    alo: np.ndarray,
-    ahi: np.ndarray,
-    blo: np.ndarray,
-    bhi: np.ndarray,
-    mode: int,
-    code: np.ndarray,
-) -> None:
-    """In place: HC4-revise of primitive ``op`` on every box; ``code[i]`` gets
-    the position of the variable emptied first (-1 if consistent). The
-    dispatch on ``op`` is outside the loops (one loop per primitive)."""
-    n = zlo.size
-    if op == k.OP_ADD:
-        for i in range(n):
-            r = k.ctc_add(zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i] = r[0], r[1], r[2], r[3], r[4], r[5]
-            code[i] = r[6]
-    elif op == k.OP_SUB:
-        for i in range(n):
-            r = k.ctc_sub(zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i] = r[0], r[1], r[2], r[3], r[4], r[5]
-            code[i] = r[6]
-    elif op == k.OP_MUL:
-        for i in range(n):
-            r = k.ctc_mul(zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i] = r[0], r[1], r[2], r[3], r[4], r[5]
-            code[i] = r[6]
-    elif op == k.OP_DIV:
-        for i in range(n):
-            r = k.ctc_div(zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i] = r[0], r[1], r[2], r[3], r[4], r[5]
-            code[i] = r[6]
-    elif op == k.OP_ATAN2:
-        for i in range(n):
-            r = k.ctc_atan2(zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i], blo[i], bhi[i] = r[0], r[1], r[2], r[3], r[4], r[5]
-            code[i] = r[6]
-    elif op == k.OP_SQR:
-        for i in range(n):
-            r = k.ctc_sqr(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_SQRT:
-        for i in range(n):
-            r = k.ctc_sqrt(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_SIN:
-        for i in range(n):
-            r = k.ctc_sin(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_COS:
-        for i in range(n):
-            r = k.ctc_cos(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_NEG:
-        for i in range(n):
-            r = k.ctc_neg(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_EXP:
-        for i in range(n):
-            r = k.ctc_exp(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_LOG:
-        for i in range(n):
-            r = k.ctc_log(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    elif op == k.OP_EQ:
-        for i in range(n):
-            r = k.ctc_eq(zlo[i], zhi[i], alo[i], ahi[i], mode)
-            zlo[i], zhi[i], alo[i], ahi[i] = r[0], r[1], r[2], r[3]
-            code[i] = r[6]
-    else:
-        raise ValueError("unknown operation code")

@@ -7,17 +7,14 @@ result is bit-for-bit the scalar result. The empty interval is stored as
 ``lo = +inf, hi = -inf`` and propagates through every operation.
 
 Plain floats and ints mixed into the arithmetic are taken as exact binary
-values (``0.1`` means the double nearest to 0.1). To mean a decimal number,
-use :func:`from_decimal` (or :func:`I` with a string), which widens to an
-interval containing the real number.
+values (``0.1`` means the double nearest to 0.1); a caller that means a
+decimal number widens it itself (the estimator widens its inputs by their
+stated bounds, which dwarf one ulp).
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from decimal import Decimal
-from fractions import Fraction
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -140,7 +137,7 @@ class IntervalArray:
     def copy(self) -> IntervalArray:
         return IntervalArray._raw(self.lo.copy(), self.hi.copy())
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[IntervalArray]:
         for i in range(len(self)):
             yield self[i]
 
@@ -151,7 +148,7 @@ class IntervalArray:
             return f"IntervalArray([{float(self.lo)!r}, {float(self.hi)!r}])"
         return f"IntervalArray(lo={self.lo!r}, hi={self.hi!r})"
 
-    def __eq__(self, other: object) -> bool:  # type: ignore[override]
+    def __eq__(self, other: object) -> bool:
         """True if all intervals are identical sets (all empties compare equal)."""
         if not isinstance(other, IntervalArray) or other.shape != self.shape:
             return False
@@ -178,9 +175,15 @@ class IntervalArray:
         check_rounding()
         o = IntervalArray.coerce(other)
         a, b = (o, self) if swap else (self, o)
-        alo, ahi, blo, bhi = np.broadcast_arrays(a.lo, a.hi, b.lo, b.hi)
-        lo, hi = f(_flat(alo), _flat(ahi), _flat(blo), _flat(bhi))
-        return IntervalArray._raw(lo.reshape(alo.shape), hi.reshape(alo.shape))
+        shape = np.broadcast_shapes(a.lo.shape, b.lo.shape)
+
+        def flat(x: np.ndarray) -> np.ndarray:
+            # broadcast_to (a read-only view, copied by _flat) where the shape differs:
+            # numba warns on the views np.broadcast_arrays returns
+            return _flat(x if x.shape == shape else np.broadcast_to(x, shape))
+
+        lo, hi = f(flat(a.lo), flat(a.hi), flat(b.lo), flat(b.hi))
+        return IntervalArray._raw(lo.reshape(shape), hi.reshape(shape))
 
     # -- arithmetic ---------------------------------------------------------
     def __add__(self, o: Any) -> IntervalArray:
@@ -290,16 +293,6 @@ def sqrt(x: Any) -> IntervalArray:
     return _u(x, v.v_sqrt)
 
 
-def exp(x: Any) -> IntervalArray:
-    """``exp(x)``."""
-    return _u(x, v.v_exp)
-
-
-def log(x: Any) -> IntervalArray:
-    """Natural log of ``x & (0, inf)``; empty where ``x <= 0``."""
-    return _u(x, v.v_log)
-
-
 def sin(x: Any) -> IntervalArray:
     """``sin(x)`` of an angle in rad; exactly +-1 at interior extrema."""
     return _u(x, v.v_sin)
@@ -310,39 +303,9 @@ def cos(x: Any) -> IntervalArray:
     return _u(x, v.v_cos)
 
 
-def tan(x: Any) -> IntervalArray:
-    """``tan(x)``; the whole line where ``x`` may contain a pole."""
-    return _u(x, v.v_tan)
-
-
-def asin(x: Any) -> IntervalArray:
-    """``asin(x & [-1, 1])`` in rad."""
-    return _u(x, v.v_asin)
-
-
-def acos(x: Any) -> IntervalArray:
-    """``acos(x & [-1, 1])`` in rad."""
-    return _u(x, v.v_acos)
-
-
-def absolute(x: Any) -> IntervalArray:
-    """``|x|``."""
-    return _u(x, v.v_absval)
-
-
 def atan2(y: Any, x: Any) -> IntervalArray:
     """``atan2(y, x)`` in rad, within ``[-pi, pi]`` (origin excluded)."""
     return IntervalArray.coerce(y)._binary(x, v.v_atan2)
-
-
-def minimum(a: Any, b: Any) -> IntervalArray:
-    """Element-wise ``{min(a, b)}``."""
-    return IntervalArray.coerce(a)._binary(b, v.v_imin)
-
-
-def maximum(a: Any, b: Any) -> IntervalArray:
-    """Element-wise ``{max(a, b)}``."""
-    return IntervalArray.coerce(a)._binary(b, v.v_imax)
 
 
 def intersection(a: Any, b: Any) -> IntervalArray:
@@ -355,71 +318,15 @@ def hull(a: Any, b: Any) -> IntervalArray:
     return IntervalArray.coerce(a) | b
 
 
-# -- decimal constructors -------------------------------------------------------
-
-
-def _enclose_fraction(q: Fraction) -> tuple[float, float]:
-    try:
-        d = float(q)  # correctly rounded
-    except OverflowError:
-        return (c.MAXF, math.inf) if q > 0 else (-math.inf, -c.MAXF)
-    fd = Fraction(d) if math.isfinite(d) else None
-    if fd is None:
-        return (c.MAXF, math.inf) if q > 0 else (-math.inf, -c.MAXF)
-    if fd == q:
-        return d, d
-    if fd < q:
-        return d, math.nextafter(d, math.inf)
-    return math.nextafter(d, -math.inf), d
-
-
-def from_decimal(text: str | Decimal | Fraction | int | float) -> IntervalArray:
-    """The tightest interval containing the real number meant.
-
-    Parameters
-    ----------
-    text : str, Decimal, Fraction, int or float
-        ``"0.1"``, ``"1e-3"``, ``"1/3"``, ``Decimal("2.5")`` ... are taken as
-        exact decimal/rational numbers; an ``int`` is exact; a ``float`` is
-        taken as its exact binary value (degenerate interval).
-
-    Returns
-    -------
-    IntervalArray
-        0-d interval ``[lo, hi]`` with ``lo <= value <= hi`` and
-        ``hi <= next_up(lo)``.
-    """
-    if isinstance(text, float):
-        if math.isnan(text) or math.isinf(text):
-            raise OptionError(f"cannot make an interval from {text!r}")
-        return IntervalArray(text)
-    if isinstance(text, str):
-        s = text.strip().replace("_", "")
-        try:
-            q = Fraction(s)
-        except (ValueError, ZeroDivisionError):
-            raise OptionError(
-                f"cannot read {text!r} as a decimal or rational number (e.g. '0.1', '1/3')"
-            ) from None
-    else:
-        try:
-            q = Fraction(text)
-        except (ValueError, TypeError, OverflowError):
-            raise OptionError(f"cannot make an interval from {text!r}") from None
-    lo, hi = _enclose_fraction(q)
-    return IntervalArray._raw(np.asarray(lo), np.asarray(hi))
-
-
 def I(lo: Any, hi: Any = None) -> IntervalArray:  # noqa: E743 - conventional name
-    """Convenience constructor: ``I("0.1")``, ``I(1, 2)``, ``I("0.1", "0.3")``.
+    """Convenience constructor: ``I(1, 2)``; ``I(x)`` is the point ``[x, x]``.
 
-    Strings, Decimals and Fractions are enclosed (see :func:`from_decimal`);
-    floats and ints are exact. ``I(lo, hi)`` is the hull of both ends.
+    Numbers are exact binary values (``0.1`` is the double nearest to 0.1).
     """
-    a = from_decimal(lo) if not isinstance(lo, IntervalArray) else lo
+    a = IntervalArray.coerce(lo)
     if hi is None:
         return a
-    b = from_decimal(hi) if not isinstance(hi, IntervalArray) else hi
+    b = IntervalArray.coerce(hi)
     if float(b.hi) < float(a.lo):
         raise OptionError(f"I({lo!r}, {hi!r}): lower end is above the upper end")
     return IntervalArray._raw(np.asarray(a.lo), np.asarray(b.hi))
@@ -428,13 +335,3 @@ def I(lo: Any, hi: Any = None) -> IntervalArray:  # noqa: E743 - conventional na
 def pi() -> IntervalArray:
     """``[pi]``: the two doubles around pi."""
     return IntervalArray._raw(np.asarray(c.PI_LO), np.asarray(c.PI_HI))
-
-
-def two_pi() -> IntervalArray:
-    """``[2 pi]``."""
-    return IntervalArray._raw(np.asarray(c.TWO_PI_LO), np.asarray(c.TWO_PI_HI))
-
-
-def half_pi() -> IntervalArray:
-    """``[pi / 2]``."""
-    return IntervalArray._raw(np.asarray(c.HALF_PI_LO), np.asarray(c.HALF_PI_HI))

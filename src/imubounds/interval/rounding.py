@@ -18,11 +18,14 @@ import ctypes
 import ctypes.util
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 from imubounds.errors import AnalysisError
 
 FE_TONEAREST = 0  #: glibc/x86-64 and aarch64 value of FE_TONEAREST
 
+_fegetround: Any
+_fesetround: Any
 try:
     _libm = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
     _fegetround = _libm.fegetround
@@ -56,6 +59,21 @@ def rounding(mode: int) -> Iterator[None]:
         yield
     finally:
         if _fesetround is not None:
+            _fesetround(old)
+
+
+@contextmanager
+def nearest() -> Iterator[None]:
+    """Run a block in round-to-nearest (what every interval rule needs) and restore the
+    caller's rounding mode afterwards, whatever it was (e.g. round-upward after
+    ``import codac``). The interval kernels of the estimator run inside it."""
+    old = rounding_mode()
+    if _fesetround is not None and old != FE_TONEAREST:
+        _fesetround(FE_TONEAREST)
+    try:
+        yield
+    finally:
+        if _fesetround is not None and rounding_mode() != old:
             _fesetround(old)
 
 

@@ -1,184 +1,252 @@
-"""Figures of the dynamic analysis, in the paper's style (its Figs. 5 and 6).
+"""Figures of the dynamic analysis. Every function returns a matplotlib Figure and writes
+nothing; :func:`save` writes one as PNG and SVG atomically.
 
-* :func:`plot_intervals`: per channel, grey bars of the aided interval of the
-  estimated quantity over time, the measured value in red (and the truth in
-  black where known); accelerations in m/s², turn rate in °/s.
-* :func:`plot_trajectory`: the local ENU track with the GPS boxes and the
-  contracted position boxes (and the truth where known), in m.
-* :func:`plot_comparison`: the dynamic error margins (mean interval) next to
-  the stationary 95 % level per channel.
-
-Each figure is written as PNG and SVG atomically.
+* :func:`plot_margins` -- mode full: the guaranteed half-width of the window-mean IMU
+  error against the averaging time tau (median and worst window), with the stationary
+  band, log-log, like an Allan plot (accelerometers in m/s^2, gyros in deg/s);
+* :func:`plot_windows` -- mode full: the guaranteed intervals of the window-mean error
+  over the trip at one tau per channel, with the stationary band (the paper's Figs. 5-6
+  in the unit-correct form);
+* :func:`plot_trajectory` -- mode full: GNSS boxes, smoothed position boxes, truth;
+* :func:`plot_intervals` -- mode paper: the paper's Figs. 5-6 (aided interval per step,
+  measured value, truth).
 """
 
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from imubounds.dynamic.estimator.core import CHANNELS, EstimatorResult
 from imubounds.io.outputs import write_with
 
-LABELS = {
-    "accel_x": ("forward acceleration $\\dot u$", "m/s²", 1.0),
-    "accel_y": ("lateral acceleration $\\dot v$", "m/s²", 1.0),
-    "gyro_z": ("turn rate $r$", "°/s", 180.0 / math.pi),
+DEG = 180.0 / math.pi
+COLORS = {
+    "accel_x": "tab:blue",
+    "accel_y": "tab:orange",
+    "accel_z": "tab:green",
+    "gyro_x": "tab:red",
+    "gyro_y": "tab:purple",
+    "gyro_z": "tab:brown",
 }
 
 
-def _save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
+def _savefig(fig: Figure, ext: str, path: Path) -> None:
+    fig.savefig(path, format=ext, dpi=130)
+
+
+def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
+    """Write ``fig`` as ``stem.png`` and ``stem.svg`` in ``out_dir`` (atomically)."""
     paths = []
     for ext in ("png", "svg"):
-        dest = out_dir / f"{stem}.{ext}"
-        write_with(dest, lambda p, e=ext: fig.savefig(p, format=e, dpi=130))
+        dest = Path(out_dir) / f"{stem}.{ext}"
+        write_with(dest, partial(_savefig, fig, ext))
         paths.append(dest)
-    plt.close(fig)
     return paths
 
 
-def plot_intervals(res: EstimatorResult, out_dir: Path, title: str = "") -> list[Path]:
-    """Grey interval bars of the aided estimate, measured value in red (per channel)."""
+def _factor(ch: str) -> tuple[float, str]:
+    return (DEG, "deg/s") if ch.startswith("gyro") else (1.0, "m/s²")
+
+
+def plot_margins(summary: dict[str, Any], ax: Any = None, title: str = "") -> Figure:
+    """Margins vs tau of mode full (see the module docstring). With ``ax`` (one Axes),
+    every channel is drawn there in its own unit; otherwise a new Figure with the
+    accelerometers and the gyros side by side."""
+    margins = summary.get("margins") or {}
+    if ax is None:
+        fig = Figure(figsize=(12, 4.8))
+        axes = {"accel": fig.add_subplot(1, 2, 1), "gyro": fig.add_subplot(1, 2, 2)}
+    else:
+        fig = ax.figure
+        axes = {"accel": ax, "gyro": ax}
+    verdicts = summary.get("verdict") or {}
+    bands: list[tuple[Any, np.ndarray, np.ndarray, str]] = []
+    for ch, rows in margins.items():
+        rows = [r for r in rows if r.get("halfwidth_median") is not None]
+        if not rows:
+            continue
+        f, unit = _factor(ch)
+        a = axes["gyro" if ch.startswith("gyro") else "accel"]
+        tau = np.array([r["tau_s"] for r in rows])
+        med = np.array([r["halfwidth_median"] for r in rows]) * f
+        mx = np.array([r["halfwidth_max"] for r in rows]) * f
+        band = np.array([r["stationary"] for r in rows]) * f
+        c = COLORS.get(ch, "k")
+        lab = f"{ch} ({verdicts.get(ch, '?')})" + (f" [{unit}]" if ax is not None else "")
+        a.loglog(tau, med, "o-", color=c, ms=3.5, lw=1.4, label=f"{lab}: median window")
+        a.loglog(tau, mx, ":", color=c, lw=1.0)
+        bands.append((a, tau, band, c))
+        a.loglog(tau, band, "--", color=c, lw=1.0)
+    for a, tau, band, c in bands:
+        lo = a.get_ylim()[0]
+        a.fill_between(tau, lo, band, color=c, alpha=0.07)
+        a.set_ylim(bottom=lo)
+    for kind, a in axes.items():
+        unit = "deg/s" if kind == "gyro" else "m/s²"
+        a.set_xlabel("averaging time τ [s]")
+        if ax is None:
+            a.set_ylabel(f"half-width of the guaranteed window-mean error [{unit}]")
+            a.set_title(
+                "gyros" if kind == "gyro" else "accelerometers", fontsize=10
+            )
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=7, loc="upper right")
+        if ax is not None:
+            break
+    fig.suptitle(
+        (title + ": " if title else "")
+        + "guaranteed margins vs τ (solid: median window, dotted: worst; dashed/shaded: "
+        "stationary band)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return fig
+
+
+def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figure:
+    """Mode full: intervals of the window-mean error over the trip at the decidable tau
+    nearest ``tau_target`` per channel, with the stationary band (green)."""
+    run = result.full
+    chans = [ch for ch, m in run.margins.items() if m.levels]
+    fig = Figure(figsize=(11, 2.3 * max(1, len(chans)) + 0.8))
+    for i, ch in enumerate(chans):
+        ax = fig.add_subplot(len(chans), 1, i + 1)
+        m = run.margins[ch]
+        levels = [lv for lv in m.levels if np.any(lv.decidable)] or m.levels
+        lv = min(levels, key=lambda x: abs(math.log(x.tau_s / tau_target)))
+        f, unit = _factor(ch)
+        t = lv.t_start + 0.5 * lv.tau
+        lo, hi = lv.e_lo * f, lv.e_hi * f
+        fin = np.isfinite(lo) & np.isfinite(hi)
+        segs = np.stack([np.column_stack([t[fin], lo[fin]]), np.column_stack([t[fin], hi[fin]])], 1)
+        ax.add_collection(LineCollection(list(segs), colors="0.45", linewidths=1.2))
+        ax.fill_between(t, -lv.band * f, lv.band * f, color="tab:green", alpha=0.2, step="mid")
+        ex = lv.exceeds
+        if ex.any():
+            ax.plot(t[ex], 0.5 * (lo[ex] + hi[ex]), "v", color="tab:red", ms=4, label="exceeds")
+            ax.legend(fontsize=7, loc="upper right")
+        if fin.any():
+            span = np.concatenate([lo[fin], hi[fin], lv.band * f, -lv.band * f])
+            a, b = np.percentile(span, [1, 99])
+            pad = 0.1 * (b - a) + 1e-12
+            ax.set_ylim(a - pad, b + pad)
+        ax.set_xlim(float(np.min(lv.t_start)), float(np.max(lv.t_start + lv.tau)))
+        ax.set_ylabel(f"{ch} [{unit}]", fontsize=8)
+        ax.set_title(
+            f"{ch}: windows of τ = {lv.tau_s:.3g} s ({m.verdict})", fontsize=8, loc="left"
+        )
+        ax.grid(alpha=0.3)
+    if chans:
+        fig.axes[-1].set_xlabel("time [s] (window centre, relative to the first IMU sample)")
+    fig.suptitle(
+        (title + ": " if title else "")
+        + "guaranteed intervals of the window-mean IMU error (grey) and stationary band (green)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return fig
+
+
+def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
+    """Mode full: GNSS boxes (blue), smoothed position boxes (orange), truth (black)."""
+    from imubounds.dynamic.estimator import smoother as SM
+    from imubounds.dynamic.estimator.result import truth_at
+
+    run = result.full
+    sm = run.smoother
+    ag = run.ctx.aiding
+    fig = Figure(figsize=(8, 7))
+    ax = fig.add_subplot(1, 1, 1)
+    X = sm.X
+    fin = np.all(np.isfinite(X[:, [SM.E, SM.N], :].reshape(len(X), -1)), axis=1)
+    idx = np.flatnonzero(fin)[:: max(1, int(fin.sum() // 600))]
+    boxes = [
+        Rectangle((X[i, SM.E, 0], X[i, SM.N, 0]), X[i, SM.E, 1] - X[i, SM.E, 0],
+                  X[i, SM.N, 1] - X[i, SM.N, 0])
+        for i in idx
+    ]
+    ax.add_collection(
+        PatchCollection(boxes, facecolor="tab:orange", edgecolor="tab:red", lw=0.3, alpha=0.35)
+    )
+    if ag.has_gnss:
+        step = max(1, ag.gnss_t.size // 600)
+        gb = [
+            Rectangle((ag.gnss_e[i] - ag.gnss_h[i], ag.gnss_n[i] - ag.gnss_h[i]),
+                      2 * ag.gnss_h[i], 2 * ag.gnss_h[i])
+            for i in range(0, ag.gnss_t.size, step)
+        ]
+        ax.add_collection(
+            PatchCollection(gb, facecolor="none", edgecolor="tab:blue", lw=0.3, alpha=0.6)
+        )
+        ax.plot(ag.gnss_e, ag.gnss_n, ".", color="tab:blue", ms=1.5, label="GNSS fixes (boxes)")
+    ax.plot([], [], "s", color="tab:orange", alpha=0.5, label="smoothed position boxes")
+    if drive.truth is not None:
+        tr = truth_at(drive, sm.te + run.ctx.imu.t0, ag.origin)
+        ax.plot(tr["east"], tr["north"], "-", color="k", lw=0.8, label="truth")
+    if fin.any():
+        ax.set_xlim(np.min(X[fin, SM.E, 0]) - 10, np.max(X[fin, SM.E, 1]) + 10)
+        ax.set_ylim(np.min(X[fin, SM.N, 0]) - 10, np.max(X[fin, SM.N, 1]) + 10)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title((title + ": " if title else "") + "trajectory", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+PAPER_LABELS = {
+    "accel_x": ("forward acceleration", "m/s²", 1.0),
+    "accel_y": ("lateral acceleration", "m/s²", 1.0),
+    "gyro_z": ("turn rate r", "°/s", DEG),
+}
+
+
+def plot_intervals(res: Any, title: str = "") -> Figure:
+    """Mode paper (its Figs. 5-6): per step the aided interval (grey), the measured value
+    (red) and the truth (black) where known."""
+    from imubounds.dynamic.estimator.paper import CHANNELS
+
     st = res.steps
     t = st.t[1:] - st.t[0]
-    fig, axes = plt.subplots(len(CHANNELS), 1, figsize=(10, 8.5), sharex=True)
-    for ax, (c, ch) in zip(axes, enumerate(CHANNELS), strict=True):
-        name, unit, f = LABELS[ch]
+    fig = Figure(figsize=(10, 8.5))
+    for c, ch in enumerate(CHANNELS):
+        ax = fig.add_subplot(len(CHANNELS), 1, c + 1)
+        name, unit, f = PAPER_LABELS[ch]
         lo, hi = res.A[1:, 2 * c] * f, res.A[1:, 2 * c + 1] * f
         meas = st.meas[1:, c] * f
         fin = np.isfinite(lo) & np.isfinite(hi)
-        segs = np.stack(
-            [np.column_stack([t[fin], lo[fin]]), np.column_stack([t[fin], hi[fin]])], axis=1
-        )
+        segs = np.stack([np.column_stack([t[fin], lo[fin]]), np.column_stack([t[fin], hi[fin]])], 1)
         lw = max(0.6, min(4.0, 500.0 / max(t.size, 1)))
         ax.add_collection(
-            LineCollection(segs, colors="0.6", linewidths=lw, label="estimated interval (aided)")
+            LineCollection(list(segs), colors="0.6", linewidths=lw, label="aided interval")
         )
         ax.plot(t, meas, ".", color="red", ms=2.5, label="measured")
-        if st.truth is not None:
-            key = {"accel_x": "accel_x", "accel_y": "accel_y", "gyro_z": "r"}[ch]
-            if key in st.truth:
-                ax.plot(t, st.truth[key][1:] * f, "-", color="black", lw=0.6, label="truth")
-        # keep the measured values readable: clip the axis to the bulk of the bars
+        key = {"accel_x": "accel_x", "accel_y": "accel_y", "gyro_z": "r"}[ch]
+        if st.truth is not None and key in st.truth:
+            ax.plot(t, st.truth[key][1:] * f, "-", color="black", lw=0.6, label="truth")
         if fin.any():
             span = np.concatenate([lo[fin], hi[fin], meas])
             a, b = np.percentile(span, [2, 98])
             pad = 0.1 * (b - a) + 1e-9
             ax.set_ylim(a - pad, b + pad)
-        ax.set_ylabel(f"{name} [{unit}]")
+        ax.set_ylabel(f"{name} [{unit}]", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=7, ncol=3)
-    axes[-1].set_xlabel("time since start [s]")
-    axes[0].set_xlim(t[0] - 1, t[-1] + 1)
-    fig.suptitle(title or "Estimated intervals (grey) and measured values (red)", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, out_dir, "intervals")
-
-
-def _draw_boxes(ax: Any, res: EstimatorResult, idx: np.ndarray, lw: float) -> None:
-    st, S = res.steps, res.S
-    g = st.gps
-    cb = [Rectangle((S[i, 0], S[i, 2]), S[i, 1] - S[i, 0], S[i, 3] - S[i, 2]) for i in idx]
-    ax.add_collection(
-        PatchCollection(cb, facecolor="tab:orange", edgecolor="tab:red", lw=lw, alpha=0.3, zorder=1)
-    )
-    gi = [i for i in idx if np.isfinite(g[i, 0])]
-    gb = [Rectangle((g[i, 0], g[i, 2]), g[i, 1] - g[i, 0], g[i, 3] - g[i, 2]) for i in gi]
-    ax.add_collection(
-        PatchCollection(gb, facecolor="none", edgecolor="tab:blue", lw=lw, alpha=0.7, zorder=2)
-    )
-
-
-def plot_trajectory(res: EstimatorResult, out_dir: Path, title: str = "") -> list[Path]:
-    """Track in the local ENU frame with GPS boxes (blue) and contracted boxes (orange).
-
-    Left: the whole drive (axes limited to the GPS boxes, so a wide prediction at a
-    step without GPS does not hide the track); right: a zoom on 12 steps around the
-    sharpest turn.
-    """
-    st = res.steps
-    g = st.gps
-    ok = np.isfinite(g[:, 0])
-    # boxes of steps with a GPS fix (a step without one keeps the wide INS prediction)
-    fin = np.all(np.isfinite(res.S[:, 0:4]), axis=1) & ok
-    fig, axes = plt.subplots(1, 2, figsize=(13, 6.5))
-    n = st.t.size
-    turn = int(np.argmax(np.where(ok, np.abs(st.meas[:, 2]), -1.0))) if n > 1 else 0
-    lo_i = max(0, min(turn - 6, n - 12))
-    zoom = np.arange(lo_i, min(n, lo_i + 12))
-    for ax, idx, lw in (
-        (axes[0], np.flatnonzero(fin)[:: max(1, int(fin.sum() // 300))], 0.4),
-        (axes[1], zoom[fin[zoom]], 0.8),
-    ):
-        _draw_boxes(ax, res, idx, lw)
-        sel = idx[ok[idx]]
-        ax.plot(
-            st.gps_centre[sel, 0],
-            st.gps_centre[sel, 1],
-            ".-",
-            color="tab:blue",
-            lw=0.5,
-            ms=2,
-            label="GPS fixes; blue squares: GPS boxes",
-            zorder=3,
-        )
-        ax.plot([], [], "s", color="tab:orange", alpha=0.5, label="contracted position boxes")
-        if st.truth is not None:
-            te, tn = st.truth["east"], st.truth["north"]
-            ax.plot(te[idx], tn[idx], "-", color="black", lw=0.8, label="truth", zorder=4)
-        if sel.size:
-            x0, x1 = np.min(g[sel, 0]), np.max(g[sel, 1])
-            y0, y1 = np.min(g[sel, 2]), np.max(g[sel, 3])
-            pad = 0.05 * max(x1 - x0, y1 - y0)
-            ax.set_xlim(x0 - pad, x1 + pad)
-            ax.set_ylim(y0 - pad, y1 + pad)
-        ax.set_aspect("equal", adjustable="box")
-        ax.set_xlabel("east [m]")
-        ax.set_ylabel("north [m]")
-        ax.grid(alpha=0.3)
-    axes[0].plot(st.gps_centre[0, 0], st.gps_centre[0, 1], "k^", label="start", zorder=5)
-    axes[0].legend(loc="best", fontsize=8)
-    axes[0].set_title("whole drive", fontsize=10)
-    t0 = st.t[zoom[0]] - st.t[0]
-    axes[1].set_title(
-        f"zoom: steps at t = {t0:.0f}..{t0 + st.dt * (zoom.size - 1):.0f} s (sharpest turn)",
+        ax.set_xlim(t[0] - 1, t[-1] + 1)
+    fig.axes[-1].set_xlabel("time since start [s]")
+    fig.suptitle(
+        (title + ": " if title else "")
+        + "mode paper (NOT guaranteed): aided intervals (grey), measured (red)",
         fontsize=10,
     )
-    fig.suptitle(title or "Trajectory: GPS boxes and contracted boxes", fontsize=11)
     fig.tight_layout()
-    return _save(fig, out_dir, "trajectory")
-
-
-def plot_comparison(summaries: dict[str, dict[str, Any]], out_dir: Path) -> list[Path]:
-    """Dynamic mean error interval vs stationary 95 % level, per channel and mode."""
-    fig, axes = plt.subplots(1, len(CHANNELS), figsize=(11, 4))
-    modes = list(summaries)
-    for ax, ch in zip(axes, CHANNELS, strict=True):
-        name, unit, f = LABELS[ch]
-        x = np.arange(len(modes) + 1)
-        lows, highs = [], []
-        for m in modes:
-            lo, hi = summaries[m]["channels"][ch]["dynamic_error_mean_interval"]
-            lows.append((lo or 0.0) * f)
-            highs.append((hi or 0.0) * f)
-        L = summaries[modes[0]]["channels"][ch]["stationary_level_95"] * f
-        lows.append(-L)
-        highs.append(L)
-        colors = ["0.55"] * len(modes) + ["tab:green"]
-        ax.bar(x, np.array(highs) - np.array(lows), bottom=lows, color=colors, width=0.6)
-        ax.axhline(0, color="k", lw=0.5)
-        ax.set_xticks(x, [f"dynamic\n({m})" for m in modes] + ["stationary\n95 %"], fontsize=8)
-        ax.set_ylabel(f"error interval [{unit}]")
-        ax.set_title(name, fontsize=9)
-        if max(highs) > 20 * L > 0:
-            ax.set_yscale("symlog", linthresh=L)
-        ax.grid(alpha=0.3, axis="y")
-    fig.suptitle("Dynamic error margins (mean interval) vs stationary 95 % level", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, out_dir, "comparison")
+    return fig

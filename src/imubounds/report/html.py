@@ -317,15 +317,21 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
 
 DYN_FIGURES = (
     (
-        "intervals",
-        "Dynamic error intervals per step: the aided interval of each quantity "
-        "minus the measured value, with the stationary 95 % level for comparison.",
+        "margins",
+        "Mode full: half-width of the guaranteed interval of the window-mean IMU error "
+        "against the averaging time τ (solid: median window, dotted: worst), and the "
+        "stationary band of the noise budget (dashed, shaded), like an Allan plot.",
     ),
-    ("trajectory", "Trajectory in the local ENU frame: GPS boxes and contracted position boxes."),
     (
-        "comparison",
-        "Mean dynamic error intervals of the paper and full kinematic modes against "
-        "the stationary 95 % levels.",
+        "windows",
+        "Mode full: the guaranteed intervals of the window-mean error over the trip at one τ "
+        "per channel (grey) against the stationary band (green); red marks: windows that "
+        "lie entirely outside the band.",
+    ),
+    ("trajectory", "Mode full: GNSS boxes, smoothed position boxes and the truth where known."),
+    (
+        "intervals",
+        "Mode paper (NOT guaranteed): the paper's per-step aided intervals (its Figs. 5-6).",
     ),
 )
 
@@ -349,89 +355,194 @@ def _interval(iv: Any, factor: float = 1.0, digits: int = 4) -> str:
     return f"[{_num(iv[0] * factor, digits)}, {_num(iv[1] * factor, digits)}]"
 
 
-def _mode_table(mode: str, summ: dict[str, Any]) -> str:
-    chans = summ.get("channels") or {}
+def _ch_factor(ch: str) -> tuple[float, str]:
+    return (180.0 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    h = "".join(f"<th class='l'>{_e(x)}</th>" if i == 0 else f"<th>{_e(x)}</th>"
+                for i, x in enumerate(head))
+    body = "".join(
+        "<tr>" + "".join(
+            f"<td class='l'>{c}</td>" if i == 0 else f"<td>{c}</td>" for i, c in enumerate(r)
+        ) + "</tr>"
+        for r in rows
+    )
+    return f"<table><tr>{h}</tr>{body}</table>"
+
+
+def _verdict_items(mode: dict[str, Any]) -> str:
+    items = []
+    for ch, v in (mode.get("verdict") or {}).items():
+        f, unit = _ch_factor(ch)
+        rows = [r for r in (mode.get("margins") or {}).get(ch) or []
+                if r.get("halfwidth_median") is not None]
+        dec = [r for r in rows if (r.get("decidable_fraction") or 0) > 0]
+        extra = ""
+        if dec:
+            r = min(dec, key=lambda x: x["halfwidth_median"])
+            extra = (
+                f": tightest at τ = {_num(r['tau_s'], 3)} s, median ±"
+                f"{_num(r['halfwidth_median'] * f, 3)} {unit} against a stationary band of "
+                f"±{_num(r['stationary'] * f, 3)} {unit}"
+            )
+        detail = ((mode.get("verdict_detail") or {}).get(ch) or {}).get("reason", "")
+        cls = "bad" if v == "exceeds" else "ok" if v == "consistent" else "muted"
+        items.append(
+            f"<li><b>{_e(ch)}</b>: <span class='{cls}'>{_e(v)}</span>{_e(extra)}"
+            + (f" <span class='muted'>({_e(detail)})</span>" if detail else "")
+            + "</li>"
+        )
+    return "<ul>" + "".join(items) + "</ul>"
+
+
+def _margins_table(mode: dict[str, Any]) -> str:
+    rows = []
+    for ch, lst in (mode.get("margins") or {}).items():
+        f, unit = _ch_factor(ch)
+        for r in lst:
+            if not r.get("decidable_fraction") and r.get("aided_from") == "vehicle bounds":
+                continue
+            rows.append([
+                _e(ch),
+                _num(r.get("tau_s"), 4),
+                f"{_num((r.get('halfwidth_median') or math.nan) * f, 3)}",
+                f"{_num((r.get('halfwidth_max') or math.nan) * f, 3)}",
+                f"{_num((r.get('stationary') or math.nan) * f, 3)}",
+                f"{_num(100 * (r.get('decidable_fraction') or 0), 3)} %",
+                f"{_num(100 * (r.get('exceeds_fraction') or 0), 3)} %",
+                _change_cell(r, f),
+                _e(unit),
+            ])
+    return _table(
+        ["channel", "τ [s]", "median half-width", "worst half-width", "stationary band",
+         "decidable", "exceeds", "change: median half-width / band / exceeds", "unit"],
+        rows,
+    )
+
+
+def _change_cell(r: dict[str, Any], f: float) -> str:
+    """The change test between adjacent windows (turn-on cancels) of one tau row."""
+    if not r.get("n_changes"):
+        return "—"
+    return (
+        f"{_num((r.get('change_halfwidth_median') or math.nan) * f, 3)} / "
+        f"{_num((r.get('change_stationary') or math.nan) * f, 3)} / "
+        f"{_num(100 * (r.get('change_exceeds_fraction') or 0), 3)} %"
+    )
+
+
+def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
     parts = [
-        f"<h3>Dynamic error margins — {_e(mode)} kinematics "
-        f"({_e(summ.get('n_steps', '?'))} steps of {_num(summ.get('step_s'))} s)</h3>"
-        "<table><tr><th class='l'>channel</th><th>mean error interval (SI)</th>"
-        "<th>mean error interval (°/s)</th><th>mean midpoint</th><th>aided mean width</th>"
-        "<th>stationary 95 % level</th><th>ratio</th><th>measurement inside aided</th>"
-        "<th class='l'>verdict</th></tr>"
+        "<h3 id='full'>Mode full — guaranteed</h3>",
+        f"<p>{_e(mode.get('statement', ''))}.</p>",
+        "<h3 id='verdict'>Verdicts: the IMU error during the trip vs the stationary band</h3>",
+        _verdict_items(mode),
     ]
-    for ch, c in chans.items():
-        if not isinstance(c, dict):
-            continue
-        unit = str(c.get("unit", ""))
-        deg = (
-            _interval(c.get("dynamic_error_mean_interval"), 180.0 / math.pi)
-            if unit == ("rad/s")
-            else "—"
-        )
-        inside = c.get("measurement_inside_aided")
-        verdict = str(c.get("verdict", "—"))
-        cls = "bad" if "superset" in verdict else "ok"
+    nota = mode.get("channels_not_analysed") or {}
+    if nota:
         parts.append(
-            f"<tr><td class='l'>{_e(ch)}</td>"
-            f"<td>{_interval(c.get('dynamic_error_mean_interval'))} {_e(unit)}</td>"
-            f"<td>{deg}</td><td>{_num(c.get('dynamic_error_mean_midpoint'))}</td>"
-            f"<td>{_num(c.get('aided_mean_width'))}</td>"
-            f"<td>{_num(c.get('stationary_level_95'))} {_e(unit)}</td>"
-            f"<td>{_num(c.get('ratio_to_stationary_95'), 3)}</td>"
-            f"<td>{_num(100 * inside, 3) + ' %' if isinstance(inside, int | float) else '—'}</td>"
-            f"<td class='l {cls}'>{_e(verdict)}</td></tr>"
+            "<p class='muted'>Not analysed: "
+            + "; ".join(f"{_e(k)} ({_e(v)})" for k, v in nota.items())
+            + "</p>"
         )
-    parts.append("</table>")
-    extra = {
-        k: v
-        for k, v in summ.items()
-        if k
-        in (
-            "empty_rule",
-            "position_box_mean_width_m",
-            "gps_box_mean_width_m",
-            "enclosure",
-            "counts",
+    parts.append("<h3>Margins per averaging time (aided windows)</h3>" + _margins_table(mode))
+    enc = mode.get("enclosure")
+    if enc:
+        rows = [[_e(k), f"{_num(100 * v, 5)} %"] for k, v in enc.items()
+                if isinstance(v, int | float) and k != "epochs"]
+        parts.append("<h3>Truth inside the intervals (share of epochs)</h3>"
+                     + _table(["quantity", "enclosed"], rows))
+    bias = mode.get("bias") or {}
+    if bias:
+        rows = []
+        for ch, b in bias.items():
+            f, unit = _ch_factor(ch)
+            rows.append([_e(ch), _interval(b.get("constant_part"), f),
+                         _interval(b.get("over_trip"), f), _e(unit), _e(b.get("source", ""))])
+        parts.append(
+            "<h3>Bias of each channel (guaranteed)</h3>"
+            + _table(["channel", "constant part", "over the whole trip", "unit", "from"], rows)
         )
-    }
-    if extra:
-        parts.append(_kv_table(extra))
+    ca = mode.get("contracted_aiding") or {}
+    if ca:
+        rows = [
+            [_e(k), _num(v.get("input_halfwidth_median")), _num(v.get("input_halfwidth_p95")),
+             _num(v.get("contracted_halfwidth_median")), _num(v.get("contracted_halfwidth_p95")),
+             _e(v.get("unit"))]
+            for k, v in ca.items()
+        ]
+        parts.append(
+            "<h3>Aiding sensors: input vs contracted half-widths</h3>"
+            + _table(["sensor", "input median", "input p95", "contracted median",
+                      "contracted p95", "unit"], rows)
+        )
+    ei = mode.get("empty_intersections") or {}
+    parts.append(
+        f"<h3>Empty intersections: {_e(ei.get('count', 0))}</h3>"
+        f"<p class='muted'>{_e(ei.get('rule', ''))}</p>"
+    )
+    dropped = ei.get("dropped") or []
+    if dropped:
+        rows = [[_num(x.get("t_s"), 10), _e(x.get("sensor")), _num(x.get("miss")),
+                 _e(x.get("unit")), _e(x.get("reason"))] for x in dropped[:60]]
+        parts.append(_table(["t [s]", "dropped", "missed by", "unit", "why"], rows))
+        for sensor, n in (ei.get("by_sensor") or {}).items():
+            warnings.append(f"mode full: {n} {sensor} measurement(s) dropped (q-relaxed)")
+    budget = mode.get("budget") or {}
+    for ch, rows_ in budget.items():
+        rows = [[_e(r.get("term")), _num(r.get("value")), _e(r.get("unit")), _e(r.get("source")),
+                 _e(r.get("assumption"))] for r in rows_]
+        parts.append(f"<h3>Error budget — {_e(ch)}</h3>"
+                     + _table(["term", "value", "unit", "source", "assumption"], rows))
+    for sensor, rows_ in (mode.get("aiding_budget") or {}).items():
+        rows = [[_e(r.get("term")), _num(r.get("value")), _e(r.get("unit")), _e(r.get("source")),
+                 _e(r.get("assumption"))] for r in rows_]
+        parts.append(f"<h3>Error budget — {_e(sensor)}</h3>"
+                     + _table(["term", "value", "unit", "source", "assumption"], rows))
+    fam = ((mode.get("alpha") or {}).get("families")) or {}
+    if fam:
+        rows = [[_e(k), _e(v.get("count")), _num(v.get("alpha")), _num(v.get("k")),
+                 _e(v.get("what"))] for k, v in fam.items()]
+        parts.append("<h3>Whole-trip probability split</h3>"
+                     + _table(["family", "count", "alpha", "k", "bounds"], rows))
+    assum = mode.get("assumptions") or []
+    if assum:
+        parts.append("<h3>Assumptions</h3><ul>" + "".join(f"<li>{_e(a)}</li>" for a in assum)
+                     + "</ul>")
+    for n in mode.get("notes") or []:
+        warnings.append(f"mode full: {n}")
     return "".join(parts)
 
 
-def _modes_explained(modes: dict[str, Any]) -> str:
-    """Why the ``paper`` and ``full`` kinematic modes differ, with this run's numbers."""
-    paper, full = modes.get("paper"), modes.get("full")
-    if not (isinstance(paper, dict) and isinstance(full, dict)):
-        return ""
-
-    def empties(summ: dict[str, Any]) -> int:
-        flags = summ.get("flags") or {}
-        return sum(int(v.get("count", 0)) for k, v in flags.items() if "empty" in k)
-
-    def share(summ: dict[str, Any], key: str) -> str:
-        enc = summ.get("enclosure") or {}
-        v = enc.get(key)
-        return "—" if v is None else f"{100 * float(v):.1f} %"
-
-    rows = "".join(
-        f"<tr><td class='l'>{name}</td><td>{empties(summ)}</td>"
-        f"<td>{share(summ, 'position_box')}</td><td>{share(summ, 'v')}</td></tr>"
-        for name, summ in (("paper", paper), ("full", full))
-    )
-    return (
-        "<h3 id='modes'>Why the paper and full kinematics differ</h3>"
-        "<p>The paper's mechanisation (mode <code>paper</code>) integrates the accelerometer "
-        "readings as if they were u̇ and v̇. In a rotating body frame an accelerometer measures "
-        "a<sub>x</sub> = u̇ − r·v and a<sub>y</sub> = v̇ + r·u, so in a turn the centripetal "
-        "term r·u (metres per second squared in a car) is read as lateral acceleration: the "
-        "predicted lateral velocity drifts, the predicted position box misses the GPS box "
-        "(an empty intersection) and the neglected term lands in the 'dynamic error'. Mode "
-        "<code>full</code> keeps the transport terms. On straight segments the two agree.</p>"
-        "<table><tr><th class='l'>mode</th><th>empty intersections</th>"
-        "<th>truth in position box</th><th>truth in lateral-velocity interval</th></tr>"
-        f"{rows}</table>"
-    )
+def _paper_block(mode: dict[str, Any], warnings: list[str]) -> str:
+    parts = [
+        "<h3 id='paper'>Mode paper — NOT guaranteed</h3>",
+        f"<p class='bad'>{_e(mode.get('statement', ''))}.</p>",
+    ]
+    rows = []
+    for ch, lst in (mode.get("margins") or {}).items():
+        for r in lst:
+            rows.append([
+                _e(ch), _num(r.get("tau_s")), _num(r.get("halfwidth_median")),
+                _num(r.get("halfwidth_max")), f"{_num(r.get('stationary'))} "
+                f"{_e(r.get('stationary_unit', ''))}", _e(r.get("unit")),
+                _e((mode.get("verdict") or {}).get(ch, "")),
+            ])
+    parts.append(_table(["channel", "step [s]", "median half-width", "worst half-width",
+                         "paper's 95 % level (its own unit)", "unit", "verdict (paper)"], rows))
+    enc = mode.get("enclosure") or {}
+    if enc:
+        rows = [[_e(k), f"{_num(100 * v, 4)} %"] for k, v in enc.items()
+                if isinstance(v, int | float) and k not in ("steps",)]
+        parts.append("<h3>Truth inside (mode paper)</h3>" + _table(["quantity", "share"], rows))
+    ei = mode.get("empty_intersections") or {}
+    if ei.get("count"):
+        warnings.append(
+            f"mode paper: {ei['count']} empty intersection(s) settled by the rule "
+            f"'{ei.get('rule', '?')}' ({ei.get('by_flag', {})})"
+        )
+    return "".join(parts)
 
 
 def _dynamic_section(
@@ -447,72 +558,23 @@ def _dynamic_section(
     title = "Dynamic error margins" + (f" — {_e(label)}" if label else "")
     parts = [f"<section id='{sid}'><h2>{title}</h2>"]
     modes = dyn.get("modes") or {}
-    primary = str(dyn.get("primary_mode") or next(iter(modes), ""))
-    if primary in modes:
-        chans = (modes[primary] or {}).get("channels") or {}
-        items = []
-        for ch, c in chans.items():
-            if isinstance(c, dict) and "verdict" in c:
-                cls = "bad" if "superset" in str(c["verdict"]) else "ok"
-                items.append(
-                    f"<li><b>{_e(ch)}</b>: mean dynamic error "
-                    f"{_interval(c.get('dynamic_error_mean_interval'))} {_e(c.get('unit', ''))} "
-                    f"vs stationary 95 % level ±{_num(c.get('stationary_level_95'))}: "
-                    f"<span class='{cls}'>{_e(c['verdict'])}</span></li>"
-                )
-        parts.append(
-            f"<h3 id='verdict'>Verdict: dynamic vs stationary ({_e(primary)} mode)</h3>"
-            f"<ul>{''.join(items)}</ul>"
-        )
-    parts.append(_modes_explained(modes))
-    for mode, summ in modes.items():
-        if isinstance(summ, dict):
-            parts.append(_mode_table(str(mode), summ))
-            for flag, v in (summ.get("flags") or {}).items():
-                if isinstance(v, dict) and v.get("count"):
-                    first = v.get("first_times_s") or []
-                    warnings.append(
-                        f"{mode} mode: {flag.replace('_', ' ')} at {v['count']} step(s)"
-                        + (f" (first at t = {_num(first[0])} s)" if first else "")
-                        + f"; rule: {summ.get('empty_rule', '?')}"
-                    )
-    # Older or other layouts: a flat summary and verdict.
-    if not modes and isinstance(dyn.get("summary"), dict):
-        parts.append(_kv_table(dyn["summary"]))
-    if dyn.get("verdict") and not modes:
-        parts.append(f"<h3>Dynamic vs stationary</h3><p>{_e(dyn['verdict'])}</p>")
-    if dyn.get("with_model_error"):
-        parts.append(
-            "<h3>With the scenario's model-error bounds</h3>"
-            + _kv_table(dyn["with_model_error"].get("bounds") or {})
-        )
+    if not isinstance(modes, dict) or not modes:
+        parts.append("<p class='muted'>dynamic.json has no mode results.</p>")
+    if isinstance(modes.get("full"), dict):
+        parts.append(_full_block(modes["full"], warnings))
     shown = set()
     for stem, caption in DYN_FIGURES:
         if _listed(d, f"{stem}.png"):
             parts.append(_img(d / f"{stem}.png", caption))
             shown.add(stem)
+    if isinstance(modes.get("paper"), dict):
+        parts.append(_paper_block(modes["paper"], warnings))
     for png in sorted(d.glob("*.png")):
         if png.stem not in shown and png.stem != "allan" and _listed(d, png.name):
             parts.append(_img(png, png.stem.replace("_", " ")))
     if inp:
         parts.append(
             "<h3>Inputs</h3>" + _kv_table({k: v for k, v in inp.items() if k != "warnings"})
-        )
-    settings = dyn.get("settings") or {}
-    if settings:
-        parts.append("<h3>Settings</h3>" + _kv_table(settings, per_row=3))
-    bounds = dyn.get("imu_bounds") or {}
-    half = bounds.get("halfwidth_per_step") or {}
-    if half:
-        units = bounds.get("unit") or {}
-        parts.append(
-            f"<h3>Stationary IMU bounds used (source: {_e(bounds.get('source', '?'))})</h3>"
-            "<table><tr><th class='l'>channel</th><th>half-width per step</th></tr>"
-            + "".join(
-                f"<tr><td class='l'>{_e(k)}</td><td>{_num(v)} {_e(units.get(k, ''))}</td></tr>"
-                for k, v in half.items()
-            )
-            + "</table>"
         )
     parts.append(_run_block(d))
     parts.append("</section>")

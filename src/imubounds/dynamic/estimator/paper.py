@@ -1,4 +1,7 @@
-"""Put a drive log on one step, run the interval estimator, summarise (METHOD.md 3.2-3.4).
+"""Mode ``paper``: the paper's per-step interval estimator (METHOD.md 3.2-3.4), kept to
+reproduce the paper. NOT guaranteed: every output of this mode says so.
+
+Put a drive on one step, run the interval estimator, summarise.
 
 Steps: ``t_k = t_0 + k·step``. The IMU is averaged over (t_{k-1}, t_k] and its
 per-sample bound is taken for that averaging period (``k·sigma_c(N, B,
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,14 +37,13 @@ from imubounds.dynamic.aiding.compass import (
 )
 from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 from imubounds.dynamic.aiding.gps import gps_box_halfwidths, parse_gps_box
-from imubounds.dynamic.estimator import kernel as K
-from imubounds.errors import AnalysisError, OptionError
-from imubounds.io.drive_legacy import DriveLog
+from imubounds.dynamic.estimator import paper_kernel as K
+from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")
 CHANNEL_UNITS = {"accel_x": "m/s^2", "accel_y": "m/s^2", "gyro_z": "rad/s"}
-MODES = {"paper": 0, "full": 1}
+KINEMATICS = {"paper": 0, "full": 1}
 VELDIFF = {"contracted": 0, "ins": 1}
 FALLBACKS = {"keep": 0, "reset": 1, "qrelax": 2}
 
@@ -70,7 +73,7 @@ class EstimatorConfig:
 
     imu: ImuSpec
     step_s: float = 1.0
-    mode: str = "full"
+    kinematics: str = "paper"
     veldiff: str = "contracted"
     passes: int = 1
     window: int = 10
@@ -103,8 +106,8 @@ class EstimatorConfig:
     def check(self) -> None:
         if not (self.step_s > 0 and math.isfinite(self.step_s)):
             raise OptionError(f"--step must be a positive number of seconds, got {self.step_s!r}")
-        if self.mode not in MODES:
-            raise OptionError(f"--mode must be paper or full, got {self.mode!r}")
+        if self.kinematics not in KINEMATICS:
+            raise OptionError(f"--kinematics must be paper or full, got {self.kinematics!r}")
         if self.veldiff not in VELDIFF:
             raise OptionError(
                 f"--velocity-difference must be contracted or ins, got {self.veldiff!r}"
@@ -195,9 +198,47 @@ def _step_average(t_src: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.nd
     return out
 
 
-def prepare_steps(log: DriveLog, cfg: EstimatorConfig) -> StepData:
-    """Put ``log`` on the estimator's step (see the module docstring)."""
+def _arrays(drive: Any) -> Any:
+    """The drive's streams as the flat arrays this estimator works on."""
+    from types import SimpleNamespace
+
+    if drive.imu is None:
+        raise InputError(f"{drive.source}: no IMU stream")
+    g = drive.gnss
+    if g is None or not np.any(g.usable()):
+        raise InputError(
+            f"{drive.source}: mode paper needs GNSS fixes (no usable GPS fix in the drive)"
+        )
+    n = g.t.size
+    nan = np.full(n, np.nan)
+    ns = SimpleNamespace(
+        imu_t=drive.imu.t,
+        accel=drive.imu.accel,
+        gyro=drive.imu.gyro,
+        gps_t=g.t,
+        lat=g.lat_deg,
+        lon=g.lon_deg,
+        alt=g.alt_m if g.alt_m is not None else np.zeros(n),
+        hdop=g.hdop if g.hdop is not None else nan,
+        fix=g.usable(),
+        heading_t=drive.heading.t if drive.heading is not None else None,
+        heading=drive.heading.heading_rad if drive.heading is not None else None,
+        mag_t=drive.mag.t if drive.mag is not None else None,
+        mag=drive.mag.mag if drive.mag is not None else None,
+        source=drive.source,
+        warnings=list(drive.warnings),
+    )
+    if ns.heading is None and ns.mag is None:
+        raise InputError(
+            f"{drive.source}: mode paper needs a compass heading or a magnetometer"
+        )
+    return ns
+
+
+def prepare_steps(drive: Any, cfg: EstimatorConfig) -> StepData:
+    """Put a drive on the estimator's step (see the module docstring)."""
     cfg.check()
+    log = _arrays(drive)
     warnings: list[str] = list(log.warnings)
     counts: dict[str, int] = {}
     good = log.fix & np.isfinite(log.lat) & np.isfinite(log.lon)
@@ -287,7 +328,7 @@ def prepare_steps(log: DriveLog, cfg: EstimatorConfig) -> StepData:
     counts["steps_without_heading"] = int(np.isnan(heading[:, 0]).sum())
     if np.isnan(gps[0, 0]):
         raise AnalysisError(f"{log.source}: no GPS fix at the first step t={t[0]:.3f} s")
-    truth = _truth_at_steps(log, t, origin, cfg) if log.truth is not None else None
+    truth = _truth_at_steps(drive, t, origin) if drive.truth is not None else None
     return StepData(
         t=t,
         dt=dt,
@@ -305,35 +346,31 @@ def prepare_steps(log: DriveLog, cfg: EstimatorConfig) -> StepData:
 
 
 def _truth_at_steps(
-    log: DriveLog, t: np.ndarray, origin: tuple[float, float, float], cfg: EstimatorConfig
+    drive: Any, t: np.ndarray, origin: tuple[float, float, float]
 ) -> dict[str, np.ndarray]:
-    tr = log.truth
-    assert tr is not None
-    tt = tr["t"]
-    out: dict[str, np.ndarray] = {}
-    if "lat" in tr:
-        e, n, _ = geodetic_to_enu(
-            tr["lat"], tr["lon"], None, origin=(origin[0], origin[1], 0.0), method=cfg.geodesy
-        )
-    else:
-        e, n = tr["east"], tr["north"]
-    inside = (t >= tt[0] - 1e-9) & (t <= tt[-1] + 1e-9)
-    for name, vals in (
-        ("east", e),
-        ("north", n),
-        ("psi", np.unwrap(tr["psi"])),
-        ("u", tr["u"]),
-        ("v", tr["v"]),
+    from imubounds.dynamic.estimator.result import truth_at
+
+    tr = truth_at(drive, t, origin)
+    out: dict[str, np.ndarray] = {"east": tr["east"], "north": tr["north"]}
+    for k in ("psi", "u", "v"):
+        if tr.get(k) is not None:
+            out[k] = tr[k]
+    ex = drive.truth.extra
+    tt = np.asarray(drive.truth.t, dtype=float)
+    for name, keys in (
+        ("accel_x", ("true_accel_x", "accel_x")),
+        ("accel_y", ("true_accel_y", "accel_y")),
+        ("r", ("true_gyro_z", "r")),
     ):
-        out[name] = np.where(inside, np.interp(t, tt, vals), np.nan)
-    for name in ("accel_x", "accel_y", "r"):
-        if name not in tr:
-            continue
-        on_rows = np.all([np.any(np.abs(tt - tk) < 1e-6) for tk in t[1:]])
-        if on_rows and np.allclose(np.diff(tt), t[1] - t[0], rtol=1e-6):
-            out[name] = np.where(inside, np.interp(t, tt, tr[name]), np.nan)
-        else:
-            out[name] = _step_average(tt, tr[name], t)
+        for key in keys:
+            if key in ex:
+                vals = np.asarray(ex[key], dtype=float)
+                per_sample = drive.imu is not None and vals.size == drive.imu.t.size
+                if key.startswith("true_") and per_sample:
+                    out[name] = _step_average(np.asarray(drive.imu.t, float), vals, t)
+                else:
+                    out[name] = np.interp(t, tt, vals)
+                break
     return out
 
 
@@ -352,9 +389,13 @@ def initial_state(steps: StepData, cfg: EstimatorConfig) -> np.ndarray:
     return s0
 
 
-def run(log_or_steps: DriveLog | StepData, cfg: EstimatorConfig) -> EstimatorResult:
-    """Run the estimator (compiled loop) on a drive log or prepared steps."""
-    steps = log_or_steps if isinstance(log_or_steps, StepData) else prepare_steps(log_or_steps, cfg)
+def run(drive_or_steps: Any, cfg: EstimatorConfig) -> EstimatorResult:
+    """Run the estimator (compiled loop) on a drive or prepared steps."""
+    steps = (
+        drive_or_steps
+        if isinstance(drive_or_steps, StepData)
+        else prepare_steps(drive_or_steps, cfg)
+    )
     cfg.check()
     n = steps.t.size
     M = np.empty((n, 6))
@@ -385,7 +426,7 @@ def run(log_or_steps: DriveLog | StepData, cfg: EstimatorConfig) -> EstimatorRes
         dt,
         ep,
         ev,
-        MODES[cfg.mode],
+        KINEMATICS[cfg.kinematics],
         VELDIFF[cfg.veldiff],
         FALLBACKS[cfg.fallback],
         cfg.window,
@@ -493,17 +534,25 @@ def summarize(res: EstimatorResult) -> dict[str, Any]:
         enc: dict[str, Any] = {
             "position_box": float(np.mean(inside[ok])),
             "gps_box": float(np.mean(g_in[g_ok])) if g_ok.any() else float("nan"),
-            "heading": float(np.mean(_psi_contains(res.S[ok, 8], res.S[ok, 9], tr["psi"][ok]))),
-            "u": float(np.mean(((res.S[:, 4] <= tr["u"]) & (tr["u"] <= res.S[:, 5]))[ok])),
-            "v": float(np.mean(((res.S[:, 6] <= tr["v"]) & (tr["v"] <= res.S[:, 7]))[ok])),
             "steps": int(ok.sum()),
         }
-        h_ok = ok & np.isfinite(st.heading[:, 0])
-        if h_ok.any():
-            hc, hh = st.heading[h_ok, 0], st.heading[h_ok, 1]
-            enc["compass_interval"] = float(
-                np.mean(_psi_contains(hc - hh, hc + hh, tr["psi"][h_ok]))
+        if "psi" in tr:
+            pk = ok & np.isfinite(tr["psi"])
+            enc["heading"] = float(
+                np.mean(_psi_contains(res.S[pk, 8], res.S[pk, 9], tr["psi"][pk]))
             )
+            h_ok = pk & np.isfinite(st.heading[:, 0])
+            if h_ok.any():
+                hc, hh = st.heading[h_ok, 0], st.heading[h_ok, 1]
+                enc["compass_interval"] = float(
+                    np.mean(_psi_contains(hc - hh, hc + hh, tr["psi"][h_ok]))
+                )
+        for q, i in (("u", 4), ("v", 6)):
+            if q in tr:
+                qk = ok & np.isfinite(tr[q])
+                enc[q] = float(
+                    np.mean(((res.S[:, i] <= tr[q]) & (tr[q] <= res.S[:, i + 1]))[qk])
+                )
         out["enclosure"] = enc
     # empty intersections
     empties: dict[str, Any] = {}
@@ -531,59 +580,154 @@ def summarize(res: EstimatorResult) -> dict[str, Any]:
     return out
 
 
-def config_for_log(log: DriveLog, imu: ImuSpec | None = None, **overrides: Any) -> EstimatorConfig:
-    """Estimator settings for ``log``: a simulator directory supplies its own bounds.
-
-    For a ``sim`` log the IMU spec, averaging time, GPS CEP/box, compass
-    calibration (``compass_cal.csv``) and floor, and the zero initial speed
-    come from ``scenario.json``; ``overrides`` (non-None values) win.
-    """
-    from pathlib import Path
-
+def config_for_drive(drive: Any, imu: ImuSpec | None = None, **overrides: Any) -> EstimatorConfig:
+    """Settings of the paper estimator for a drive: ``drive.settings`` (drive.yaml) gives
+    the GNSS CEP, default HDOP and the compass calibration; ``overrides`` (non-None
+    values) win; the IMU spec defaults to the MTx datasheet."""
     from imubounds.dynamic.aiding.compass import read_calibration
     from imubounds.presets import XSENS_MTX
 
-    MTX_SPEC = {k: {t: XSENS_MTX.kind(k)[t] for t in ('N', 'B')} for k in ('accel', 'gyro')}
-
-    base: dict[str, Any] = {}
-    if log.layout == "sim":
-        est = log.settings.get("estimator", {})
-        assert isinstance(est, dict)
-        spec = est.get("imu_spec", MTX_SPEC)
-        base.update(
-            imu=ImuSpec(accel=dict(spec["accel"]), gyro=dict(spec["gyro"]), source="scenario.json"),
-            k_sigma=est.get("k_sigma", 3.0),
-            t_avg_s=est.get("t_avg_s"),
-            gps_cep_m=est.get("gps_cep_m", 3.0),
-            gps_box=est.get("gps_box", "p=0.999"),
-            compass_mode=est.get("compass_mode", "corrected"),
-            compass_floor_rad=est.get("compass_floor_rad", 0.5 * math.pi / 180),
-            initial_speed_bound=est.get("initial_speed_bound"),
-        )
-        cal = Path(log.source) / str(est.get("compass_cal", "compass_cal.csv"))
-        if cal.is_file():
-            base["deviation"] = read_calibration(str(cal))
-    if imu is not None:
-        base["imu"] = imu
-    if "imu" not in base:
-        base["imu"] = ImuSpec(
-            accel=dict(MTX_SPEC["accel"]), gyro=dict(MTX_SPEC["gyro"]), source="mtx datasheet"
-        )
+    st = drive.settings
+    base: dict[str, Any] = {
+        "gps_cep_m": st.gnss.cep_m,
+        "default_hdop": st.gnss.default_hdop,
+        "declination_rad": math.radians(st.heading.declination_deg),
+    }
+    cal = st.heading.calibration
+    if cal:
+        p = Path(cal)
+        if not p.is_absolute():
+            p = Path(str(drive.source)) / p
+        base["deviation"] = read_calibration(str(p))
+    base["imu"] = imu or ImuSpec(
+        accel={t: XSENS_MTX.accel[t] for t in ("N", "B")},
+        gyro={t: XSENS_MTX.gyro[t] for t in ("N", "B")},
+        source="mtx datasheet",
+    )
     base.update({k: v for k, v in overrides.items() if v is not None})
     return EstimatorConfig(**base)
-
-
-def scenario_model_error(log: DriveLog) -> dict[str, float]:
-    """The model-error bounds a simulator directory recorded (zeros otherwise)."""
-    est = log.settings.get("estimator", {}) if log.layout == "sim" else {}
-    me = est.get("model_error", {}) if isinstance(est, dict) else {}
-    return {
-        "nav_accel_bound": float(me.get("nav_accel_bound", 0.0)),
-        "jerk_bound": float(me.get("jerk_bound", 0.0)),
-    }
 
 
 def config_dict(cfg: EstimatorConfig) -> dict[str, Any]:
     d = asdict(cfg)
     d["deviation"] = cfg.deviation.to_dict() if cfg.deviation is not None else None
     return d
+
+
+# --------------------------------------------------------------------- mode block
+
+
+def imu_spec_from(drive: Any, noise: Any, imu_spec: str | None) -> ImuSpec:
+    """N and B per channel: --imu-spec > noise.json > drive.yaml > MTx datasheet (the
+    noise.json reader is :func:`imubounds.dynamic.estimator.budget.read_noise_json`)."""
+    from imubounds.dynamic.estimator.budget import resolve_noise
+
+    terms, _ = resolve_noise(drive.settings, noise, {"imu_spec": imu_spec}, None)
+    per = {ch: {"N": terms[ch].N, "B": terms[ch].B} for ch in CHANNELS}
+    src = {terms[ch].sources["N"] for ch in CHANNELS}
+    return ImuSpec(
+        accel=per["accel_x"], gyro=per["gyro_z"], per_channel=per, source=", ".join(sorted(src))
+    )
+
+
+def run_paper(drive: Any, noise: Any = None, **options: Any) -> Any:
+    """Mode paper on a drive: the per-step estimator and its dynamic.json block."""
+    from imubounds.dynamic.estimator.result import NOT_GUARANTEED, DynamicResult
+
+    imu_spec = options.pop("imu_spec", None)
+    known = set(EstimatorConfig.__dataclass_fields__) - {"imu"}
+    unknown = set(options) - known
+    if unknown:
+        raise OptionError(
+            f"unknown option(s) for mode paper: {', '.join(sorted(unknown))}; "
+            f"known: {', '.join(sorted(known))}"
+        )
+    cfg = config_for_drive(drive, imu_spec_from(drive, noise, imu_spec), **options)
+    res = run(drive, cfg)
+    return DynamicResult("paper", paper_block(res, NOT_GUARANTEED), paper=res)
+
+
+def paper_block(res: EstimatorResult, statement: str) -> dict[str, Any]:
+    """The schema block of mode paper (margins at tau = the step, the paper's level)."""
+    s = res.summary
+    cfg = res.config
+    st = res.steps
+    T = s["duration_s"]
+    out: dict[str, Any] = {
+        "mode": "paper",
+        "guaranteed": False,
+        "statement": statement,
+        "kinematics": cfg.kinematics,
+        "margins": {},
+        "verdict": {},
+        "budget": {},
+    }
+    sl = slice(1, st.t.size)
+    for c, ch in enumerate(CHANNELS):
+        co = s["channels"][ch]
+        alo, ahi = res.A[sl, 2 * c], res.A[sl, 2 * c + 1]
+        fin = np.isfinite(alo) & np.isfinite(ahi)
+        hw = 0.5 * (ahi - alo)[fin]
+        L95 = co["stationary_level_95"]
+        meas = st.meas[sl, c][fin]
+        elo, ehi = alo[fin] - meas, ahi[fin] - meas
+        own = "m/s" if ch.startswith("accel") else "rad"
+        out["margins"][ch] = [
+            {
+                "tau_s": float(st.dt),
+                "halfwidth_max": float(np.max(hw)) if hw.size else None,
+                "halfwidth_median": float(np.median(hw)) if hw.size else None,
+                "stationary": L95,
+                "stationary_unit": own,
+                "exceeds_fraction": float(np.mean((elo > L95) | (ehi < -L95)))
+                if hw.size
+                else 0.0,
+                "unit": CHANNEL_UNITS[ch],
+                "note": "the paper compares 1.96 N sqrt(T) (unit "
+                + own
+                + ") with margins in "
+                + CHANNEL_UNITS[ch]
+                + "; not unit-correct, kept to reproduce the paper",
+            }
+        ]
+        v = co["verdict"]
+        out["verdict"][ch] = (
+            "exceeds" if v.startswith("superset") else "consistent" if v.startswith("sharper")
+            else "undecided"
+        )
+        N = cfg.imu.coeffs(ch)["N"]
+        B = cfg.imu.coeffs(ch)["B"]
+        out["budget"][ch] = [
+            {"term": "white noise density N", "value": N, "unit": own + "/s^0.5",
+             "source": cfg.imu.source, "assumption": "the paper's sigma_c"},
+            {"term": "bias instability B", "value": B, "unit": CHANNEL_UNITS[ch],
+             "source": cfg.imu.source, "assumption": "divided by sqrt(t/dt) (the paper)"},
+            {"term": "k", "value": cfg.k_sigma, "unit": "", "source": "option",
+             "assumption": "one k per step (not over the trip)"},
+            {"term": "per-step half-width k sigma_c", "value": float(st.half[c]),
+             "unit": CHANNEL_UNITS[ch], "source": "computed", "assumption": statement},
+            {"term": "stationary 95 % level 1.96 N sqrt(T)", "value": L95, "unit": own,
+             "source": "computed", "assumption": f"T = {T:.1f} s"},
+        ]
+    if "enclosure" in s:
+        e = s["enclosure"]
+        out["enclosure"] = {
+            "position": e.get("position_box"),
+            "heading": e.get("heading"),
+            "u": e.get("u"),
+            "v": e.get("v"),
+            "gps_box": e.get("gps_box"),
+            "steps": e.get("steps"),
+        }
+        for ch, co in s["channels"].items():
+            if "enclosure" in co:
+                out["enclosure"][f"aided_{ch}"] = co["enclosure"]["aided"]
+    n_empty = sum(v["count"] for k, v in s["flags"].items() if "empty" in k)
+    out["empty_intersections"] = {
+        "count": n_empty,
+        "rule": s["empty_rule"],
+        "by_flag": {k: v["count"] for k, v in s["flags"].items() if v["count"]},
+    }
+    out["settings"] = config_dict(cfg)
+    out["details"] = s
+    return out

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imubounds.dynamic.estimator import _rules as R
-from imubounds.dynamic.estimator.kernel import (
+from imubounds.dynamic.estimator.paper_kernel import (
     F_AX_EMPTY,
     F_AY_EMPTY,
     F_GPS_EMPTY,

@@ -51,6 +51,7 @@ from imubounds.dynamic.estimator._rules import (
     sin,
     sub,
 )
+from imubounds.interval.qinter import qinter_1d as qrelaxed_1d
 
 # flag bits
 F_GPS_MISSING = 1
@@ -96,38 +97,6 @@ def heading_interval(centre: float, half: float, ref: float) -> tuple[float, flo
     lo = next_down(next_down(c - half))
     hi = next_up(next_up(c + half))
     return lo, hi
-
-
-@njit(cache=True)
-def qrelaxed_1d(lo: np.ndarray, hi: np.ndarray, m: int, q: int) -> tuple[float, float]:
-    """Hull of the points lying in at least ``m - q`` of the closed intervals ``[lo_i, hi_i]``.
-
-    Exact in one dimension (coverage only changes at endpoints); empty intervals
-    count as outliers; empty result if no point is covered often enough.
-    """
-    need = m - q
-    if need <= 0:
-        return -np.inf, np.inf
-    best_lo = np.inf
-    best_hi = -np.inf
-    for i in range(m):
-        if not (lo[i] <= hi[i]):
-            continue
-        c_lo = 0
-        c_hi = 0
-        for j in range(m):
-            if lo[j] <= hi[j]:
-                if lo[j] <= lo[i] <= hi[j]:
-                    c_lo += 1
-                if lo[j] <= hi[i] <= hi[j]:
-                    c_hi += 1
-        if c_lo >= need and lo[i] < best_lo:
-            best_lo = lo[i]
-        if c_hi >= need and hi[i] > best_hi:
-            best_hi = hi[i]
-    if best_lo > best_hi:
-        return np.inf, -np.inf
-    return best_lo, best_hi
 
 
 @njit(cache=True)

@@ -1,0 +1,60 @@
+"""The Python API of the dynamic analysis: :func:`dynamic_margins`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from imubounds.dynamic.estimator.result import DynamicResult
+from imubounds.errors import OptionError
+
+MODES = ("full", "paper")
+
+
+def dynamic_margins(
+    drive: Any,
+    *,
+    noise: str | Path | dict[str, Any] | None = None,
+    mode: str = "full",
+    **options: Any,
+) -> DynamicResult:
+    """Dynamic error margins of a drive's IMU.
+
+    Parameters
+    ----------
+    drive:
+        A :class:`imubounds.io.drive.Drive` (IMU plus any aiding sensors, SI units).
+    noise:
+        The IMU's noise: a ``noise.json`` of ``imubounds static`` (path or loaded
+        dict); when None, ``drive.settings.imu`` (drive.yaml) or the MTx preset.
+    mode:
+        ``"full"`` (default): guaranteed window-mean margins per averaging time with
+        verdicts, and the whole-trip interval smoother (docs/dynamic-method.md).
+        ``"paper"``: the paper's per-step estimator (not guaranteed).
+    **options:
+        Mode options (SI unless named otherwise): for ``full`` see
+        :data:`imubounds.dynamic.estimator.full.FULL_DEFAULTS` (``alpha``,
+        ``imu_spec``, ``max_tilt_deg``, ``lateral_bound``, ...); for ``paper`` see
+        :class:`imubounds.dynamic.estimator.paper.PaperConfig`.
+
+    Returns
+    -------
+    DynamicResult
+        ``.to_dict()`` (the dynamic.json block of the mode), ``.to_frame()`` (margins
+        table), ``.plot(ax=None)`` (margins vs tau).
+    """
+    from imubounds.interval.rounding import nearest
+
+    if mode not in MODES:
+        raise OptionError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    drive.check()
+    with nearest():
+        if mode == "full":
+            from imubounds.dynamic.estimator.full import run_full
+            from imubounds.dynamic.estimator.result import full_summary
+
+            run = run_full(drive, noise, **options)
+            return DynamicResult("full", full_summary(run, drive), full=run)
+        from imubounds.dynamic.estimator.paper import run_paper
+
+        return run_paper(drive, noise, **options)

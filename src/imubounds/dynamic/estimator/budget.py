@@ -1,0 +1,538 @@
+"""The error budget of mode ``full`` (docs/dynamic-method.md, sections 1-2; METHOD.md 4.1).
+
+Every interval the estimator prints as guaranteed is built from the terms here,
+and every term carries its value, unit, source (``option``, ``noise.json``,
+``drive.yaml``, ``preset``, ``default``) and the assumption it stands for.
+
+IMU channel model (channel ``c``, sample ``k`` = mean of the true signal over its
+sample period)::
+
+    y_k = (1 + s) x_k + m . x_perp,k + b_TO + d_F,k + d_KR,k + w_k + q_k
+
+* ``b_TO``: turn-on bias, constant over the trip (the smoother's bias state): within a
+  stated bound (``drive.yaml`` ``imu.accel_turn_on_mps2``/``gyro_turn_on_dps``, a preset's
+  ``turn_on_bias``, an option), or, when no figure is given, Gaussian with 1-sigma ``B``;
+* ``d_F``: in-run bias instability, the flicker process of the Allan model (flat
+  Allan deviation ``0.664 B`` over ``flicker_tau_range_s``), represented as the sum
+  of first-order Gauss-Markov processes of :func:`imubounds.stationary.noise_sim.
+  flicker_gm_terms` (what ``imubounds simulate-noise`` generates); where drive.yaml
+  states a drift bound (``imu.accel_bias_drift_mps2``, over windows of at least
+  ``bias_drift_window_s``) a window at least that long may use it instead;
+* ``d_KR``: rate random walk ``K`` from the trip start and rate ramp ``R``, bounded
+  uniformly over the trip by ``k_K K sqrt(T) + R T``;
+* ``w``: white noise of density ``N``; ``q``: quantization ``Q``;
+* ``s``, ``m``: scale-factor and misalignment bounds (deterministic).
+
+Every IMU noise quantity the estimator bounds is a weighted sum of samples
+``sum_k c_k (b_TO + d_F,k + w_k + q_k)``: zero-mean Gaussian with a variance this
+module computes exactly for the kernel (:func:`kernel_variance`,
+:func:`box_sum_variance`). Probabilistic bounds are at the level of a whole-trip
+probability ``1 - alpha``: ``alpha`` is split equally over the families of bounded
+quantities present (:class:`AlphaPlan`) and within a family by Bonferroni over
+its count: ``k = Phi^-1(1 - alpha_f / (2 n))``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.signal import lfilter
+from scipy.special import ndtri
+
+from imubounds.errors import InputError, OptionError
+from imubounds.units import DEG
+
+#: Channel names of the six IMU axes (body FLU).
+CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
+#: Unit of each channel's signal.
+UNITS: dict[str, str] = {c: ("m/s^2" if c.startswith("accel") else "rad/s") for c in CHANNELS}
+#: SI unit of each noise term, per sensor kind.
+TERM_UNITS: dict[str, dict[str, str]] = {
+    "accel": {"N": "m/s^1.5", "Q": "m/s", "B": "m/s^2", "K": "m/s^2.5", "R": "m/s^3"},
+    "gyro": {"N": "rad/s^0.5", "Q": "rad", "B": "rad/s", "K": "rad/s^1.5", "R": "rad/s^2"},
+}
+#: Default tau range of the flicker (bias-instability) model, s (that of the noise simulator).
+DEFAULT_FLICKER_RANGE_S: tuple[float, float] = (1.0, 1000.0)
+#: Default whole-trip probability that some stated probabilistic bound fails.
+DEFAULT_ALPHA = 0.01
+#: Defaults used when no source gives a figure (listed as assumed in the output).
+DEFAULT_SCALE = 0.005
+DEFAULT_MISALIGNMENT_RAD = 0.5 * DEG
+_U = 2.0**-53
+
+
+def kind_of(channel: str) -> str:
+    """``"accel"`` or ``"gyro"``."""
+    return "accel" if channel.startswith("accel") else "gyro"
+
+
+# --------------------------------------------------------------------------- terms
+
+
+@dataclass
+class Term:
+    """One row of a budget table."""
+
+    term: str
+    value: float
+    unit: str
+    source: str
+    assumption: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "term": self.term,
+            "value": self.value,
+            "unit": self.unit,
+            "source": self.source,
+            "assumption": self.assumption,
+        }
+
+
+@dataclass
+class ChannelNoise:
+    """Noise figures of one IMU channel in SI, with where each came from.
+
+    ``turn_on`` is a bound (``turn_on_kind="bound"``) or a 1-sigma figure
+    (``"sigma"``, the default taken when no figure is given); ``scale`` (fraction) and
+    ``misalignment_rad`` are bounds; ``drift_bound`` (None: not stated) bounds the mean
+    in-run bias wander over any window of at least ``drift_window_s``. ``sources`` maps
+    each field name to its source.
+    """
+
+    channel: str
+    N: float = 0.0
+    Q: float = 0.0
+    B: float = 0.0
+    K: float = 0.0
+    R: float = 0.0
+    turn_on: float = 0.0
+    turn_on_kind: str = "sigma"
+    drift_bound: float | None = None
+    drift_window_s: float = 1.0
+    scale: float = DEFAULT_SCALE
+    misalignment_rad: float = DEFAULT_MISALIGNMENT_RAD
+    flicker_tau_range_s: tuple[float, float] = DEFAULT_FLICKER_RANGE_S
+    sources: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        return kind_of(self.channel)
+
+    def gm_terms(self) -> list[tuple[float, float]]:
+        """(sigma, beta) of the Gauss-Markov processes representing the flicker ``B``."""
+        return _gm_terms(self.B, self.flicker_tau_range_s)
+
+    def turn_on_bound(self, k: float) -> float:
+        """Bound of the turn-on bias: the stated bound, or ``k`` sigma."""
+        return self.turn_on if self.turn_on_kind == "bound" else k * self.turn_on
+
+    def turn_on_var(self) -> float:
+        """Variance of the turn-on bias when it is a Gaussian figure (0 for a bound)."""
+        return 0.0 if self.turn_on_kind == "bound" else self.turn_on**2
+
+    def turn_on_det(self) -> float:
+        """The turn-on bound when it is a deterministic bound (0 for a Gaussian figure)."""
+        return self.turn_on if self.turn_on_kind == "bound" else 0.0
+
+    def flicker_sigma(self) -> float:
+        """Marginal standard deviation of the flicker process (signal units)."""
+        return math.sqrt(sum(s * s for s, _ in self.gm_terms()))
+
+
+@lru_cache(maxsize=64)
+def _gm_terms(B: float, tau_range: tuple[float, float]) -> list[tuple[float, float]]:
+    if B <= 0:
+        return []
+    from imubounds.stationary.noise_sim import flicker_gm_terms
+
+    return [(g.sigma, g.beta) for g in flicker_gm_terms(B, tau_range)]
+
+
+# ----------------------------------------------------------------------- noise input
+
+
+def read_noise_json(src: str | Path | Mapping[str, Any]) -> dict[str, dict[str, float]]:
+    """Noise terms per channel from ``imubounds static``'s noise.json (SI values).
+
+    The ONE reader of noise.json in the dynamic pipeline. For each channel it takes
+    ``noise.selected.<T>.value`` if present, else ``stationary.{N,B}``, else
+    ``noise.fit`` / ``noise.slope``. Terms a file does not give are absent.
+    """
+    where = "<noise>" if isinstance(src, Mapping) else str(src)
+    if isinstance(src, Mapping):
+        js: Any = src
+    else:
+        p = Path(src)
+        if not p.is_file():
+            raise InputError(
+                f"{p}: no such noise.json file (give the output of 'imubounds static')"
+            )
+        try:
+            js = json.loads(p.read_text())
+        except (OSError, ValueError) as err:
+            raise InputError(f"{p}: cannot read noise.json ({err})") from err
+    chans = js.get("channels") if isinstance(js, Mapping) else None
+    if not isinstance(chans, Mapping) or not chans:
+        raise InputError(
+            f"{where}: no 'channels' object; is this a noise.json of 'imubounds static'?"
+        )
+    out: dict[str, dict[str, float]] = {}
+    for ch, c in chans.items():
+        if ch not in CHANNELS or not isinstance(c, Mapping):
+            continue
+        vals: dict[str, float] = {}
+        noise = c.get("noise")
+        noise = noise if isinstance(noise, Mapping) else {}
+        stat = c.get("stationary")
+        stat = {t: stat.get(t) for t in ("N", "B")} if isinstance(stat, Mapping) else {}
+        # first source that gives a term wins: selected, stationary, fit, slope
+        for blk in (noise.get("selected"), stat, noise.get("fit"), noise.get("slope")):
+            if not isinstance(blk, Mapping):
+                continue
+            for t in ("Q", "N", "B", "K", "R"):
+                e = blk.get(t)
+                v = e.get("value") if isinstance(e, Mapping) else e
+                if (
+                    t not in vals
+                    and isinstance(v, int | float)
+                    and not isinstance(v, bool)
+                    and math.isfinite(v)
+                    and v >= 0
+                ):
+                    vals[t] = float(v)
+        if vals:
+            out[ch] = vals
+    if not out:
+        raise InputError(f"{where}: no channel with noise terms (accel_x ... gyro_z)")
+    return out
+
+
+def resolve_noise(
+    settings: Any,
+    noise: str | Path | Mapping[str, Any] | None,
+    overrides: Mapping[str, Any],
+    base_dir: Path | None = None,
+) -> tuple[dict[str, ChannelNoise], list[str]]:
+    """Noise figures of every channel, in the order option > noise.json > drive.yaml >
+    preset > default, and the list of assumptions made (defaults taken).
+
+    ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` may hold
+    ``imu_spec`` (preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``),
+    ``accel_turn_on``/``gyro_turn_on`` (SI, bounds), ``scale`` (fraction),
+    ``misalignment_deg``, ``flicker_tau_range_s``.
+    """
+    from imubounds.presets import get_preset
+
+    imu_s = getattr(settings, "imu", None)
+    assumed: list[str] = []
+    spec = overrides.get("imu_spec")
+    preset_name, preset_src = "mtx", "default"
+    datasheet: dict[str, float] = {}
+    if spec:
+        if "=" in str(spec):
+            datasheet = parse_datasheet(str(spec))
+        else:
+            preset_name, preset_src = str(spec), "option"
+    elif imu_s is not None and getattr(imu_s, "preset", None):
+        preset_name, preset_src = str(imu_s.preset), "drive.yaml"
+    preset = get_preset(preset_name)
+    yaml_ds: dict[str, float] = {}
+    if imu_s is not None:
+        for key, fac in (("accel_nd", 1.0), ("accel_bs", 1.0), ("gyro_nd", DEG), ("gyro_bs", DEG)):
+            v = getattr(imu_s, key, None)
+            if v is not None:
+                yaml_ds[key] = float(v) * fac
+    njson: dict[str, dict[str, float]] = {}
+    nsrc = "noise.json"
+    if noise is None and imu_s is not None and getattr(imu_s, "noise_json", None):
+        p = Path(imu_s.noise_json)
+        noise = p if p.is_absolute() or base_dir is None else base_dir / p
+        nsrc = "noise.json (drive.yaml)"
+    if noise is not None:
+        njson = read_noise_json(noise)
+    out: dict[str, ChannelNoise] = {}
+    for ch in CHANNELS:
+        kind = kind_of(ch)
+        cn = ChannelNoise(ch)
+        srcs = cn.sources
+        ds_key = {"accel": ("accel_nd", "accel_bs"), "gyro": ("gyro_nd", "gyro_bs")}[kind]
+        pre = preset.kind(kind)
+        for term in ("N", "B", "Q", "K", "R"):
+            val: float | None = None
+            src = ""
+            if term in ("N", "B") and datasheet:
+                val, src = datasheet[ds_key[0 if term == "N" else 1]], "option --imu-spec"
+            elif ch in njson and term in njson[ch]:
+                val, src = njson[ch][term], nsrc
+            elif term in ("N", "B") and ds_key[0 if term == "N" else 1] in yaml_ds:
+                val, src = yaml_ds[ds_key[0 if term == "N" else 1]], "drive.yaml"
+            elif term in pre:
+                val, src = float(pre[term]), f"preset {preset.key} ({preset_src})"
+            if val is None:
+                val, src = 0.0, "default"
+                if term in ("N", "B"):
+                    assumed.append(f"{ch}: no {term} figure anywhere; taken as 0")
+            setattr(cn, term, float(val))
+            srcs[term] = src
+        # turn-on bias (1-sigma)
+        key = f"{kind}_turn_on"
+        yaml_key = "accel_turn_on_mps2" if kind == "accel" else "gyro_turn_on_dps"
+        yv = getattr(imu_s, yaml_key, None) if imu_s is not None else None
+        cn.turn_on_kind = "bound"
+        if overrides.get(key) is not None:
+            cn.turn_on, srcs["turn_on"] = float(overrides[key]), "option"
+        elif yv is not None:
+            cn.turn_on = float(yv) * (1.0 if kind == "accel" else DEG)
+            srcs["turn_on"] = "drive.yaml"
+        elif "turn_on_bias" in pre:
+            cn.turn_on, srcs["turn_on"] = float(pre["turn_on_bias"]), f"preset {preset.key}"
+        else:
+            cn.turn_on, srcs["turn_on"] = cn.B, "default (1 sigma = B)"
+            cn.turn_on_kind = "sigma"
+            assumed.append(
+                f"{ch}: no turn-on bias figure: the turn-on bias is taken Gaussian with "
+                f"1-sigma equal to the bias instability B = {cn.B:.3g} {TERM_UNITS[kind]['B']}"
+            )
+        dkey = "accel_bias_drift_mps2" if kind == "accel" else "gyro_bias_drift_dps"
+        dv = getattr(imu_s, dkey, None) if imu_s is not None else None
+        if dv is not None:
+            cn.drift_bound = float(dv) * (1.0 if kind == "accel" else DEG)
+            srcs["drift_bound"] = "drive.yaml"
+            w = getattr(imu_s, "bias_drift_window_s", None)
+            cn.drift_window_s = float(w) if w is not None else 1.0
+        else:
+            srcs["drift_bound"] = "not stated"
+        # scale factor and misalignment
+        yv = getattr(imu_s, "scale_factor", None) if imu_s is not None else None
+        if overrides.get("scale") is not None:
+            cn.scale, srcs["scale"] = float(overrides["scale"]), "option"
+        elif yv is not None:
+            cn.scale, srcs["scale"] = float(yv), "drive.yaml"
+        elif "scale_factor" in pre:
+            cn.scale, srcs["scale"] = float(pre["scale_factor"]), f"preset {preset.key}"
+        else:
+            srcs["scale"] = "default"
+        yv = getattr(imu_s, "misalignment_deg", None) if imu_s is not None else None
+        if overrides.get("misalignment_deg") is not None:
+            cn.misalignment_rad = float(overrides["misalignment_deg"]) * DEG
+            srcs["misalignment_rad"] = "option"
+        elif yv is not None:
+            cn.misalignment_rad, srcs["misalignment_rad"] = float(yv) * DEG, "drive.yaml"
+        elif "misalignment_rad" in pre:
+            cn.misalignment_rad = float(pre["misalignment_rad"])
+            srcs["misalignment_rad"] = f"preset {preset.key}"
+        else:
+            srcs["misalignment_rad"] = "default"
+        fr = overrides.get("flicker_tau_range_s")
+        if fr is not None:
+            cn.flicker_tau_range_s = (float(fr[0]), float(fr[1]))
+            srcs["flicker_tau_range_s"] = "option"
+        else:
+            srcs["flicker_tau_range_s"] = "default (noise simulator)"
+        out[ch] = cn
+    if any(cn.sources["scale"] == "default" for cn in out.values()):
+        assumed.append(
+            f"scale-factor error within +-{100 * DEFAULT_SCALE:g} % (no figure given; default)"
+        )
+    if any(cn.sources["misalignment_rad"] == "default" for cn in out.values()):
+        assumed.append(
+            f"axis misalignment within +-{DEFAULT_MISALIGNMENT_RAD / DEG:g} deg (no figure given)"
+        )
+    return out, assumed
+
+
+def parse_datasheet(text: str) -> dict[str, float]:
+    """``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..`` (m/s^2/sqrt(Hz), m/s^2,
+    deg/s/sqrt(Hz), deg/s) -> SI values with the same keys."""
+    vals: dict[str, float] = {}
+    for part in text.split(","):
+        if "=" not in part:
+            raise OptionError(
+                f"--imu-spec {text!r}: use a preset name (mtx, vn100) or key=value pairs "
+                "accel_nd, accel_bs, gyro_nd, gyro_bs"
+            )
+        k, v = part.split("=", 1)
+        try:
+            vals[k.strip()] = float(v)
+        except ValueError as err:
+            raise OptionError(f"--imu-spec: {k.strip()}={v!r} is not a number") from err
+    need = {"accel_nd", "accel_bs", "gyro_nd", "gyro_bs"}
+    if set(vals) != need or any(not (x >= 0 and math.isfinite(x)) for x in vals.values()):
+        raise OptionError(f"--imu-spec needs exactly {', '.join(sorted(need))} (non-negative)")
+    vals["gyro_nd"] *= DEG
+    vals["gyro_bs"] *= DEG
+    return vals
+
+
+# ------------------------------------------------------------------------ variances
+
+
+def _gm_pair_sum(m: int, a: float) -> float:
+    """``sum_{j,k<m} exp(-a |j-k|)`` (a = beta * dt > 0), evaluated without cancellation."""
+    x = m * a
+    if x < 1e-3:
+        mm = float(m)
+        return mm * mm - a * (mm**3 - mm) / 3.0 + a * a * mm * mm * (mm * mm - 1.0) / 12.0
+    q = -math.expm1(-a)  # 1 - phi
+    Q = -math.expm1(-x)  # 1 - phi^m
+    phi = 1.0 - q
+    return (m * (1.0 + phi) * q - 2.0 * phi * Q) / (q * q)
+
+
+def box_sum_variance(
+    cn: ChannelNoise, m: int, dt: float, with_turn_on: bool = False, with_flicker: bool = True
+) -> float:
+    """Variance of ``sum_{k<m} (noise_k) * dt`` over ``m`` consecutive samples of period
+    ``dt`` (signal units x s)^2: white ``N``, quantization ``Q``, flicker ``B`` and
+    (optionally) the turn-on bias. Exact for the discrete model; inflated by 1e-9
+    relative for rounding."""
+    if m <= 0:
+        return 0.0
+    v = cn.N * cn.N * m * dt  # (N^2/dt) * m * dt^2
+    if cn.Q > 0:
+        v += 2.0 * cn.Q * cn.Q
+    if with_flicker:
+        for s, b in cn.gm_terms():
+            v += s * s * dt * dt * _gm_pair_sum(m, b * dt)
+    if with_turn_on:
+        v += cn.turn_on_var() * (m * dt) ** 2
+    return v * (1.0 + 1e-9)
+
+
+def kernel_variance(cn: ChannelNoise, c: np.ndarray, dt: float, with_turn_on: bool = True) -> float:
+    """Variance of ``sum_k c_k noise_k`` for sample weights ``c`` (the kernel-weighted
+    mean when ``sum c = 1``): white ``N^2 sum c^2 / dt``, quantization
+    ``Q^2 sum (diff c)^2 / dt^2``, flicker ``sum_i sigma_i^2 c' Phi_i c`` (two-sided
+    exponential filter, exact for the discrete Gauss-Markov processes) and the turn-on
+    ``(turn_on sum c)^2``. Inflated by 1e-9 relative for rounding."""
+    c = np.asarray(c, dtype=float)
+    v = cn.N * cn.N * float(np.dot(c, c)) / dt
+    if cn.Q > 0:
+        d = np.diff(np.concatenate([[0.0], c, [0.0]]))
+        v += cn.Q * cn.Q * float(np.dot(d, d)) / (dt * dt)
+    for s, b in cn.gm_terms():
+        phi = math.exp(-b * dt)
+        f = lfilter([1.0], [1.0, -phi], c)
+        g = lfilter([1.0], [1.0, -phi], c[::-1])[::-1]
+        v += s * s * float(np.dot(c, f + g - c))
+    if with_turn_on:
+        v += cn.turn_on_var() * float(np.sum(c)) ** 2
+    return v * (1.0 + 1e-9)
+
+
+def _gm_row_excess(m: int, a: float) -> float:
+    """``max_j sum_k (phi^|j-k| - phi^(m-1))`` over an m x m Gauss-Markov correlation
+    (phi = exp(-a)): a Gershgorin bound of the correlation minus its smallest entry."""
+    if m <= 1:
+        return 1.0
+    q = -math.expm1(-a)
+    j = (m - 1) // 2
+    left = -math.expm1(-a * (j + 1)) / q
+    right = -math.expm1(-a * (m - j)) / q
+    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + 1e-12)
+
+
+def centered_ms_bound(cn: ChannelNoise, m: int, dt: float, p: float) -> float:
+    """Upper bound, holding with probability >= 1 - p, of the mean square of the noise
+    deviation from its own mean over ``m`` consecutive samples,
+    ``(1/m) sum_k (n_k - mean n)^2`` with ``n`` = white + quantization + flicker (the
+    turn-on bias, constant, drops out).
+
+    Gaussian quadratic form ``z' M z`` with ``M = C^(1/2) P C^(1/2)``, ``P`` the centring
+    projection: Laurent & Massart (2000), ``P(z'Mz > tr M + 2 sqrt(tr(M^2) x) + 2 ||M|| x)
+    <= exp(-x)``, with ``tr M = tr C - 1'C1/m`` exact, ``||M|| <= ||P (C - a J) P||``
+    bounded per component by Gershgorin (a slow component is nearly constant over the
+    window, so it contributes little), ``tr(M^2) <= ||M|| tr M``.
+    """
+    if m <= 1:
+        return 0.0
+    x = -math.log(p)
+    var = cn.N * cn.N / dt + 2 * cn.Q * cn.Q / (dt * dt)
+    norm = cn.N * cn.N / dt + 4 * cn.Q * cn.Q / (dt * dt)
+    for s, b in cn.gm_terms():
+        var += s * s
+        norm += s * s * _gm_row_excess(m, b * dt)
+    tr = m * var - box_sum_variance(cn, m, dt, False) / (dt * dt) * (1 - 2e-9)
+    tr = max(tr, 0.0)
+    bound = tr + 2 * math.sqrt(norm * tr * x) + 2 * norm * x
+    return bound / m * (1 + 1e-9)
+
+
+# ----------------------------------------------------------------------------- alpha
+
+
+def k_two_sided(alpha: float, n: int) -> float:
+    """``Phi^-1(1 - alpha / (2 n))``: a Gaussian bound holding for all ``n`` quantities with
+    probability >= 1 - alpha (Bonferroni)."""
+    if n <= 0:
+        return 0.0
+    return float(-ndtri(alpha / (2.0 * n)))
+
+
+@dataclass
+class AlphaPlan:
+    """How the whole-trip ``alpha`` is split: equally over the families present, then
+    by Bonferroni over each family's count (the windows family: equally over its tau
+    levels first, then over the windows of a level)."""
+
+    alpha: float
+    counts: dict[str, int]
+    level_counts: dict[str, list[int]] = field(default_factory=dict)
+    descriptions: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def families(self) -> list[str]:
+        return [f for f, n in self.counts.items() if n > 0]
+
+    def share(self) -> float:
+        return self.alpha / max(1, len(self.families))
+
+    def k(self, family: str) -> float:
+        return k_two_sided(self.share(), self.counts.get(family, 0))
+
+    def k_level(self, family: str, level: int) -> float:
+        lv = self.level_counts[family]
+        n_levels = sum(1 for x in lv if x > 0)
+        return k_two_sided(self.share() / max(1, n_levels), lv[level])
+
+    def p_level(self, family: str, level: int) -> float:
+        """Per-item probability of a level of a split family (two-sided bounds use half)."""
+        lv = self.level_counts[family]
+        n_levels = sum(1 for x in lv if x > 0)
+        return self.share() / max(1, n_levels) / max(1, lv[level])
+
+    def p_radial(self, family: str) -> float:
+        """Per-item exceedance probability of a radial (2-D Rayleigh) bound of the family."""
+        return self.share() / max(1, self.counts.get(family, 0))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "alpha": self.alpha,
+            "split": "equal over the families below, Bonferroni within a family",
+            "families": {
+                f: {
+                    "count": n,
+                    "alpha": self.share(),
+                    "k": None if f in self.level_counts else self.k(f),
+                    "what": self.descriptions.get(f, ""),
+                    **(
+                        {"levels": self.level_counts[f]} if f in self.level_counts else {}
+                    ),
+                }
+                for f, n in self.counts.items()
+                if n > 0
+            },
+        }
+
+
+def safe_up(x: np.ndarray | float) -> Any:
+    """A value rounded up by a relative 4 u (to absorb the rounding of bound formulas)."""
+    return np.nextafter(np.asarray(x, dtype=float) * (1.0 + 4 * _U), np.inf)

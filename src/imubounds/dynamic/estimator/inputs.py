@@ -1,0 +1,1053 @@
+"""Inputs of mode ``full``: the IMU as integrable sample series, and the aiding sensors as
+intervals at their epochs, built without the IMU (docs/dynamic-method.md, section 3).
+
+* :class:`ImuSeries` -- the samples of each channel as a piecewise-constant signal
+  (sample ``k`` is the mean of the true signal over its period; the period is
+  ``(t_k - dt_k, t_k]`` for ``stamp="end"``, the default), with rigorous integrals
+  over any time span: ``integral(ch, a, b)`` returns an interval containing the
+  float sum of ``y dt`` (summation error bounded by Higham's ``gamma_n``), the
+  length of partially covered samples at the ends (for the sample-model error),
+  and spans with no sample (gaps, NaN rows) are bounded by the vehicle's limits.
+* :class:`Aiding` -- GNSS position boxes and velocity boxes, heading intervals
+  (compass after deviation correction), body-velocity intervals (DVL, wheel/CAN),
+  roll/pitch intervals: everything at its own epochs, in the local ENU frame at the
+  first fix, with the half-widths of the error budget.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from imubounds.dynamic.estimator.budget import CHANNELS, AlphaPlan, Term
+from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.interval import IntervalArray as IA
+from imubounds.units import DEG
+
+_U = 2.0**-53
+EARTH_RATE = 7.2921159e-5  #: rad/s
+
+
+def _up(x: Any) -> Any:
+    return np.nextafter(x, np.inf)
+
+
+def _dn(x: np.ndarray) -> np.ndarray:
+    return np.nextafter(x, -np.inf)
+
+
+class RangeExt:
+    """Range minimum / maximum queries over a fixed array (sparse tables, O(1) query)."""
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray | None = None) -> None:
+        hi = lo if hi is None else hi
+        self.mn = [np.asarray(lo, dtype=float)]
+        self.mx = [np.asarray(hi, dtype=float)]
+        k = 1
+        while (1 << k) <= self.mn[0].size:
+            h = 1 << (k - 1)
+            self.mn.append(np.minimum(self.mn[-1][:-h], self.mn[-1][h:]))
+            self.mx.append(np.maximum(self.mx[-1][:-h], self.mx[-1][h:]))
+            k += 1
+
+    def query(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(min lo, max hi) over inclusive index ranges ``i..j`` (``i <= j``)."""
+        i = np.asarray(i, dtype=np.int64)
+        j = np.asarray(j, dtype=np.int64)
+        n = np.maximum(j - i + 1, 1)
+        k = np.floor(np.log2(n)).astype(np.int64)
+        out_mn = np.empty(i.shape)
+        out_mx = np.empty(i.shape)
+        for kk in np.unique(k):
+            s = k == kk
+            a, b = i[s], j[s] - (1 << kk) + 1
+            out_mn[s] = np.minimum(self.mn[kk][a], self.mn[kk][b])
+            out_mx[s] = np.maximum(self.mx[kk][a], self.mx[kk][b])
+        return out_mn, out_mx
+
+
+
+# ------------------------------------------------------------------------ vehicle
+
+
+@dataclass
+class Vehicle:
+    """The vehicle bounds used (SI) and where they came from."""
+
+    kind: str = "ground"
+    max_speed: float = 70.0
+    max_accel: float = 10.0
+    max_jerk: float = 20.0
+    max_rate: float = 90.0 * DEG
+    max_ang_accel: float = 2.0 * math.pi
+    max_tilt: float = 10.0 * DEG
+    lateral_bound: float | None = None
+    vertical_bound: float = 0.0
+    sources: dict[str, str] = field(default_factory=dict)
+
+    def signal_bound(self, ch: str) -> float:
+        """|true signal| bound of a channel (for spans with no IMU sample); ``max_accel``
+        bounds the horizontal acceleration including the centripetal part."""
+        g = 9.84
+        if ch in ("accel_x", "accel_y"):
+            return self.max_accel + g * math.sin(self.max_tilt)
+        if ch == "accel_z":
+            return g + self.max_accel
+        return self.max_rate
+
+    def rate_of_change(self, ch: str) -> float:
+        """Bound on |d/dt| of a channel's true signal (sample-model edge error)."""
+        return self.max_jerk if ch.startswith("accel") else self.max_ang_accel
+
+
+def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str]]:
+    """Vehicle bounds: options > drive.yaml (``vehicle``) > defaults (listed as assumed)."""
+    vs = getattr(settings, "vehicle", None)
+    assumed_in = list(getattr(settings, "assumed", []) or [])
+    v = Vehicle()
+    notes: list[str] = []
+    table = (
+        ("kind", "kind", 1.0, None),
+        ("max_speed", "max_speed_mps", 1.0, "max_speed"),
+        ("max_accel", "max_accel_mps2", 1.0, "max_accel"),
+        ("max_jerk", "max_jerk_mps3", 1.0, "max_jerk"),
+        ("max_rate", "max_yaw_rate_dps", DEG, "max_rate_dps"),
+        ("max_tilt", "max_tilt_deg", DEG, "max_tilt_deg"),
+        ("lateral_bound", "lateral_speed_bound_mps", 1.0, "lateral_bound"),
+    )
+    for attr, key, fac, opt in table:
+        if opt is not None and opts.get(opt) is not None:
+            setattr(v, attr, float(opts[opt]) * fac)
+            v.sources[attr] = "option"
+            continue
+        val = getattr(vs, key, None) if vs is not None else None
+        if val is not None:
+            setattr(v, attr, val if attr == "kind" else float(val) * fac)
+            assumed = any(key.split("_")[0] in a and "vehicle" in a for a in assumed_in)
+            v.sources[attr] = "default (drive.yaml silent)" if assumed else "drive.yaml"
+        else:
+            v.sources[attr] = "default"
+    if opts.get("max_ang_accel_dps2") is not None:
+        v.max_ang_accel = float(opts["max_ang_accel_dps2"]) * DEG
+        v.sources["max_ang_accel"] = "option"
+    else:
+        v.sources["max_ang_accel"] = "default"
+    if v.kind != "ground":
+        v.vertical_bound = v.max_speed
+        notes.append(
+            f"vehicle kind {v.kind!r}: body vertical velocity w bounded by the speed bound "
+            f"{v.max_speed:g} m/s only (a ground vehicle has w = 0)"
+        )
+    return v, notes
+
+
+# --------------------------------------------------------------------------- IMU
+
+
+class Locator:
+    """Segment index of times on fixed boundaries, cached by the query (several signals
+    on the same segments ask for the same window ends)."""
+
+    def __init__(self, bnd: np.ndarray) -> None:
+        self.bnd = bnd
+        self._cache: dict[bytes, np.ndarray] = {}
+
+    def locate(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        key = t.tobytes() + bytes(str(t.shape), "ascii")
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = np.clip(np.searchsorted(self.bnd, t, side="right") - 1, 0, self.bnd.size - 2)
+            if len(self._cache) > 512:
+                self._cache.clear()
+            self._cache[key] = hit
+        return hit
+
+
+class PiecewiseSignal:
+    """A signal constant on segments ``[bnd[i], bnd[i+1])`` with rigorous integrals.
+
+    ``y`` holds the value of each segment (0 where ``unknown``); an unknown segment
+    contributes ``+-xmax`` per second. Prefix sums ``S`` (of ``y * length``) and
+    ``Z`` (of the integral ``Y``) are kept with the bounds of their rounding errors
+    (recursive summation: ``|error| <= gamma_n sum |terms|``, Higham).
+    """
+
+    def __init__(
+        self,
+        bnd: np.ndarray,
+        y: np.ndarray,
+        unknown: np.ndarray | None = None,
+        xmax: float = 0.0,
+        locator: Locator | None = None,
+    ) -> None:
+        self.bnd = np.asarray(bnd, dtype=float)
+        self.locator = locator if locator is not None else Locator(self.bnd)
+        self.unknown = (
+            np.zeros(self.bnd.size - 1, dtype=bool) if unknown is None else np.asarray(unknown)
+        )
+        self.y = np.where(self.unknown, 0.0, np.asarray(y, dtype=float))
+        self.xmax = float(xmax)
+        self._len = np.diff(self.bnd)
+        x = self.y * self._len
+        self.S = np.concatenate([[0.0], np.cumsum(x)])
+        self.A = np.concatenate([[0.0], np.cumsum(np.abs(x))])
+        self._any_unknown = bool(np.any(self.unknown))
+        self._UL: np.ndarray | None = None
+        self._Z: np.ndarray | None = None
+        self._ZA: np.ndarray | None = None
+        self._AB: np.ndarray | None = None
+
+    # prefix sums computed on first use
+    @property
+    def UL(self) -> np.ndarray:
+        if self._UL is None:
+            ul = np.where(self.unknown, self._len, 0.0)
+            self._UL = np.concatenate([[0.0], np.cumsum(ul)])
+        return self._UL
+
+    @property
+    def Z(self) -> np.ndarray:
+        if self._Z is None:
+            inc = self.S[:-1] * self._len + 0.5 * self.y * self._len * self._len
+            self._Z = np.concatenate([[0.0], np.cumsum(inc)])
+            self._ZA = np.concatenate([[0.0], np.cumsum(np.abs(inc))])
+        return self._Z
+
+    @property
+    def ZA(self) -> np.ndarray:
+        self.Z  # noqa: B018 - computes both
+        assert self._ZA is not None
+        return self._ZA
+
+    @property
+    def AB(self) -> np.ndarray:
+        if self._AB is None:
+            self._AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * self._len)])
+        return self._AB
+
+    @property
+    def n(self) -> int:
+        return int(self.bnd.size - 1)
+
+    def locate(self, t: np.ndarray) -> np.ndarray:
+        return self.locator.locate(t)
+
+    def cum(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``Y(t) = int_{bnd[0]}^t y`` (float), its rounding-error bound, and the length by
+        which ``t`` cuts a segment (min of the two parts; 0 on a boundary)."""
+        t = np.clip(np.asarray(t, dtype=float), self.bnd[0], self.bnd[-1])
+        i = self.locate(t)
+        part = t - self.bnd[i]
+        val = self.S[i] + self.y[i] * part
+        err = 1.01 * _U * ((i + 3) * self.A[i] + 3 * np.abs(self.y[i] * part))
+        ln = self.bnd[i + 1] - self.bnd[i]
+        cut = np.where((part > 0) & (part < ln), np.minimum(part, ln - part), 0.0)
+        return val, err, cut
+
+    def zcum(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``Z(t) = int_{bnd[0]}^t Y`` and its rounding-error bound."""
+        t = np.clip(np.asarray(t, dtype=float), self.bnd[0], self.bnd[-1])
+        i = self.locate(t)
+        p = t - self.bnd[i]
+        inc = self.S[i] * p + 0.5 * self.y[i] * p * p
+        val = self.Z[i] + inc
+        err = 1.01 * _U * ((i + 4) * self.ZA[i] + 4 * np.abs(inc) + (i + 3) * self.A[i] * p)
+        return val, err
+
+    def unknown_len(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Length without a value inside ``[a, b]`` (whole segments touched, conservative)."""
+        if not self._any_unknown:
+            return np.zeros(np.broadcast(np.asarray(a), np.asarray(b)).shape)
+        ia, ib = self.locate(np.asarray(a, float)), self.locate(np.asarray(b, float))
+        return np.maximum(self.UL[ib + 1] - self.UL[ia], 0.0)
+
+    def integral(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Interval ``(lo, hi)`` of ``int_a^b y dt`` (unknown spans: ``+-xmax``)."""
+        ya, ea, _ = self.cum(a)
+        yb, eb, _ = self.cum(b)
+        d = yb - ya
+        err = ea + eb + 2 * _U * np.abs(d) + self.unknown_len(a, b) * self.xmax
+        return _dn(d - err), _up(d + err)
+
+    def mean_cum(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Interval of the float mean of ``Y`` over ``[a, b]`` (``Y(a)`` where ``b == a``),
+        rounding included; unknown spans are NOT charged here (see :meth:`kernel_mean`)."""
+        a = np.asarray(a, dtype=float)
+        b = np.asarray(b, dtype=float)
+        L = b - a
+        ya, ea, _ = self.cum(a)
+        if not np.any(L > 0):
+            return _dn(ya - ea), _up(ya + ea)
+        za, zea = self.zcum(a)
+        zb, zeb = self.zcum(b)
+        pos = L > 0
+        if not np.any(pos):
+            return _dn(ya - ea), _up(ya + ea)
+        Ls = np.where(pos, L, 1.0)
+        num = zb - za
+        m = np.where(pos, num / Ls, ya)
+        e = np.where(
+            pos, (zea + zeb + 2 * _U * np.abs(num)) / Ls * (1 + 4 * _U) + 2 * _U * np.abs(m), ea
+        )
+        return _dn(m - e), _up(m + e)
+
+    def kernel_mean(
+        self, a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray, tau: np.ndarray
+    ) -> IA:
+        """Interval of the kernel mean ``(mean_{I2} Y - mean_{I1} Y) / tau`` of ``y`` (the
+        kernel of a difference of two means over ``I1 = [a1, b1]``, ``I2 = [a2, b2]``;
+        the boxcar on ``[a1, a2]`` when both have length 0). Unknown spans inside the
+        support ``[a1, b2]`` are charged ``+-xmax * length / tau`` (the kernel is at
+        most ``1/tau``)."""
+        l1, h1 = self.mean_cum(a1, b1)
+        l2, h2 = self.mean_cum(a2, b2)
+        d = IA(l2, h2) - IA(l1, h1)
+        uw = self.unknown_len(a1, b2) * self.xmax
+        if np.any(uw > 0):
+            d = d + IA(-uw, uw)
+        return d / IA(tau)
+
+    def abs_integral(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Upper bound of ``int_a^b |y|`` (whole segments touched; unknown: ``xmax``)."""
+        ia, ib = self.locate(np.asarray(a, float)), self.locate(np.asarray(b, float))
+        return (self.AB[ib + 1] - self.AB[ia]) * (1 + 1e-12) + self.unknown_len(a, b) * self.xmax
+
+
+@dataclass
+class ImuSeries:
+    """The six IMU channels as :class:`PiecewiseSignal` on common sample segments.
+
+    Times are relative to ``t0`` (s); sample ``k`` covers ``(t_k - dt_k, t_k]`` for
+    ``stamp="end"`` (``[t_k, t_k + dt_k)`` for ``"start"``, centred for
+    ``"centre"``); a gap longer than 1.5 periods becomes an unknown segment, bounded
+    by the vehicle's signal limits, as are NaN samples.
+    """
+
+    t0: float
+    bnd: np.ndarray
+    dt: float
+    sig: dict[str, PiecewiseSignal]
+    rate_bound: dict[str, float]
+    stamp: str
+    n_gaps: int = 0
+    available: dict[str, bool] = field(default_factory=dict)
+    max_len: float = 0.0
+
+    @property
+    def n(self) -> int:
+        return int(self.bnd.size - 1)
+
+    @property
+    def duration(self) -> float:
+        return float(self.bnd[-1] - self.bnd[0])
+
+    @classmethod
+    def from_drive(cls, drive: Any, stamp: str, vehicle: Vehicle) -> ImuSeries:
+        imu = drive.imu
+        if imu is None or imu.t.size < 2:
+            raise InputError(f"{drive.source}: the IMU stream needs at least 2 samples")
+        if stamp not in ("end", "start", "centre"):
+            raise OptionError(f"--imu-stamp must be end, start or centre, got {stamp!r}")
+        t_abs = np.asarray(imu.t, dtype=float)
+        t0 = float(t_abs[0])
+        t = t_abs - t0  # exact for nearby doubles (Sterbenz)
+        d = np.diff(t)
+        dt = float(np.median(d))
+        if not dt > 0:
+            raise InputError(f"{drive.source}: IMU time stamps do not increase")
+        big = d > 1.5 * dt
+        per = np.concatenate([[dt], np.where(big, dt, d)])
+        nxt = np.concatenate([np.where(big, dt, d), [dt]])
+        if stamp == "end":
+            start, end = t - per, t
+        elif stamp == "start":
+            start, end = t, t + nxt
+        else:
+            start, end = t - 0.5 * per, t + 0.5 * nxt
+        gaps = np.flatnonzero(start[1:] > end[:-1])
+        is_gap = np.zeros(t.size, dtype=bool)
+        seg_start = start
+        if gaps.size:
+            seg_start = np.insert(start, gaps + 1, end[gaps])
+            is_gap = np.insert(is_gap, gaps + 1, True)
+        bnd = np.maximum.accumulate(np.concatenate([seg_start, [end[-1]]]))
+        raw = {
+            "accel_x": imu.accel[:, 0],
+            "accel_y": imu.accel[:, 1],
+            "accel_z": imu.accel[:, 2],
+            "gyro_x": imu.gyro[:, 0],
+            "gyro_y": imu.gyro[:, 1],
+            "gyro_z": imu.gyro[:, 2],
+        }
+        sig: dict[str, PiecewiseSignal] = {}
+        avail: dict[str, bool] = {}
+        loc = Locator(bnd)
+        for ch in CHANNELS:
+            vals = np.asarray(raw[ch], dtype=float)
+            if gaps.size:
+                vals = np.insert(vals, gaps + 1, np.nan)
+            bad = ~np.isfinite(vals) | is_gap
+            avail[ch] = bool(np.any(~bad))
+            sig[ch] = PiecewiseSignal(
+                bnd, np.where(bad, 0.0, vals), bad, vehicle.signal_bound(ch), locator=loc
+            )
+        ln = np.diff(bnd)
+        return cls(
+            t0=t0,
+            bnd=bnd,
+            dt=dt,
+            sig=sig,
+            rate_bound={ch: vehicle.rate_of_change(ch) for ch in CHANNELS},
+            stamp=stamp,
+            n_gaps=int(gaps.size),
+            available=avail,
+            max_len=float(np.max(ln[~is_gap])) if np.any(~is_gap) else dt,
+        )
+
+    def count(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Number of segments touched by ``[a, b]``."""
+        s = self.sig["accel_x"]
+        return (s.locate(np.asarray(b, float)) - s.locate(np.asarray(a, float)) + 1).astype(
+            np.int64
+        )
+
+    def edge(self, t: np.ndarray) -> np.ndarray:
+        """Length by which ``t`` cuts a sample (sample-model error at a window end)."""
+        return self.sig["accel_x"].cum(t)[2]
+
+
+# -------------------------------------------------------------------------- aiding
+
+
+@dataclass
+class Aiding:
+    """Aiding intervals at their epochs (relative times in s, ENU m, model heading rad).
+
+    Arrays of lo/hi have NaN where a value is absent at an epoch.
+    """
+
+    origin: tuple[float, float, float] | None
+    # GNSS position
+    gnss_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gnss_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gnss_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gnss_h: np.ndarray = field(default_factory=lambda: np.zeros(0))  # box half-width, m
+    # GNSS velocity (nav, ENU), per-component half-width
+    gvel_ok: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    gvel_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gvel_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gvel_h: float = 0.0
+    gvel_hi: np.ndarray = field(default_factory=lambda: np.zeros(0))  # per fix
+    # heading (model convention, CCW from east), unwrapped centres
+    head_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_c: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_source: str = "none"
+    head_independent_of_imu: bool = True
+    head_from_course: bool = False  # heading derived from the GNSS course (same epochs)
+    # body velocity (DVL / wheel), body frame
+    bvel_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bvel_u: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bvel_v: np.ndarray | None = None
+    bvel_w: np.ndarray | None = None
+    bvel_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bvel_kind: str = ""
+    # attitude
+    att_t: np.ndarray | None = None
+    att_roll: np.ndarray | None = None
+    att_pitch: np.ndarray | None = None
+    att_bound: float = 0.0
+    att_source: str = ""
+    budget: dict[str, list[Term]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    gnss_rejected: list[tuple[float, float]] = field(default_factory=list)
+
+    @property
+    def has_gnss(self) -> bool:
+        return self.gnss_t.size > 0
+
+    @property
+    def has_gvel(self) -> bool:
+        return bool(self.gvel_ok.size and np.any(self.gvel_ok))
+
+    @property
+    def has_heading(self) -> bool:
+        return self.head_t.size > 0
+
+    @property
+    def has_bvel(self) -> bool:
+        return self.bvel_t.size > 0
+
+    @property
+    def has_attitude(self) -> bool:
+        return self.att_t is not None and self.att_t.size > 0
+
+    # -- roll / pitch intervals over any time span --------------------------------
+    def tilt_range(self, s0: np.ndarray, s1: np.ndarray, vehicle: Vehicle) -> tuple[Any, ...]:
+        """(roll_lo, roll_hi, pitch_lo, pitch_hi) valid at every time of ``[s0, s1]``.
+
+        Between two attitude samples the angle lies within the chord of the two
+        (each +-bound) +- ``max_ang_accel * gap^2 / 8`` (a bound on the second
+        derivative); before the first and after the last sample it may move at the
+        angular-rate bound; +-max_tilt without attitude.
+        """
+        s0 = np.asarray(s0, dtype=float)
+        s1 = np.asarray(s1, dtype=float)
+        if not self.has_attitude:
+            m = vehicle.max_tilt
+            z = np.full(s0.shape, m)
+            return -z, z, -z, z
+        assert self.att_t is not None and self.att_roll is not None
+        assert self.att_pitch is not None
+        at = self.att_t
+        na = at.size
+        gaps = np.diff(at) if na > 1 else np.zeros(1)
+        dev = vehicle.max_ang_accel * float(np.max(gaps)) ** 2 / 8.0
+        cap = vehicle.max_tilt + self.att_bound
+        if not hasattr(self, "_att_ext"):
+            self._att_ext = (RangeExt(self.att_roll), RangeExt(self.att_pitch))
+        out = []
+        t_first, t_last = float(at[0]), float(at[-1])
+        # attitude samples strictly inside [s0, s1] (the chord's vertices)
+        i_in = np.searchsorted(at, s0, side="right")
+        j_in = np.searchsorted(at, s1, side="left") - 1
+        has = j_in >= i_in
+        for arr, ext in zip((self.att_roll, self.att_pitch), self._att_ext, strict=True):
+            vals = []
+            for s in (s0, s1):
+                chord = np.interp(s, at, arr)  # clamps outside [first, last]
+                far = np.maximum(t_first - s, 0.0) + np.maximum(s - t_last, 0.0)
+                inside = far == 0.0
+                wid = self.att_bound + np.where(inside, dev, 0.0) + vehicle.max_rate * far
+                vals.append((chord - wid, chord + wid))
+            lo = np.minimum(vals[0][0], vals[1][0])
+            hi = np.maximum(vals[0][1], vals[1][1])
+            if np.any(has):
+                ii = np.clip(i_in[has], 0, na - 1)
+                jj = np.clip(np.maximum(j_in[has], i_in[has]), 0, na - 1)
+                mn, mx = ext.query(ii, jj)
+                lo[has] = np.minimum(lo[has], mn - self.att_bound - dev)
+                hi[has] = np.maximum(hi[has], mx + self.att_bound + dev)
+            lo = np.maximum(lo, -cap)
+            hi = np.minimum(hi, cap)
+            out += [_dn(lo * (1 + 1e-12) - 1e-15), _up(hi * (1 + 1e-12) + 1e-15)]
+        return out[0], out[1], out[2], out[3]
+
+    def tilt(self, t: np.ndarray, vehicle: Vehicle) -> tuple[Any, ...]:
+        """Roll/pitch intervals at times ``t`` (see :meth:`tilt_range`)."""
+        t = np.asarray(t, dtype=float)
+        return self.tilt_range(t, t, vehicle)
+
+
+#: rejection threshold of the GNSS-only outlier test, in units of the residual's DRMS
+#: (Rayleigh: a good fix is rejected with probability exp(-16) ~ 1e-7; rejecting a good
+#: fix only loses information, never soundness)
+REJECT_K = 4.0
+
+
+def gnss_outliers(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
+) -> np.ndarray:
+    """Fixes that contradict most predictions from their kept GNSS neighbours (pairs of
+    the three nearest kept fixes on each side): the residual from a pair's linear
+    interpolation, less the acceleration-bounded departure from the chord, exceeds
+    ``REJECT_K`` times its DRMS (``drms_i sqrt(1 + w_a^2 + w_b^2)`` for independent fix
+    errors) for more than half of the pairs. The worst offenders (local maxima of the
+    median excess) are rejected first and the test repeated with them removed, so that
+    two outliers in a row do not vouch for each other. A test on the GNSS alone (no
+    IMU): rejecting a good fix loses information, never soundness."""
+    m = t.size
+    kept = np.ones(m, dtype=bool)
+    if m < 3:
+        return ~kept
+    for _ in range(m):
+        idx = np.flatnonzero(kept)
+        if idx.size < 3:
+            break
+        ratio, any_valid = _worst_ratio(t[idx], e[idx], n[idx], drms[idx], a_max)
+        bad = any_valid & (ratio > 1.0)
+        if not np.any(bad):
+            break
+        # reject the local maxima of the excess among the offenders (within 2 kept fixes)
+        r = np.where(bad, ratio, -np.inf)
+        pad = np.concatenate([[-np.inf, -np.inf], r, [-np.inf, -np.inf]])
+        neigh = np.max(np.stack([pad[k:k + r.size] for k in (0, 1, 3, 4)]), axis=0)
+        top = bad & (r >= neigh)
+        kept[idx[top]] = False
+    return ~kept
+
+
+def _worst_ratio(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per fix: the median over the pairs of its neighbours (up to three on each side) of
+    (residual - departure) / (REJECT_K DRMS) -- a fix next to an outlier still agrees
+    with most pairs --, and whether any pair was valid."""
+    ratios = []
+    any_valid = np.zeros(t.size, dtype=bool)
+    for da in (1, 2, 3):
+        for db in (1, 2, 3):
+            ce, cn, dev, res, valid = _pair_residual(t, e, n, drms, a_max, da, db)
+            d = (np.hypot(e - ce, n - cn) - dev) / (REJECT_K * res)
+            ratios.append(np.where(valid, d, np.nan))
+            any_valid |= valid
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(np.stack(ratios), axis=0)
+    return np.where(any_valid, med, 0.0), any_valid
+
+
+def _pair_residual(
+    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float, da: int,
+    db: int,
+) -> tuple[np.ndarray, ...]:
+    """Interpolation of each fix from fixes i - da and i + db: centre, the chord's
+    departure bound ``a_max (t - t_a)(t_b - t)/2``, the residual's DRMS, validity."""
+    m = t.size
+    idx = np.arange(m)
+    ia, ib = idx - da, idx + db
+    valid = (ia >= 0) & (ib < m)
+    ia, ib = np.clip(ia, 0, m - 1), np.clip(ib, 0, m - 1)
+    span = np.where(valid, t[ib] - t[ia], 1.0)
+    w = np.where(valid, (t - t[ia]) / span, 0.0)
+    ce = e[ia] + (e[ib] - e[ia]) * w
+    cn = n[ia] + (n[ib] - n[ia]) * w
+    dev = a_max * (t - t[ia]) * (t[ib] - t) / 2
+    res = np.sqrt(drms**2 + ((1 - w) * drms[ia]) ** 2 + (w * drms[ib]) ** 2)
+    return ce, cn, dev, res, valid
+
+
+def _miss_of(ag: Aiding, drms: np.ndarray, out: np.ndarray, a_max: float) -> np.ndarray:
+    """By how much each rejected fix exceeds the test's threshold of its nearest pair (m)."""
+    best = np.full(ag.gnss_t.size, np.inf)
+    for da, db in ((1, 1), (2, 1), (1, 2), (2, 2)):
+        ce, cn, dev, res, valid = _pair_residual(
+            ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, a_max, da, db
+        )
+        d = np.hypot(ag.gnss_e - ce, ag.gnss_n - cn) - dev - REJECT_K * res
+        best = np.minimum(best, np.where(valid, d, np.inf))
+    return best[out]
+
+
+def _rel(t: np.ndarray, t0: float) -> np.ndarray:
+    return np.asarray(t, dtype=float) - t0
+
+
+#: body-velocity kinds measured at the wheels, and the scale-factor bound they get when
+#: ``velocity.scale`` is not stated: the rolling radius of a road tyre varies by 1-3 %
+#: with pressure, wear and load.
+WHEEL_KINDS = ("wheel", "can", "odometry")
+WHEEL_SCALE_DEFAULT = 0.03
+
+
+def lateral_h_bound(vehicle: Vehicle) -> float | None:
+    """Bound of the horizontal lateral velocity ``|cos(roll) v - sin(roll) w|`` (m/s),
+    None when no lateral bound is stated."""
+    if vehicle.lateral_bound is None:
+        return None
+    return float(_up(vehicle.lateral_bound + math.sin(vehicle.max_tilt) * vehicle.vertical_bound))
+
+
+def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
+    """Heading from the GNSS course when there is no heading sensor: with the lateral
+    velocity bound ``vl`` and a vehicle that does not reverse (the horizontal velocity
+    points forward), ``|psi - chi| <= asin(vl / S)``; with the velocity radius ``R``,
+    ``S >= |Vm| - R`` and ``|chi - chi_m| <= asin(R / |Vm|)``. Epochs slower than
+    ``R + vl`` give no heading. Holds on the GNSS-velocity event (no extra probability)."""
+    vh = lateral_h_bound(vehicle)
+    if vh is None:
+        ag.notes.append("no heading sensor and no lateral velocity bound: no heading")
+        return
+    if opts.get("reverses"):
+        ag.notes.append("the vehicle may reverse (--reverses): no heading from the GNSS course")
+        return
+    ok = ag.gvel_ok
+    ve, vn, R = ag.gvel_e, ag.gvel_n, ag.gvel_hi
+    s = np.hypot(np.nan_to_num(ve), np.nan_to_num(vn))
+    use = ok & (s * (1 - 1e-9) > R + vh)
+    if not np.any(use):
+        ag.notes.append("no GNSS velocity fast enough for a heading from the course")
+        return
+    s_u, R_u = s[use], R[use]
+    e_chi = np.arcsin(np.minimum(1.0, R_u / s_u))
+    d = np.arcsin(np.minimum(1.0, vh / ((s_u - R_u) * (1 - 1e-12))))
+    half = _up((e_chi + d) * (1 + 1e-9) + 1e-15)
+    chi = np.arctan2(vn[use], ve[use])
+    ag.head_t = ag.gnss_t[use]
+    ag.head_c = np.unwrap(chi)
+    ag.head_h = half
+    ag.head_source = "GNSS course"
+    ag.head_independent_of_imu = True
+    ag.head_from_course = True
+    ag.budget["heading"] = [
+        Term(
+            "lateral velocity bound",
+            vh,
+            "m/s",
+            vehicle.sources.get("lateral_bound", "default"),
+            "|horizontal lateral velocity| (vehicle bound, plus sin(max tilt) x vertical bound)",
+        ),
+        Term(
+            "median half-width",
+            float(np.median(half)) / DEG,
+            "deg",
+            "computed",
+            "asin(R / |Vm|) + asin(vl / (|Vm| - R)) at fixes faster than R + vl",
+        ),
+    ]
+    ag.notes.append(
+        f"heading from the GNSS course at {int(use.sum())} of {int(ok.sum())} velocity "
+        "fixes: assumes the vehicle does not reverse and the lateral velocity bound "
+        "(--reverses turns it off)"
+    )
+
+
+def build_aiding(
+    drive: Any,
+    t0: float,
+    vehicle: Vehicle,
+    alpha: AlphaPlan,
+    opts: dict[str, Any],
+    heading: Any,
+) -> Aiding:
+    """Aiding intervals (IMU-free) with their budget rows. ``alpha`` must already count
+    the GNSS fixes, GNSS velocity components and heading epochs."""
+    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.dynamic.aiding.gps import cep_to_drms
+
+    st = drive.settings
+    ag = Aiding(origin=None)
+    g = drive.gnss
+    if g is not None and opts.get("use_gnss", True):
+        ok = g.usable()
+        if np.any(ok):
+            lat, lon = g.lat_deg[ok], g.lon_deg[ok]
+            alt = g.alt_m[ok] if g.alt_m is not None else None
+            e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.get("geodesy", "wgs84"))
+            ag.origin = origin
+            ag.gnss_t = _rel(g.t[ok], t0)
+            ag.gnss_e, ag.gnss_n = e, n
+            cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
+            dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
+            hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
+            hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
+            drms = hd * cep_to_drms(cep)
+            if g.h_acc_m is not None:
+                # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
+                ha = g.h_acc_m[ok].astype(float)
+                drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
+            p = alpha.p_radial("gnss_position")
+            fac = math.sqrt(-math.log(p))
+            lever = getattr(st, "lever_arm_m", None)
+            lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
+            ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
+            src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
+            ag.budget["gnss_position"] = [
+                Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
+                Term(
+                    "box half-width factor",
+                    fac,
+                    "x DRMS",
+                    "alpha plan",
+                    f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
+                    f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
+                    "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
+                ),
+                Term(
+                    "lever arm",
+                    lev,
+                    "m",
+                    "drive.yaml" if lever is not None else "default",
+                    "horizontal antenna offset from the IMU, added to the position radius "
+                    "and (x the yaw-rate bound) to the velocity radius",
+                ),
+                Term(
+                    "median box half-width",
+                    float(np.median(ag.gnss_h)),
+                    "m",
+                    "computed",
+                    "square box around the circle of that radius",
+                ),
+            ]
+            out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
+            if np.any(out):
+                misses = _miss_of(ag, drms, out, vehicle.max_accel)
+                ag.gnss_rejected = [
+                    (float(ag.gnss_t[i] + t0), float(miss))
+                    for i, miss in zip(np.flatnonzero(out), misses, strict=True)
+                ]
+                keep = ~out
+                for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h"):
+                    setattr(ag, name, getattr(ag, name)[keep])
+                ok_idx = np.flatnonzero(ok)[keep]
+                ok = np.zeros_like(ok)
+                ok[ok_idx] = True
+            vel = g.velocity_ne()
+            if vel is not None and opts.get("use_gnss_velocity", True):
+                vn, ve = vel[0][ok], vel[1][ok]
+                good = np.isfinite(vn) & np.isfinite(ve)
+                if np.any(good):
+                    sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
+                    # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
+                    # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
+                    p_v = alpha.p_radial("gnss_velocity")
+                    k = math.sqrt(-2.0 * math.log(p_v))
+                    ag.gvel_ok = good
+                    ag.gvel_e = np.where(good, ve, np.nan)
+                    ag.gvel_n = np.where(good, vn, np.nan)
+                    sig_i = np.full(good.size, sig)
+                    va = getattr(g, "vel_acc_mps", None)
+                    if va is not None and not opts.get("gnss_vel_sigma"):
+                        va = np.asarray(va, dtype=float)[ok]
+                        sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
+                    # a lever arm adds omega x lever to the antenna velocity
+                    lv_v = lev * vehicle.max_rate
+                    ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
+                    ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
+                    ag.budget["gnss_velocity"] = [
+                        Term(
+                            "velocity sigma per component",
+                            sig,
+                            "m/s",
+                            "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
+                            "Gaussian error of north and east velocity",
+                        ),
+                        Term(
+                            "radius factor",
+                            k,
+                            "x sigma",
+                            "alpha plan",
+                            f"Rayleigh radial error, P(outside) = {p_v:.3g} per fix "
+                            f"({int(good.sum())} fixes)",
+                        ),
+                        Term(
+                            "radius",
+                            ag.gvel_h,
+                            "m/s",
+                            "computed",
+                            "bounds the 2-D velocity error, hence each component, the speed "
+                            "and (asin(radius / speed)) the course",
+                        ),
+                    ]
+    # heading
+    if heading is not None and heading.t.size:
+        from imubounds.frames import compass_to_model
+
+        k = alpha.k("heading")
+        ag.head_t = _rel(heading.t, t0)
+        cen = np.unwrap(np.asarray(compass_to_model(heading.heading_rad), dtype=float))
+        ag.head_c = cen
+        half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
+        ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
+        ag.head_source = heading.source
+        ag.head_independent_of_imu = heading.independent_of_imu
+        ag.budget["heading"] = [
+            Term(
+                "deviation bound",
+                heading.deviation_bound_rad / DEG,
+                "deg",
+                heading.deviation_source,
+                "after the one-cycle deviation correction",
+            ),
+            Term(
+                "noise sigma",
+                heading.noise_sigma_rad / DEG,
+                "deg",
+                heading.noise_source,
+                "Gaussian; x (1 + |B| + |C|) for the correction evaluated at the noisy reading",
+            ),
+            Term("k", k, "", "alpha plan", f"Bonferroni over {cen.size} heading epochs"),
+            Term("half-width", half / DEG, "deg", "computed", "deviation + k x noise"),
+        ]
+    if heading is not None:
+        ag.notes += heading.notes
+    if not ag.has_heading and ag.has_gvel:
+        _course_heading(ag, vehicle, opts)
+    # body velocity
+    vel_s = drive.velocity
+    if vel_s is not None and opts.get("use_velocity", True):
+        bound = float(opts.get("velocity_bound") or st.velocity.bound_mps)
+        scale = float(st.velocity.scale)
+        scale_src = "drive.yaml"
+        if "velocity.scale" in drive.settings.defaulted and vel_s.kind in WHEEL_KINDS:
+            # a wheel speed scales with the tyre's rolling radius (pressure, wear, load)
+            scale = WHEEL_SCALE_DEFAULT
+            scale_src = "default for a wheel speed"
+            ag.notes.append(
+                f"{vel_s.kind} speed: scale-factor error assumed within "
+                f"{100 * WHEEL_SCALE_DEFAULT:g} % (tyre rolling radius; set velocity.scale)"
+            )
+        ag.bvel_t = _rel(vel_s.t, t0)
+        ag.bvel_u = np.asarray(vel_s.u_mps, dtype=float)
+        ag.bvel_v = None if vel_s.v_mps is None else np.asarray(vel_s.v_mps, dtype=float)
+        ag.bvel_w = None if vel_s.w_mps is None else np.asarray(vel_s.w_mps, dtype=float)
+        spd = np.abs(ag.bvel_u)
+        if ag.bvel_v is not None:
+            spd = np.hypot(spd, np.nan_to_num(ag.bvel_v))
+        ag.bvel_h = _up((bound + scale * spd) * (1 + 1e-12))
+        ag.bvel_kind = vel_s.kind
+        ag.budget["velocity"] = [
+            Term(
+                "bound",
+                bound,
+                "m/s",
+                "option" if opts.get("velocity_bound") else "drive.yaml",
+                f"{vel_s.kind} body-velocity error per component",
+            ),
+            Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),
+        ]
+    # attitude
+    att = drive.attitude
+    if att is not None and opts.get("use_attitude", True):
+        bd = opts.get("attitude_bound_deg")
+        ag.att_bound = float(bd if bd is not None else st.attitude.bound_deg) * DEG
+        ag.att_t = _rel(att.t, t0)
+        ag.att_roll = np.asarray(att.roll_rad, dtype=float)
+        ag.att_pitch = np.asarray(att.pitch_rad, dtype=float)
+        ag.att_source = att.source
+        ok = np.isfinite(ag.att_roll) & np.isfinite(ag.att_pitch)
+        ag.att_t, ag.att_roll, ag.att_pitch = ag.att_t[ok], ag.att_roll[ok], ag.att_pitch[ok]
+        ag.budget["attitude"] = [
+            Term(
+                "roll/pitch bound",
+                ag.att_bound / DEG,
+                "deg",
+                "option" if bd is not None else "drive.yaml",
+                f"attitude stream ({att.source}) error; between samples widened by the "
+                "angular-rate bound",
+            )
+        ]
+        if att.source == "ahrs":
+            ag.notes.append(
+                "the attitude stream is an AHRS output computed from this IMU: the gravity "
+                "terms of the accelerometer channels are then not independent of them"
+            )
+    else:
+        ag.budget["attitude"] = [
+            Term(
+                "max tilt",
+                vehicle.max_tilt / DEG,
+                "deg",
+                vehicle.sources.get("max_tilt", "default"),
+                "no attitude stream: roll and pitch only bounded by the vehicle's max tilt",
+            )
+        ]
+    return ag
+
+
+# ------------------------------------------------------------------- heading input
+
+
+@dataclass
+class HeadingInput:
+    """A heading stream ready for intervals: compass heading (rad, clockwise from north)
+    after deviation correction, with its deviation bound and noise sigma."""
+
+    t: np.ndarray
+    heading_rad: np.ndarray
+    deviation_bound_rad: float
+    noise_sigma_rad: float
+    source: str
+    deviation_source: str = ""
+    noise_source: str = ""
+    noise_gain: float = 1.0
+    independent_of_gnss: bool = True
+    independent_of_imu: bool = True
+    notes: list[str] = field(default_factory=list)
+
+
+def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
+    """The heading source of a drive, through the one compass function
+    :func:`imubounds.dynamic.aiding.compass.compass_heading` (calibration, declination
+    and deviation bound from ``drive.yaml: heading``; ``--declination``,
+    ``--heading-deviation`` and ``--heading-noise`` override).
+
+    A heading that cannot be calibrated with the default settings (a magnetometer whose
+    drive turns too little for an ellipse fit, say) leaves the drive without a heading
+    sensor, with a note saying why; asked for explicitly (``heading.fit`` or
+    ``heading.use`` in ``drive.yaml``) the error is the user's to see.
+    """
+    from imubounds.dynamic.aiding import compass as C
+
+    if drive.heading is None and drive.mag is None:
+        return None
+    st = drive.settings.heading
+    cal = opts.get("compass_cal")
+    if cal is not None:
+        from imubounds.io.validate import check_input_path
+
+        cal = str(check_input_path(cal, what="compass calibration", option="--compass-cal"))
+    try:
+        ch = C.compass_heading(
+            drive,
+            fit=opts.get("compass_fit"),
+            calibration=cal,
+            declination_deg=opts.get("declination_deg"),
+            deviation_deg=opts.get("heading_deviation_deg"),
+        )
+    except (InputError, AnalysisError) as exc:
+        explicit = (
+            cal is not None
+            or opts.get("compass_fit") is not None
+            or not {"heading.fit", "heading.use"} <= set(drive.settings.defaulted)
+        )
+        if explicit:
+            raise
+        return HeadingInput(
+            t=np.zeros(0),
+            heading_rad=np.zeros(0),
+            deviation_bound_rad=0.0,
+            noise_sigma_rad=0.0,
+            source="none",
+            notes=[f"heading sensor not used: {exc}"],
+        )
+    noise = opts.get("heading_noise_deg")
+    noise_rad = float(noise) * DEG if noise is not None else float(ch.noise_sigma_rad)
+    gain = 1.0
+    for key in ("swing", "gnss_course"):
+        cal = ch.detail.get(key)
+        if isinstance(cal, dict) and "B_rad" in cal and "C_rad" in cal:
+            # the correction is evaluated at the noisy reading
+            gain = 1.0 + abs(float(cal["B_rad"])) + abs(float(cal["C_rad"]))
+    dev_src = f"compass_heading() ({ch.calibration})"
+    if opts.get("heading_deviation_deg") is not None:
+        dev_src = "option"
+    elif st.deviation_deg is not None:
+        dev_src = "drive.yaml"
+    return HeadingInput(
+        t=np.asarray(ch.t, dtype=float),
+        heading_rad=np.asarray(ch.heading_rad, dtype=float),
+        deviation_bound_rad=float(ch.deviation_bound_rad),
+        noise_sigma_rad=noise_rad,
+        source=str(ch.source),
+        deviation_source=dev_src,
+        noise_source="option" if noise is not None else "compass_heading()",
+        noise_gain=gain,
+        independent_of_gnss=bool(ch.independent_of_gnss),
+        independent_of_imu=bool(ch.independent_of_imu),
+        notes=list(ch.notes) + list(ch.assumed),
+    )
+
+
+def check_overlap(imu: ImuSeries, ag: Aiding, source: str) -> None:
+    """The aiding must overlap the IMU in time."""
+    ts = [x for x in (ag.gnss_t, ag.head_t, ag.bvel_t) if x.size]
+    if not ts:
+        raise InputError(
+            f"{source}: no usable aiding sensor (GNSS fixes, body velocity or heading)"
+        )
+    lo = min(float(x[0]) for x in ts)
+    hi = max(float(x[-1]) for x in ts)
+    if hi < imu.bnd[0] or lo > imu.bnd[-1]:
+        raise InputError(
+            f"{source}: the aiding sensors ({lo + imu.t0:.3f}..{hi + imu.t0:.3f} s) do not "
+            f"overlap the IMU ({imu.bnd[0] + imu.t0:.3f}..{imu.bnd[-1] + imu.t0:.3f} s); "
+            "check the clocks"
+        )

@@ -1,0 +1,458 @@
+"""What ``dynamic_margins`` returns: :class:`DynamicResult` (one mode's results).
+
+``to_dict()`` is the ``modes.<mode>`` block of dynamic.json (schema in
+docs/dynamic-method.md), ``to_frame()`` the margins table, ``plot(ax=None)`` the
+margins against the averaging time on log-log axes with the stationary band.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from imubounds.dynamic.estimator import smoother as SM
+from imubounds.dynamic.estimator.budget import CHANNELS, UNITS
+
+SCHEMA_VERSION = "imubounds-dynamic/2"
+PAPER_CHANNELS = ("accel_x", "accel_y", "gyro_z")
+
+GUARANTEE_FULL = (
+    "guaranteed: with probability at least {p:.4g} over the whole trip (every stated "
+    "probabilistic bound holds at once, Bonferroni), every interval below contains the "
+    "true value, provided the deterministic assumptions listed hold"
+)
+NOT_GUARANTEED = (
+    "not guaranteed: the paper's method (per-step k*sigma_c bounds, per-step GPS boxes); "
+    "its intervals are not proven to contain the truth"
+)
+
+
+def _pct(x: np.ndarray, q: float) -> float | None:
+    x = x[np.isfinite(x)]
+    return float(np.percentile(x, q)) if x.size else None
+
+
+def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] | None) -> Any:
+    """The drive's truth at absolute times ``t_abs`` in the estimator's ENU frame:
+    dict of east, north (m), psi (model heading, rad, unwrapped), u, v (m/s) and the
+    extra series (bias_<ch>, ...); NaN outside the truth's span."""
+    tr = drive.truth
+    if tr is None:
+        return None
+    tt = np.asarray(tr.t, dtype=float)
+    inside = (t_abs >= tt[0] - 1e-9) & (t_abs <= tt[-1] + 1e-9)
+
+    def at(x: np.ndarray | None) -> np.ndarray | None:
+        if x is None:
+            return None
+        return np.where(inside, np.interp(t_abs, tt, np.asarray(x, dtype=float)), np.nan)
+
+    e, n = np.asarray(tr.east_m, float), np.asarray(tr.north_m, float)
+    if origin is not None and all(math.isfinite(v) for v in tr.origin[:2]):
+        if tuple(origin[:2]) != tuple(tr.origin[:2]):
+            import pymap3d
+
+            lat, lon, alt = pymap3d.enu2geodetic(e, n, np.zeros_like(e), *tr.origin)
+            e, n, _ = pymap3d.geodetic2enu(lat, lon, alt, origin[0], origin[1], origin[2])
+            e, n = np.asarray(e, float), np.asarray(n, float)
+    elif origin is None:
+        # no GNSS: positions relative to the state at the first requested time
+        e = e - np.interp(t_abs[0], tt, e)
+        n = n - np.interp(t_abs[0], tt, n)
+    out: dict[str, Any] = {"east": at(e), "north": at(n)}
+    if tr.heading_rad is not None:
+        psi = np.unwrap(0.5 * math.pi - np.asarray(tr.heading_rad, float))
+        out["psi"] = at(psi)
+    out["u"] = at(tr.u_mps)
+    out["v"] = at(tr.v_mps)
+    for k, v in tr.extra.items():
+        out[k] = at(v)
+    return out
+
+
+def _inside_angle(lo: np.ndarray, hi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """x (rad) inside [lo, hi] modulo 2 pi (an unbounded interval contains everything)."""
+    fin = np.isfinite(lo) & np.isfinite(hi)
+    mid = np.where(fin, 0.5 * (np.where(fin, lo, 0) + np.where(fin, hi, 0)), x)
+    m = np.round((mid - x) / (2 * math.pi))
+    xx = x + 2 * math.pi * m
+    return ~fin & (lo <= hi) | ((lo <= xx) & (xx <= hi))
+
+
+@dataclass
+class DynamicResult:
+    """The results of one mode of the dynamic analysis.
+
+    Attributes
+    ----------
+    mode:
+        ``"full"`` (guaranteed margins, the default) or ``"paper"``.
+    summary:
+        The dynamic.json block of this mode (see :meth:`to_dict`).
+    full, paper:
+        The underlying computations (:class:`~imubounds.dynamic.estimator.full.FullRun`
+        or the paper estimator's result).
+    """
+
+    mode: str
+    summary: dict[str, Any]
+    full: Any = None
+    paper: Any = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``modes.<mode>`` block of dynamic.json (plain JSON types)."""
+        return self.summary
+
+    def to_frame(self) -> Any:
+        """The margins table: one row per channel and averaging time (SI units)."""
+        import pandas as pd
+
+        rows = []
+        for ch, lst in self.summary.get("margins", {}).items():
+            for r in lst:
+                rows.append({"channel": ch, **r})
+        return pd.DataFrame(rows)
+
+    @property
+    def verdicts(self) -> dict[str, str]:
+        return dict(self.summary.get("verdict", {}))
+
+    def plot(self, ax: Any = None) -> Any:
+        """Margins against tau (log-log): median and max half-width of the guaranteed
+        interval of the window-mean error, and the stationary band, per channel (accel in
+        m/s^2 on the left axes, gyro in deg/s on the right). Returns the Figure."""
+        from imubounds.report.dynamic_plots import plot_margins
+
+        return plot_margins(self.summary, ax=ax)
+
+
+# -------------------------------------------------------------------------- full
+
+
+def full_summary(run: Any, drive: Any) -> dict[str, Any]:
+    """dynamic.json block of mode full from a :class:`~imubounds.dynamic.estimator.full.FullRun`."""
+    from imubounds.dynamic.estimator.full import noise_budget_rows
+
+    ctx = run.ctx
+    ag = ctx.aiding
+    sm = run.smoother
+    p = 1.0 - ctx.alpha.alpha
+    out: dict[str, Any] = {
+        "mode": "full",
+        "guaranteed": True,
+        "statement": GUARANTEE_FULL.format(p=p),
+        "alpha": ctx.alpha.to_dict(),
+        "assumptions": _assumptions(ctx),
+        "notes": ctx.notes + run.notes,
+    }
+    out["budget"] = {ch: [t.to_dict() for t in noise_budget_rows(ctx, ch)] for ch in CHANNELS}
+    out["aiding_budget"] = {k: [t.to_dict() for t in v] for k, v in ag.budget.items()}
+    out["vehicle"] = {
+        "kind": ctx.vehicle.kind,
+        "max_speed_mps": ctx.vehicle.max_speed,
+        "max_accel_mps2": ctx.vehicle.max_accel,
+        "max_jerk_mps3": ctx.vehicle.max_jerk,
+        "max_rate_dps": ctx.vehicle.max_rate * 180 / math.pi,
+        "max_ang_accel_dps2": ctx.vehicle.max_ang_accel * 180 / math.pi,
+        "max_tilt_deg": ctx.vehicle.max_tilt * 180 / math.pi,
+        "lateral_speed_bound_mps": ctx.vehicle.lateral_bound,
+        "sources": ctx.vehicle.sources,
+    }
+    out["margins"] = {}
+    out["verdict"] = {}
+    out["verdict_detail"] = {}
+    out["channels_not_analysed"] = {}
+    for ch in CHANNELS:
+        m = run.margins.get(ch)
+        plan = ctx.plans.get(ch)
+        if m is None or not m.levels:
+            reason = plan.reason if plan is not None and plan.reason else "no windows"
+            out["channels_not_analysed"][ch] = reason
+            if ch in PAPER_CHANNELS:
+                out["verdict"][ch] = "undecided"
+                out["verdict_detail"][ch] = {"reason": reason}
+                out["margins"][ch] = []
+            continue
+        out["margins"][ch] = [
+            {**row, "unit": UNITS[ch]} for row in m.table()
+        ]
+        out["verdict"][ch] = m.verdict
+        out["verdict_detail"][ch] = m.to_dict()
+    # bias intervals
+    k_to = ctx.alpha.k("imu_turn_on")
+    bias: dict[str, Any] = {}
+    rows = {"accel_x": 0, "accel_y": 1, "gyro_z": 2}
+    for ch in CHANNELS:
+        cn = ctx.noise[ch]
+        wander = ctx.k_ps * cn.flicker_sigma() + ctx.D_KR[ch]
+        if sm is not None and ch in rows:
+            lo, hi = (float(x) for x in sm.beta[rows[ch]])
+            src = "contracted by the windows and the smoother"
+        else:
+            b = cn.turn_on_bound(k_to)
+            lo, hi = -b, b
+            src = "turn-on prior (not contracted)"
+        bias[ch] = {
+            "unit": UNITS[ch],
+            "constant_part": [lo, hi],
+            "over_trip": [float(np.nextafter(lo - wander, -np.inf)),
+                          float(np.nextafter(hi + wander, np.inf))],
+            "wander_bound": wander,
+            "constant_part_prior": [-cn.turn_on_bound(k_to), cn.turn_on_bound(k_to)],
+            "source": src,
+        }
+    out["bias"] = bias
+    if sm is not None:
+        out["smoother"] = {
+            "epochs": int(sm.te.size),
+            "rounds": sm.rounds,
+            "sweeps": sm.sweeps,
+            "tolerance": float(ctx.opts["tol"]),
+            "links_dropped": int(np.sum(~sm.link)),
+            "note": sm.beta_note,
+        }
+        out["empty_intersections"] = {
+            "count": len(sm.dropped),
+            "rule": "q-relaxed intersection (q = 1) of each epoch's measurement and the "
+            "predictions from the past and from the future; the odd one is dropped",
+            "dropped": [d.to_dict() for d in sm.dropped[:500]],
+            "by_sensor": _count_by(sm.dropped),
+        }
+        out["contracted_aiding"] = _contracted(ctx, sm)
+        states = _states(ctx, sm)
+        out["states_summary"] = {
+            k: {"median_halfwidth": _pct(0.5 * (v[1] - v[0]), 50), "unit": u}
+            for k, (v, u) in states.items()
+        }
+        if drive.truth is not None:
+            out["enclosure"] = _enclosure(ctx, sm, drive, states, bias)
+    if drive.truth is not None:
+        out["margins_truth"] = _margins_truth(run, drive)
+    return out
+
+
+def _count_by(dropped: list[Any]) -> dict[str, int]:
+    c: dict[str, int] = {}
+    for d in dropped:
+        c[d.sensor] = c.get(d.sensor, 0) + 1
+    return c
+
+
+def _assumptions(ctx: Any) -> list[str]:
+    v = ctx.vehicle
+    a = [
+        "one clock for every stream; IMU samples are the means of the true signal over "
+        f"their periods (time stamp at the {ctx.imu.stamp} of the period)",
+        "the IMU error model of the budget (turn-on bias, flicker bias instability, white "
+        "noise, quantization, rate random walk, scale and misalignment within their bounds)",
+        f"the vehicle: speed <= {v.max_speed:g} m/s, horizontal acceleration <= "
+        f"{v.max_accel:g} m/s^2, jerk <= {v.max_jerk:g} m/s^3, angular rate <= "
+        f"{v.max_rate * 180 / math.pi:g} deg/s, angular acceleration <= "
+        f"{v.max_ang_accel * 180 / math.pi:g} deg/s^2, tilt <= {v.max_tilt * 180 / math.pi:g} deg",
+        "local gravity between 9.76 and 9.84 m/s^2; Earth rate and Coriolis bounded",
+        "the accelerometer windows use the gyros only as magnitude bounds in second-order "
+        "(transport) terms, never the channel they judge",
+    ]
+    if v.kind == "ground":
+        a.append("ground vehicle: no vertical body velocity (w = 0)")
+    if v.lateral_bound is not None:
+        a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_bound:g} m/s")
+    if not ctx.aiding.has_gnss:
+        a.append("no GNSS: positions are relative to the start point (0, 0)")
+    if ctx.aiding.head_from_course:
+        a.append(
+            "the vehicle does not reverse (horizontal velocity pointing forward): heading "
+            "from the GNSS course within asin(lateral bound / speed) (--reverses turns it off)"
+        )
+    lever = ctx.drive.settings.lever_arm_m
+    if lever is None:
+        a.append("GNSS antenna at the IMU (no lever arm given)")
+    else:
+        a.append(
+            "GNSS lever arm: its horizontal length is added to the position radius and, times "
+            "the yaw-rate bound, to the velocity radius"
+        )
+    a.append(
+        "change test: the in-run bias (flicker) changes between adjacent windows as its "
+        "model says (the Allan statistic); the turn-on bias cancels"
+    )
+    return a + list(ctx.assumptions)
+
+
+def _states(ctx: Any, sm: Any) -> dict[str, Any]:
+    """State intervals at the epochs, body velocities u, v from the horizontal ones."""
+    from imubounds.interval import IntervalArray as IA
+    from imubounds.interval import cos, sin
+
+    X = sm.X
+    veh = ctx.vehicle
+    rl, rh, pl, ph = ctx.aiding.tilt(sm.te, veh)
+    sr, cr = sin(IA(rl, rh)), cos(IA(rl, rh))
+    sp, cp = sin(IA(pl, ph)), cos(IA(pl, ph))
+    uh = IA(X[:, SM.UH, 0], X[:, SM.UH, 1])
+    vh = IA(X[:, SM.VH, 0], X[:, SM.VH, 1])
+    wb = veh.vertical_bound
+    w = IA(np.full(sm.te.size, -wb), np.full(sm.te.size, wb))
+    v = (vh + sr * w) / cr
+    if veh.lateral_bound is not None:
+        lb = veh.lateral_bound
+        v = v & IA(np.full(v.shape, -lb), np.full(v.shape, lb))
+    u = (uh + sr * sp * v + cr * sp * w) / cp
+    S2 = IA(X[:, SM.VE, 0], X[:, SM.VE, 1]) ** 2 + IA(X[:, SM.VN, 0], X[:, SM.VN, 1]) ** 2
+    from imubounds.interval import sqrt
+
+    S = sqrt(S2)
+    return {
+        "east": ((X[:, SM.E, 0], X[:, SM.E, 1]), "m"),
+        "north": ((X[:, SM.N, 0], X[:, SM.N, 1]), "m"),
+        "heading": ((X[:, SM.PSI, 0], X[:, SM.PSI, 1]), "rad"),
+        "u": ((u.lo, u.hi), "m/s"),
+        "v": ((v.lo, v.hi), "m/s"),
+        "speed": ((S.lo, S.hi), "m/s"),
+    }
+
+
+def _enclosure(ctx: Any, sm: Any, drive: Any, states: dict[str, Any], bias: Any) -> dict[str, Any]:
+    te_abs = sm.te + ctx.imu.t0
+    tr = truth_at(drive, te_abs, ctx.aiding.origin)
+    enc: dict[str, Any] = {}
+    first_miss: dict[str, Any] = {}
+
+    def share(name: str, ok: np.ndarray, valid: np.ndarray) -> None:
+        if valid.any():
+            enc[name] = float(np.mean(ok[valid]))
+            bad = np.flatnonzero(valid & ~ok)
+            if bad.size:
+                first_miss[name] = float(te_abs[bad[0]])
+
+    (el, eh), _ = states["east"]
+    (nl, nh), _ = states["north"]
+    te_ok = np.isfinite(tr["east"]) & np.isfinite(tr["north"])
+    ok = (el <= tr["east"]) & (tr["east"] <= eh) & (nl <= tr["north"]) & (tr["north"] <= nh)
+    share("position", ok, te_ok)
+    if tr.get("psi") is not None:
+        (pl, ph), _ = states["heading"]
+        valid = np.isfinite(tr["psi"])
+        share("heading", _inside_angle(pl, ph, np.nan_to_num(tr["psi"])), valid)
+    for q in ("u", "v"):
+        if tr.get(q) is not None:
+            (lo, hi), _ = states[q]
+            x = tr[q]
+            share(q, (lo <= x) & (x <= hi), np.isfinite(x))
+    if tr.get("u") is not None:
+        (lo, hi), _ = states["speed"]
+        x = np.hypot(tr["u"], tr["v"] if tr.get("v") is not None else 0.0)
+        x = x * np.cos(tr["pitch_rad"]) if tr.get("pitch_rad") is not None else x
+        share("speed", (lo <= x * (1 + 1e-12)) & (x <= hi * (1 + 1e-12)), np.isfinite(x))
+    # biases: the truth's bias series at the IMU rate, inside the over-trip interval
+    tt = np.asarray(drive.truth.t, dtype=float)
+    for ch in CHANNELS:
+        key = f"bias_{ch}"
+        if key in drive.truth.extra:
+            x = np.asarray(drive.truth.extra[key], dtype=float)
+            lo, hi = bias[ch]["over_trip"]
+            valid = np.isfinite(x)
+            ok = (lo <= x) & (x <= hi)
+            if valid.any():
+                enc[key] = float(np.mean(ok[valid]))
+                bad = np.flatnonzero(valid & ~ok)
+                if bad.size:
+                    first_miss[key] = float(tt[bad[0]])
+    enc["epochs"] = int(np.sum(te_ok))
+    enc["first_miss_t_s"] = first_miss
+    return enc
+
+
+def _contracted(ctx: Any, sm: Any) -> dict[str, Any]:
+    """Input half-width vs contracted half-width of each aiding sensor (median, p95)."""
+    ag = ctx.aiding
+    te = sm.te
+    X = sm.X
+    out: dict[str, Any] = {}
+
+    def stats(inp: np.ndarray, con: np.ndarray, unit: str) -> dict[str, Any]:
+        return {
+            "unit": unit,
+            "input_halfwidth_median": _pct(inp, 50),
+            "input_halfwidth_p95": _pct(inp, 95),
+            "contracted_halfwidth_median": _pct(con, 50),
+            "contracted_halfwidth_p95": _pct(con, 95),
+            "epochs": int(np.sum(np.isfinite(inp))),
+        }
+
+    if ag.has_gnss:
+        i = np.searchsorted(te, ag.gnss_t).clip(0, te.size - 1)
+        ok = te[i] == ag.gnss_t
+        con = 0.5 * np.maximum(X[i, SM.E, 1] - X[i, SM.E, 0], X[i, SM.N, 1] - X[i, SM.N, 0])
+        out["position"] = stats(ag.gnss_h[ok], con[ok], "m")
+        if ag.has_gvel:
+            okv = ok & ag.gvel_ok
+            con = 0.5 * np.maximum(
+                X[i, SM.VE, 1] - X[i, SM.VE, 0], X[i, SM.VN, 1] - X[i, SM.VN, 0]
+            )
+            out["velocity"] = stats(ag.gvel_hi[okv], con[okv], "m/s")
+    if ag.has_heading:
+        i = np.searchsorted(te, ag.head_t).clip(0, te.size - 1)
+        ok = te[i] == ag.head_t
+        con = 0.5 * (X[i, SM.PSI, 1] - X[i, SM.PSI, 0])
+        out["heading"] = stats(ag.head_h[ok] * 180 / math.pi, con[ok] * 180 / math.pi, "deg")
+    if ag.has_bvel:
+        i = np.searchsorted(te, ag.bvel_t).clip(0, te.size - 1)
+        ok = te[i] == ag.bvel_t
+        con = 0.5 * (X[i, SM.UH, 1] - X[i, SM.UH, 0])
+        out["speed"] = stats(ag.bvel_h[ok], con[ok], "m/s")
+    elif ag.has_gvel:
+        i = np.searchsorted(te, ag.gnss_t).clip(0, te.size - 1)
+        ok = (te[i] == ag.gnss_t) & ag.gvel_ok
+        from imubounds.interval import IntervalArray as IA
+        from imubounds.interval import sqrt
+
+        hv = ag.gvel_hi[ok]
+        ve = IA(ag.gvel_e[ok] - hv, ag.gvel_e[ok] + hv)
+        vn = IA(ag.gvel_n[ok] - hv, ag.gvel_n[ok] + hv)
+        s_in = sqrt(ve**2 + vn**2)
+        s_co = sqrt(
+            IA(X[i[ok], SM.VE, 0], X[i[ok], SM.VE, 1]) ** 2
+            + IA(X[i[ok], SM.VN, 0], X[i[ok], SM.VN, 1]) ** 2
+        )
+        out["speed"] = stats(s_in.radius(), s_co.radius(), "m/s")
+    return out
+
+
+def _margins_truth(run: Any, drive: Any) -> dict[str, Any]:
+    """Share of windows whose aided interval [x_W] contains the true kernel mean, when
+    the truth carries the true signal's sample means at the IMU samples (truth.extra
+    ``true_<ch>``, or ``<ch>`` on the IMU's time stamps)."""
+    out: dict[str, Any] = {}
+    ex = drive.truth.extra
+    ctx = run.ctx
+    from imubounds.dynamic.estimator.inputs import PiecewiseSignal
+
+    imu_t = np.asarray(drive.imu.t, dtype=float)
+    tt = np.asarray(drive.truth.t, dtype=float)
+    same_t = tt.size == imu_t.size and bool(np.allclose(tt, imu_t, rtol=0, atol=1e-9))
+    for ch, m in run.margins.items():
+        key = f"true_{ch}" if f"true_{ch}" in ex else (ch if ch in ex and same_t else None)
+        if key is None:
+            continue
+        x = np.asarray(ex[key], dtype=float)
+        if x.size != ctx.imu.n or ctx.imu.n_gaps:
+            continue
+        sig = PiecewiseSignal(ctx.imu.bnd, x)
+        n_ok = n_all = 0
+        worst = 0.0
+        for lv, lp in zip(m.levels, [p for p in ctx.plans[ch].levels if p.n], strict=False):
+            tm = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            ok = (lv.x_lo <= tm.hi) & (tm.lo <= lv.x_hi)
+            n_ok += int(ok.sum())
+            n_all += ok.size
+            if (~ok).any():
+                miss = np.maximum(lv.x_lo - tm.hi, tm.lo - lv.x_hi)
+                worst = max(worst, float(np.max(miss[~ok])))
+        out[ch] = {"windows": n_all, "enclosed_fraction": n_ok / n_all if n_all else None,
+                   "worst_miss": worst}
+    return out
