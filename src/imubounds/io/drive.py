@@ -250,7 +250,9 @@ class VelocitySettings:
 class HeadingSettings:
     """Compass: ``deviation_deg`` bound after calibration (None: from the calibration's
     residual), ``declination_deg`` (east positive) added to magnetic headings,
-    ``calibration`` file of (measured, reference) pairs, ``noise_deg`` 1-sigma.
+    ``calibration``: the swing calibration, a CSV file of (measured, reference) pairs
+    or (in memory, e.g. a simulated drive) those pairs as an (n, 2) array in degrees;
+    ``noise_deg`` 1-sigma.
 
     ``sensor``: what ``heading.csv``'s ``heading_deg`` comes from (``"compass"``,
     ``"gnss"`` for a dual-antenna receiver, ``"ahrs"`` for a yaw that uses the
@@ -268,7 +270,7 @@ class HeadingSettings:
 
     deviation_deg: float | None = None
     declination_deg: float = 0.0
-    calibration: str | None = None
+    calibration: str | np.ndarray | None = None
     noise_deg: float = 0.5
     sensor: str = "compass"
     reference: str = "magnetic"

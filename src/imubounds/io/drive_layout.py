@@ -87,6 +87,8 @@ __all__ = [
 
 FILES = ("imu", "gnss", "velocity", "heading", "attitude", "truth")
 SETTINGS_FILE = "drive.yaml"
+#: where :func:`write_layout` writes a swing calibration held in memory
+CALIBRATION_FILE = "compass_cal.csv"
 SUFFIXES = (".csv", ".csv.gz", ".parquet")
 FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "parquet": ".parquet"}
 
@@ -863,6 +865,12 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
     )
     if drive.heading is not None or drive.mag is not None:
         _put_heading(drive, put, settings)
+    cal = settings.heading.calibration
+    if isinstance(cal, np.ndarray):  # swing pairs held in memory: written beside
+        pd.DataFrame({"measured_deg": cal[:, 0], "reference_deg": cal[:, 1]}).to_csv(
+            d / CALIBRATION_FILE, index=False, float_format="%.17g"
+        )
+        settings.heading.calibration = CALIBRATION_FILE
     a = drive.attitude
     if a is not None:
         put(

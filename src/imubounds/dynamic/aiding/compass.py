@@ -367,7 +367,7 @@ def compass_heading(
     drive: Any,
     *,
     fit: str | None = None,
-    calibration: str | Path | None = None,
+    calibration: str | Path | np.ndarray | None = None,
     use: str | None = None,
     declination_deg: float | None = None,
     deviation_deg: float | None = None,
@@ -390,7 +390,8 @@ def compass_heading(
         ``"swing"``, ``"gnss-course"`` (explicit only: the heading is then not
         independent of the GNSS) or ``"none"``.
     calibration:
-        Swing-calibration CSV (``measured_deg,reference_deg``).
+        Swing-calibration CSV (``measured_deg,reference_deg``), or those pairs as an
+        (n, 2) array in degrees.
     use:
         Which stream: ``"auto"`` (an independent heading stream, else the
         magnetometer, else an AHRS heading or the attitude yaw), ``"heading"``,
@@ -455,7 +456,19 @@ def compass_heading(
     corrected = meas
     # ---- calibrations against a reference
     if fit == "swing":
-        dev = read_calibration(str(calibration))
+        if isinstance(calibration, np.ndarray):
+            pairs = np.asarray(calibration, dtype=float)
+            if pairs.ndim != 2 or pairs.shape[1] != 2:
+                raise InputError(
+                    "heading.calibration given as an array must be (n, 2) pairs "
+                    f"(measured_deg, reference_deg); got shape {pairs.shape}"
+                )
+            dev = fit_deviation(
+                np.radians(pairs[:, 0]), np.radians(pairs[:, 1]), source="swing pairs (memory)"
+            )
+            calibration = f"({pairs.shape[0]} swing pairs in memory)"
+        else:
+            dev = read_calibration(str(calibration))
         corrected = np.mod(meas - dev.error(meas), TWO_PI)
         dev_bound = dev.residual_bound
         detail["swing"] = dev.to_dict()

@@ -267,7 +267,8 @@ def _compass(
     out.stated["heading"] = {
         "deviation_deg": 0.0,
         "noise_deg": cfg.compass_noise_deg,
-        "calibration": "compass_cal.csv",
+        # the swing pairs, measured and reference, in degrees (written by write_layout)
+        "calibration": None if out.calibration is None else np.degrees(out.calibration),
     }
 
 

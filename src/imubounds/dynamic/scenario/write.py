@@ -5,9 +5,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 from imubounds.dynamic.scenario.core import SimResult
 from imubounds.io.drive_layout import write_layout
 from imubounds.io.outputs import to_jsonable
@@ -36,15 +33,7 @@ def write_scenario(res: SimResult, out_dir: str | Path) -> Path:
     :class:`imubounds.io.outputs.OutputSet` staging directory.
     """
     d = Path(out_dir)
-    write_layout(res.drive, d)
-    cal = res.aiding.calibration
-    if cal is not None:
-        pd.DataFrame(
-            {
-                "measured_deg": np.degrees(cal[:, 0]),
-                "reference_deg": np.degrees(cal[:, 1]),
-            }
-        ).to_csv(d / "compass_cal.csv", index=False, float_format="%.12g")
+    write_layout(res.drive, d)  # with the compass swing calibration
     doc = to_jsonable(res.to_json())
     (d / "scenario.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
     return d
