@@ -306,7 +306,7 @@ def parse_settings(
         kw["lever_arm_m"] = lv
     s = DriveSettings(**kw, assumed=assumed, defaulted=defaulted)
     _resolve_imu_noise(s, where, base_dir)
-    if s.heading.calibration is not None:
+    if isinstance(s.heading.calibration, str):
         s.heading.calibration = _resolve(s.heading.calibration, "heading.calibration", where,
                                          base_dir)
     if s.heading.deviation_deg is None:

@@ -594,9 +594,9 @@ def run_fleet(
                               "curves": {}} for i in idx]  # fmt: skip
                 for i, res in zip(idx, batch, strict=True):
                     results[i] = res
-                    key = keys[i]
-                    if res["status"] == "ok" and key is not None:
-                        write_json(cache / f"{key}.json", res)
+                    ckey = keys[i]
+                    if res["status"] == "ok" and ckey is not None:
+                        write_json(cache / f"{ckey}.json", res)
                 done += len(idx)
                 report("units", done, len(todo))
         finally:
