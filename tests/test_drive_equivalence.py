@@ -91,3 +91,19 @@ def test_convert_then_dynamic_equals_dynamic_on_the_source(
     b = dynamic_margins(read_drive(out)).to_dict()
     _assert_same(a, b)
     assert a["enclosure"]["position"] == b["enclosure"]["position"] == 1.0
+
+
+def test_paper_mode_on_a_simulated_drive_in_memory_equals_its_layout(tmp_path: Path) -> None:
+    """The simulator's drive carries its swing calibration as (n, 2) pairs in memory;
+    mode paper reads them as it reads compass_cal.csv from the written layout."""
+    sim = make_trip("paper", seed=5, duration_s=200.0, distance_m=2000.0)
+    assert isinstance(sim.drive.settings.heading.calibration, np.ndarray)
+    mem = dynamic_margins(sim.drive, mode="paper").to_dict()
+    write_layout(sim.drive, tmp_path / "drive")
+    disk = dynamic_margins(read_drive(tmp_path / "drive"), mode="paper").to_dict()
+    assert mem["guaranteed"] is False and "not guaranteed" in mem["statement"]
+    assert mem["verdict"] == disk["verdict"]
+    for ch, rows in mem["margins"].items():
+        for ra, rb in zip(rows, disk["margins"][ch], strict=True):
+            np.testing.assert_allclose(ra["halfwidth_median"], rb["halfwidth_median"],
+                                       rtol=1e-6, err_msg=ch)

@@ -166,6 +166,22 @@ def read_calibration(path: str) -> CompassDeviation:
     return fit_deviation(cols[0], cols[1], source=str(path))
 
 
+def swing_deviation(calibration: str | Path | np.ndarray) -> CompassDeviation:
+    """The deviation fitted to a swing calibration: a CSV file (:func:`read_calibration`)
+    or the (measured_deg, reference_deg) pairs as an (n, 2) array."""
+    if not isinstance(calibration, np.ndarray):
+        return read_calibration(str(calibration))
+    pairs = np.asarray(calibration, dtype=float)
+    if pairs.ndim != 2 or pairs.shape[1] != 2:
+        raise InputError(
+            "heading.calibration given as an array must be (n, 2) pairs "
+            f"(measured_deg, reference_deg); got shape {pairs.shape}"
+        )
+    return fit_deviation(
+        np.radians(pairs[:, 0]), np.radians(pairs[:, 1]), source="swing pairs (memory)"
+    )
+
+
 def heading_intervals(
     psi_c: np.ndarray,
     deviation: CompassDeviation,
@@ -456,19 +472,9 @@ def compass_heading(
     corrected = meas
     # ---- calibrations against a reference
     if fit == "swing":
+        dev = swing_deviation(calibration)
         if isinstance(calibration, np.ndarray):
-            pairs = np.asarray(calibration, dtype=float)
-            if pairs.ndim != 2 or pairs.shape[1] != 2:
-                raise InputError(
-                    "heading.calibration given as an array must be (n, 2) pairs "
-                    f"(measured_deg, reference_deg); got shape {pairs.shape}"
-                )
-            dev = fit_deviation(
-                np.radians(pairs[:, 0]), np.radians(pairs[:, 1]), source="swing pairs (memory)"
-            )
-            calibration = f"({pairs.shape[0]} swing pairs in memory)"
-        else:
-            dev = read_calibration(str(calibration))
+            calibration = f"({calibration.shape[0]} swing pairs in memory)"
         corrected = np.mod(meas - dev.error(meas), TWO_PI)
         dev_bound = dev.residual_bound
         detail["swing"] = dev.to_dict()

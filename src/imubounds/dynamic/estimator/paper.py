@@ -584,7 +584,7 @@ def config_for_drive(drive: Any, imu: ImuSpec | None = None, **overrides: Any) -
     """Settings of the paper estimator for a drive: ``drive.settings`` (drive.yaml) gives
     the GNSS CEP, default HDOP and the compass calibration; ``overrides`` (non-None
     values) win; the IMU spec defaults to the MTx datasheet."""
-    from imubounds.dynamic.aiding.compass import read_calibration
+    from imubounds.dynamic.aiding.compass import swing_deviation
     from imubounds.presets import XSENS_MTX
 
     st = drive.settings
@@ -594,11 +594,13 @@ def config_for_drive(drive: Any, imu: ImuSpec | None = None, **overrides: Any) -
         "declination_rad": math.radians(st.heading.declination_deg),
     }
     cal = st.heading.calibration
-    if cal:
+    if isinstance(cal, np.ndarray):
+        base["deviation"] = swing_deviation(cal)
+    elif cal:
         p = Path(cal)
         if not p.is_absolute():
             p = Path(str(drive.source)) / p
-        base["deviation"] = read_calibration(str(p))
+        base["deviation"] = swing_deviation(p)
     base["imu"] = imu or ImuSpec(
         accel={t: XSENS_MTX.accel[t] for t in ("N", "B")},
         gyro={t: XSENS_MTX.gyro[t] for t in ("N", "B")},
