@@ -1,5 +1,7 @@
 """Mode full: the error budget, the window margins, the smoother (compiled vs reference),
-soundness on simulated trips, informative margins, fault detection, real drives."""
+every link and state against the truth on short trips, the change test, real drives
+(the 200-trip soundness test, and issue 11's informative and detection criteria, run
+on the product's simulator: test_dynamic_soundness.py, test_dynamic_simulated.py)."""
 
 from __future__ import annotations
 
@@ -280,24 +282,6 @@ def _margin_at(d: dict, ch: str, tau: float) -> float:
     return float(row["halfwidth_median"])
 
 
-def test_informative_gnss_position_and_velocity() -> None:
-    """Paper trip, GNSS position + velocity at 1 Hz, attitude known to 0.1 deg, lateral speed
-    bounded by 0.3 m/s: the 10 s-averaged accel-x error is known to well under 0.5 m/s^2;
-    at 100 s the figure is limited by the MTx gyro's bias in the transport term, the
-    attitude bound (gravity) and the velocity boxes (docs/dynamic-method.md, limits)."""
-    drive, _ = make_trip("pos_vel", 21)
-    d = dynamic_margins(drive).to_dict()
-    m10 = _margin_at(d, "accel_x", 10.0)
-    m100 = _margin_at(d, "accel_x", 100.0)
-    assert m10 <= 0.5, f"median half-width at 10 s: {m10:.3f} m/s^2"
-    assert m100 <= 0.08, f"median half-width at 100 s: {m100:.4f} m/s^2"
-    assert m100 < m10 / 2
-    # with the lateral speed known to 0.1 m/s the 0.05 m/s^2 of the issue is reached
-    d2 = dynamic_margins(drive, lateral_bound=0.1).to_dict()
-    m100b = _margin_at(d2, "accel_x", 100.0)
-    assert m100b <= 0.05, f"median half-width at 100 s with |v| <= 0.1 m/s: {m100b:.4f}"
-
-
 def test_heading_from_the_gnss_course_without_a_heading_sensor() -> None:
     """GNSS position + velocity only (no compass, no attitude): the heading comes from the
     course (lateral bound, no reversing), the truth stays inside, the gyro gets margins
@@ -313,33 +297,6 @@ def test_heading_from_the_gnss_course_without_a_heading_sensor() -> None:
     d2 = dynamic_margins(drive, reverses=True, max_tilt_deg=0.2).to_dict()
     assert d2["verdict"]["gyro_z"] == "undecided"
     assert _margin_at(d2, "accel_x", 10.0) > 2 * _margin_at(d, "accel_x", 10.0)
-
-
-def test_informative_dvl() -> None:
-    drive, _ = make_trip("dvl", 22)
-    d = dynamic_margins(drive).to_dict()
-    m10 = _margin_at(d, "accel_x", 10.0)
-    assert m10 <= 0.08, f"DVL: median half-width at 10 s: {m10:.4f} m/s^2"
-
-
-# -------------------------------------------------------------------------- detection
-
-
-@pytest.mark.parametrize(
-    "fault",
-    [None, ("accel_x", 0.3), ("gyro_z", 10.0 * DEG)],
-    ids=["clean", "accel_x+0.3", "gyro_z+10dps"],
-)
-def test_fault_detected_on_its_channel_only(fault: tuple[str, float] | None) -> None:
-    faults = [] if fault is None else [(fault[0], fault[1], 396.0)]
-    drive, _ = make_trip("paper", 30, faults=faults)
-    d = dynamic_margins(drive).to_dict()
-    exceeding = {ch for ch, v in d["verdict"].items() if v == "exceeds"}
-    expected = set() if fault is None else {fault[0]}
-    assert exceeding == expected, d["verdict"]
-    if fault is not None:
-        first = d["verdict_detail"][fault[0]]["exceeding_windows"][0]
-        assert first["t_start_s"] + first["tau_s"] > 396.0 - 1.0  # located after the fault
 
 
 def test_change_test_detects_a_step_inside_the_level_band() -> None:
