@@ -364,3 +364,20 @@ def test_fuzz_nmea_drive_reader(lines: list[str], tmp_path_factory: pytest.TempP
         read_drive(p)
     except ImuboundsError as err:
         assert "\n" not in str(err)
+
+
+def test_gnss_jumps_allow_for_the_fixes_own_errors(tmp_path: Path) -> None:
+    """A noisy 1 Hz GNSS at 12 m/s (CEP 3 m) gives no jump warning; a 60 m outlier does
+    (twice: the jump there and the one back)."""
+    from imubounds.dynamic.scenario import make_trip
+    from imubounds.io.drive_layout import write_layout
+
+    sim = make_trip("gnss-pos", seed=3, duration_s=120.0, distance_m=1300.0)
+    write_layout(sim.drive, tmp_path / "clean")
+    clean = read_drive(tmp_path / "clean")
+    assert "gnss_position_jumps" not in clean.counts, clean.warnings
+    gnss = pd.read_csv(tmp_path / "clean" / "gnss.csv")
+    gnss.loc[60, "lat_deg"] += 60.0 / 111_000.0  # 60 m north
+    gnss.to_csv(tmp_path / "clean" / "gnss.csv", index=False)
+    bad = read_drive(tmp_path / "clean")
+    assert bad.counts.get("gnss_position_jumps") == 2, bad.warnings

@@ -157,6 +157,24 @@ def register(sub: Any) -> None:
         help="compass noise standard deviation (0.3 deg)",
     )
     g.add_argument(
+        "--attitude-sigma",
+        type=nonneg_float,
+        metavar="DEG",
+        help="roll/pitch (AHRS) error standard deviation (0.1 deg)",
+    )
+    g.add_argument(
+        "--dvl-sigma",
+        type=nonneg_float,
+        metavar="MPS",
+        help="DVL velocity error standard deviation per axis (0.02 m/s)",
+    )
+    g.add_argument(
+        "--wheel-sigma",
+        type=nonneg_float,
+        metavar="MPS",
+        help="wheel-speed error standard deviation (0.05 m/s)",
+    )
+    g.add_argument(
         "--alpha",
         type=probability,
         help="whole-trip risk of every stated bound, per stream (0.01)",
@@ -201,6 +219,9 @@ _OPTIONS = {
     "gps_outliers": "gps_outlier_fraction",
     "outlier_size": "gps_outlier_m",
     "compass_noise": "compass_noise_deg",
+    "attitude_sigma": "attitude_sigma_deg",
+    "dvl_sigma": "dvl_sigma_mps",
+    "wheel_sigma": "wheel_sigma_mps",
     "alpha": "alpha",
     "truth_model": "truth_model",
 }

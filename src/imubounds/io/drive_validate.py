@@ -374,17 +374,37 @@ def _check_gnss_speed(drive: Drive, f: str, max_speed: float) -> None:
     if ok.sum() >= 2:
         e, n = _local_en(g.lat_deg[ok], g.lon_deg[ok])
         dt = np.diff(g.t[ok])
-        jump = np.hypot(np.diff(e), np.diff(n)) / dt
-        fast = np.flatnonzero(jump > max_speed)
+        dist = np.hypot(np.diff(e), np.diff(n))
+        # the fixes' own errors move them too: allow 5 sigma of the difference of two
+        # fixes (P = 4e-6 per pair for Rayleigh errors) beyond the distance at max speed
+        sig = _fix_sigma(drive)[ok]
+        allowance = 5.0 * np.hypot(sig[:-1], sig[1:])
+        fast = np.flatnonzero(dist > max_speed * dt + allowance)
         if fast.size:
             k = int(fast[0])
             drive.warn(
                 "gnss_position_jumps",
                 int(fast.size),
-                f"{f}: {fast.size} jump(s) between consecutive fixes faster than the vehicle's "
-                f"maximum {max_speed:g} m/s (first {jump[k]:.0f} m/s after "
-                f"t={g.t[ok][k]:.3f} s): kept (outliers for the estimator)",
+                f"{f}: {fast.size} jump(s) between consecutive fixes beyond the vehicle's "
+                f"maximum {max_speed:g} m/s and 5 sigma of the fixes' errors (first "
+                f"{dist[k]:.1f} m in {dt[k]:.3g} s after t={g.t[ok][k]:.3f} s): kept "
+                "(outliers for the estimator)",
             )
+
+
+def _fix_sigma(drive: Drive) -> np.ndarray:
+    """1-sigma error of each fix per horizontal axis (m): ``h_acc_m`` where given, else
+    HDOP (or the default HDOP) x CEP / 1.1774 (CEP = 1.1774 sigma for circular errors)."""
+    g = drive.gnss
+    assert g is not None
+    st = drive.settings.gnss
+    hdop = np.full(g.t.size, st.default_hdop) if g.hdop is None else np.asarray(g.hdop, float)
+    hdop = np.where(np.isfinite(hdop) & (hdop > 0), hdop, st.default_hdop)
+    sig = hdop * st.cep_m / 1.1774
+    if g.h_acc_m is not None:
+        h = np.asarray(g.h_acc_m, float)
+        sig = np.where(np.isfinite(h) & (h > 0), h, sig)
+    return np.asarray(sig, dtype=float)
 
 
 def _check_gnss_consistency(drive: Drive, f: str) -> None:
