@@ -170,11 +170,46 @@ def test_static_result_converts_to_json_frame_and_figure(static: ib.StaticResult
     assert isinstance(static.channels["gyro_z"].plot(), Figure)
 
 
-def test_characterize_refuses_a_bare_array_and_bad_models() -> None:
-    with pytest.raises(ib.InputError, match="name the channels"):
-        ib.characterize(np.zeros(1000), rate_hz=RATE_HZ)  # type: ignore[arg-type]
+def test_characterize_an_array_with_named_columns_equals_the_table(
+    table: pd.DataFrame, static: ib.StaticResult
+) -> None:
+    arr = table[["gyro_z_rads", "accel_x_mps2"]].to_numpy()
+    res = ib.characterize(arr, rate_hz=RATE_HZ, channels=["gyro_z", "accel_x"], models=())
+    a, b = res.to_dict(), static.to_dict()
+    assert a["channels"] == b["channels"]
+    assert a["input"]["path"] == "<array>"
+
+
+def test_characterize_refuses_unnamed_arrays_and_bad_models() -> None:
+    with pytest.raises(ib.InputError, match="name the channels of an array"):
+        ib.characterize(np.zeros(1000), rate_hz=RATE_HZ)
+    with pytest.raises(ib.InputError, match="2 channel name"):
+        ib.characterize(np.zeros(1000), rate_hz=RATE_HZ, channels=["gyro_x", "gyro_y"])
+    with pytest.raises(ib.OptionError, match="distinct names"):
+        ib.characterize(np.zeros((1000, 2)), rate_hz=RATE_HZ, channels=["gyro_x", "wx"])
     with pytest.raises(ib.OptionError, match="models"):
         ib.characterize({"gyro_z_rads": np.zeros(10)}, rate_hz=RATE_HZ, models="gm")
+    with pytest.raises(ib.InputError, match="got list"):
+        ib.characterize([1.0, 2.0], rate_hz=RATE_HZ)  # type: ignore[arg-type]
+
+
+def test_fit_and_read_off_convert_like_the_selection(static: ib.StaticResult) -> None:
+    ch = static.channels["gyro_z"]
+    noise = static.to_dict()["channels"]["gyro_z"]["noise"]
+    assert ch.fit.to_dict() == noise["fit"] and ch.slope.to_dict() == noise["slope"]
+    df = ch.fit.to_frame()
+    assert list(df["term"]) == ["Q", "N", "B", "K", "R"]
+    assert df.set_index("term").loc["N", "unit"] == "rad/s^0.5"
+    assert ch.selected.fit is ch.fit
+
+
+def test_results_have_short_reprs(static: ib.StaticResult) -> None:
+    texts = [repr(static), repr(static.channels["gyro_z"]), repr(static.log),
+             repr(static.channels["gyro_z"].allan), repr(static.channels["gyro_z"].selected)]
+    for text in texts:
+        assert len(text) < 400 and "array(" not in text, text
+    assert "N=" in texts[1] and "rad/s" in texts[1]
+    assert "rad/s^0.5" in texts[4]
 
 
 def test_read_frame_round_trips_an_imulog(table: pd.DataFrame) -> None:
@@ -225,3 +260,29 @@ def test_dynamic_margins_wants_a_drive() -> None:
         ib.dynamic_margins("drive/")  # type: ignore[arg-type]
     with pytest.raises(ib.OptionError, match="mode"):
         ib.dynamic_margins(ib.Drive(), mode="fast")
+
+
+def test_drive_and_dynamic_result_convert(tmp_path: Path) -> None:
+    from imubounds.io.drive import GnssStream, HeadingStream, ImuStream
+
+    n = 61
+    t = np.arange(n, dtype=float)
+    drive = ib.Drive(
+        imu=ImuStream(t=t, accel=np.zeros((n, 3)), gyro=np.zeros((n, 3))),
+        gnss=GnssStream(t=t, lat_deg=23.5 + 10.0 * t / 111_000.0, lon_deg=np.full(n, 88.0),
+                        hdop=np.full(n, 0.8)),  # fmt: skip
+        heading=HeadingStream(t=t, heading_rad=np.zeros(n)),
+    )
+    info = drive.to_dict()
+    assert json.loads(json.dumps(info)) == info
+    assert info["streams"]["gnss"] == {"samples": n, "t_first_s": 0.0, "t_last_s": 60.0}
+    assert info["imu_rate_hz"] == pytest.approx(1.0)
+    assert "array(" not in repr(drive)
+    res = ib.dynamic_margins(drive, mode="paper")
+    d = res.to_dict()
+    assert json.loads(json.dumps(d, allow_nan=False)) == d
+    assert d["guaranteed"] is False and "not guaranteed" in repr(res)
+    df = res.to_frame()
+    assert {"channel", "tau_s", "unit"} <= set(df.columns)
+    with pytest.raises(ib.AnalysisError, match="mode full"):
+        res.states_frame()

@@ -332,12 +332,49 @@ def noise_terms(
         )
     if prefer not in ("fit", "slope"):
         raise OptionError(f"prefer must be 'fit' or 'slope', got {prefer!r}")
-    _, _, sel = analyse_curve(curve, prefer=prefer, confidence=curve.confidence)
-    return dataclasses.replace(sel, kind=sensor)
+    fit, slope, sel = analyse_curve(curve, prefer=prefer, confidence=curve.confidence)
+    return dataclasses.replace(
+        sel,
+        kind=sensor,
+        fit=dataclasses.replace(fit, kind=sensor),
+        slope=dataclasses.replace(slope, kind=sensor),
+    )
+
+
+def _named_array(data: Any, channels: Sequence[str] | None) -> dict[str, Any]:
+    """A numpy array in SI as named columns: 1-D is one channel, 2-D one per column."""
+    import numpy as np
+
+    from imubounds.io.log import IMU_CHANNELS, SI_SUFFIX
+
+    arr = np.asarray(data)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise InputError(f"expected a 1-D or 2-D array of samples, got shape {arr.shape}")
+    if channels is None:
+        if arr.shape[1] != len(IMU_CHANNELS):
+            raise InputError(
+                "name the channels of an array: characterize(x, rate_hz=..., channels=["
+                f"'gyro_z', ...]) (one name per column, from {', '.join(IMU_CHANNELS)}); "
+                f"this one has {arr.shape[1]} column(s)"
+            )
+        channels = IMU_CHANNELS
+    names = list(channels)
+    bad = [c for c in names if c not in IMU_CHANNELS]
+    if bad or len(set(names)) != len(names):
+        raise OptionError(
+            f"channels {names!r}: give distinct names from {', '.join(IMU_CHANNELS)}"
+        )
+    if len(names) != arr.shape[1]:
+        raise InputError(
+            f"{len(names)} channel name(s) for an array of {arr.shape[1]} column(s)"
+        )
+    return {f"{c}_{SI_SUFFIX[c.split('_')[0]]}": arr[:, i] for i, c in enumerate(names)}
 
 
 def characterize(
-    data: ImuLog | pd.DataFrame | Mapping[str, ArrayLike] | PathType,
+    data: ImuLog | pd.DataFrame | Mapping[str, ArrayLike] | np.ndarray | PathType,
     rate_hz: float | None = None,
     *,
     taus: str | int | Sequence[float] = "octave",
@@ -366,10 +403,12 @@ def characterize(
 
     Parameters
     ----------
-    data : ImuLog, pandas.DataFrame, dict of arrays, or a path
+    data : ImuLog, pandas.DataFrame, dict of arrays, numpy array, or a path
         A log from :func:`read_log`; a table read by :func:`read_frame` (columns
         named ``gyro_x_rads``, ``accel_z_g``, ... plus ``time_s`` or ``rate_hz``);
-        or a file path read by :func:`read_log`.
+        a numpy array in SI (rad/s, m/s^2) with ``rate_hz``, its columns named by
+        ``channels`` (six columns default to ``gyro_x`` ... ``accel_z``); or a file
+        path read by :func:`read_log`.
     rate_hz : float, optional
         Sample rate of a table without a time column (or of a file without one).
     taus, estimator, confidence
@@ -391,7 +430,7 @@ def characterize(
     ar_max_order : int
         Largest AR order tried.
     channels : sequence of str, optional
-        Only these channels.
+        Only these channels; for a numpy array, the channel of each column.
     gyro_unit, accel_unit : str, optional
         Units of a table's columns whose names do not say (``"deg/s"``, ``"g"``).
     progress : callable(stage, done, total), optional
@@ -431,11 +470,15 @@ def characterize(
         log = read_frame(data, rate_hz=rate_hz, gyro_unit=gyro_unit, accel_unit=accel_unit)
     elif isinstance(data, str | PathLike):
         log = read_log(data, rate_hz=rate_hz, gyro_unit=gyro_unit, accel_unit=accel_unit)
+    elif type(data).__module__ == "numpy" and hasattr(data, "ndim"):
+        if gyro_unit is not None or accel_unit is not None:
+            raise OptionError("an array is taken in SI (rad/s, m/s^2): convert it first")
+        log = read_frame(_named_array(data, channels), rate_hz=rate_hz, source="<array>")
+        channels = None
     else:
         raise InputError(
-            f"characterize takes an ImuLog, a DataFrame, a dict of named columns or a path, "
-            f"got {type(data).__name__}; name the channels (gyro_x ... accel_z) so that their "
-            "units are known, e.g. characterize({'gyro_z_rads': x}, rate_hz=100)"
+            f"characterize takes an ImuLog, a DataFrame, a dict of named columns, a numpy "
+            f"array or a path, got {type(data).__name__}"
         )
     if isinstance(data, _ImuLog) and rate_hz is not None and rate_hz != log.rate_hz:
         raise OptionError(f"rate_hz={rate_hz!r} contradicts the log's {log.rate_hz:g} Hz")

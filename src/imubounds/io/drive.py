@@ -404,6 +404,12 @@ class Drive:
             return None
         return float(s.t[0]), float(s.t[-1])
 
+    def __repr__(self) -> str:
+        return (
+            f"Drive(source={self.source!r}, layout={self.layout!r}, streams={self.streams()}, "
+            f"warnings={len(self.warnings)})"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able description of the drive (not the samples): source, layout, the
         streams present with their sample count and time span (s), the IMU rate (Hz),

@@ -58,8 +58,16 @@ class ImuLog:
     frame: str = "unknown"
     warnings: list[str] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        return (
+            f"ImuLog(source={self.source!r}, channels={self.channel_names()}, "
+            f"rate_hz={self.rate_hz:g}, n_samples={self.n_samples}, "
+            f"duration_s={self.duration_s:g}, warnings={len(self.warnings)})"
+        )
+
     @property
     def n_samples(self) -> int:
+        """Number of samples."""
         return int(self.t.shape[0])
 
     @property

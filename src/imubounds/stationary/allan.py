@@ -214,6 +214,14 @@ class AllanResult:
     robust: bool = False
     unit: str | None = None
 
+    def __repr__(self) -> str:
+        span = f"{self.tau[0]:.3g}..{self.tau[-1]:.3g} s" if self.tau.size else "none"
+        return (
+            f"AllanResult(estimator={self.estimator!r}, points={self.tau.size}, tau={span}, "
+            f"unit={self.unit!r}, rate_hz={self.rate_hz:g}, n_samples={self.n_samples}"
+            f"{', robust' if self.robust else ''})"
+        )
+
     @property
     def var(self) -> np.ndarray:
         """The variance ``dev**2`` (unit of the input, squared)."""

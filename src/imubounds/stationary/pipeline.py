@@ -105,7 +105,16 @@ class ChannelResult:
 
     @property
     def kind(self) -> SensorKind:
+        """``"gyro"`` or ``"accel"``."""
         return sensor_kind(self.name)
+
+    def __repr__(self) -> str:
+        unit = si_unit_of_signal(self.kind)
+        return (
+            f"ChannelResult(name={self.name!r}, unit={unit!r}, N={self.terms_used['N']:.3g}, "
+            f"B={self.terms_used['B']:.3g}, sigma_c={self.sigma_c:.3g}, "
+            f"bound={self.bound:.3g} (k={self.k_sigma:g}), warnings={len(self.warnings)})"
+        )
 
     def to_json(self, k_sigma: float | None = None) -> dict[str, Any]:
         kind = self.kind
@@ -209,6 +218,13 @@ class StaticResult:
     settings: StaticSettings
     channels: dict[str, ChannelResult]
     notes: list[str] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return (
+            f"StaticResult(source={self.log.source!r}, channels={list(self.channels)}, "
+            f"rate_hz={self.log.rate_hz:g}, duration_s={self.log.duration_s:g}, "
+            f"estimator={self.settings.estimator!r})"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``noise.json`` as plain JSON types (nan -> None)."""
@@ -423,7 +439,9 @@ def analyse_static(
         fit, slope, sel = analyse_curve(
             curve, prefer=settings.terms_from, confidence=settings.confidence
         )
-        sel = replace(sel, kind=sensor_kind(name))
+        kind = sensor_kind(name)
+        fit, slope = replace(fit, kind=kind), replace(slope, kind=kind)
+        sel = replace(sel, kind=kind, fit=fit, slope=slope)
         notes: list[str] = []
         warnings: list[str] = []
         rep = spikes.get(name)

@@ -120,6 +120,8 @@ class NoiseTerms:
     JSON (local slope, share of the variance, ...); ``stats`` the fit's
     statistics. ``estimator``, ``rate_hz`` and ``n_samples`` are those of the
     curve, so :meth:`avar` draws the model in the curve's own statistic.
+    ``kind`` (``"gyro"`` or ``"accel"``, when known) gives the units of
+    :meth:`to_dict` and :meth:`to_frame`.
     """
 
     Q: float = 0.0
@@ -137,6 +139,7 @@ class NoiseTerms:
     estimator: str = "overlapping"
     rate_hz: float | None = None
     n_samples: int | None = None
+    kind: SensorKind | None = None
 
     def value(self, term: Term | str) -> float:
         return float(getattr(self, term))
@@ -172,6 +175,60 @@ class NoiseTerms:
         if self.notes:
             out["notes"] = list(self.notes)
         return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """:meth:`to_json` in the units of ``kind`` as plain JSON types (nan -> None): the
+        ``noise.fit`` or ``noise.slope`` block of noise.json."""
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.to_json(_known_kind(self.kind)))
+        return out
+
+    def to_frame(self) -> Any:
+        """One row per term: ``term``, ``value`` (SI), ``unit``, ``status``, ``ci_lower``,
+        ``ci_upper``, ``tau_s``, ``ieee_value``, ``ieee_unit``, ``datasheet_value``,
+        ``datasheet_unit`` (a :class:`pandas.DataFrame`)."""
+        return _terms_frame(self.to_dict(), source=None)
+
+
+def _known_kind(kind: SensorKind | None) -> SensorKind:
+    if kind is None:
+        raise OptionError(
+            "the sensor of these terms is unknown, so are their units: use "
+            "imubounds.noise_terms(curve, sensor='gyro' or 'accel')"
+        )
+    return kind
+
+
+def _terms_frame(d: Mapping[str, Any], source: str | None) -> Any:
+    """The per-term rows of a JSON terms block (``noise.fit``, ``noise.selected``)."""
+    import pandas as pd
+
+    rows = []
+    for t in TERMS:
+        e = d[t]
+        ci = e.get("ci") or [None, None]
+        row: dict[str, Any] = {
+            "term": t,
+            "value": e["value"],
+            "unit": e["unit"],
+            "status": e.get("status"),
+        }
+        if source is not None:
+            row["source"] = e.get(source)
+        row.update(
+            {
+                "ci_lower": ci[0],
+                "ci_upper": ci[1],
+                "tau_s": e.get("tau_s"),
+                "ieee_value": e["ieee"]["value"],
+                "ieee_unit": e["ieee"]["unit"],
+                "datasheet_value": e["datasheet"]["value"],
+                "datasheet_unit": e["datasheet"]["unit"],
+            }
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def term_entry(
@@ -799,13 +856,19 @@ class Selection:
     slope: NoiseTerms | None = field(default=None, compare=False, repr=False)
     curve: AllanCurve | None = field(default=None, compare=False, repr=False)
 
-    def _kind(self) -> SensorKind:
-        if self.kind is None:
-            raise OptionError(
-                "the sensor of these terms is unknown, so are their units: use "
-                "imubounds.noise_terms(curve, sensor='gyro' or 'accel')"
-            )
-        return self.kind
+    def __repr__(self) -> str:
+        from imubounds.units import SI_UNITS
+
+        parts = []
+        for t in TERMS:
+            s = self.terms[t]
+            if s.value is None:
+                parts.append(f"{t}=n/a")
+                continue
+            unit = f" {SI_UNITS[self.kind][t]}" if self.kind is not None else ""
+            mark = "<=" if s.status == "upper_bound" else ""
+            parts.append(f"{t}={mark}{s.value:.3g}{unit}")
+        return f"Selection(kind={self.kind!r}, estimator={self.estimator!r}, {', '.join(parts)})"
 
     def to_dict(self) -> dict[str, Any]:
         """The ``noise.selected`` block of noise.json as plain JSON types (nan -> None).
@@ -815,37 +878,14 @@ class Selection:
         """
         from imubounds.io.outputs import to_jsonable
 
-        out: dict[str, Any] = to_jsonable(self.to_json(self._kind()))
+        out: dict[str, Any] = to_jsonable(self.to_json(_known_kind(self.kind)))
         return out
 
     def to_frame(self) -> Any:
         """One row per term: ``term``, ``value`` (SI), ``unit``, ``status``, ``source``,
         ``ci_lower``, ``ci_upper``, ``tau_s``, ``ieee_value``, ``ieee_unit``,
         ``datasheet_value``, ``datasheet_unit`` (a :class:`pandas.DataFrame`)."""
-        import pandas as pd
-
-        d = self.to_dict()
-        rows = []
-        for t in TERMS:
-            e = d[t]
-            ci = e.get("ci") or [None, None]
-            rows.append(
-                {
-                    "term": t,
-                    "value": e["value"],
-                    "unit": e["unit"],
-                    "status": e["status"],
-                    "source": e["from"],
-                    "ci_lower": ci[0],
-                    "ci_upper": ci[1],
-                    "tau_s": e.get("tau_s"),
-                    "ieee_value": e["ieee"]["value"],
-                    "ieee_unit": e["ieee"]["unit"],
-                    "datasheet_value": e["datasheet"]["value"],
-                    "datasheet_unit": e["datasheet"]["unit"],
-                }
-            )
-        return pd.DataFrame(rows)
+        return _terms_frame(self.to_dict(), source="from")
 
     def plot(self, ax: Any = None) -> Any:
         """The curve with the selected term lines (dotted where only an upper bound is
@@ -853,7 +893,7 @@ class Selection:
         Returns the :class:`matplotlib.figure.Figure` (a new one unless ``ax`` is given)."""
         if self.curve is None or self.fit is None or self.slope is None:
             raise OptionError("these terms carry no curve to plot (made without select_terms)")
-        self._kind()
+        _known_kind(self.kind)
         from imubounds.report.static_plots import plot_terms
 
         return plot_terms(self, ax=ax)

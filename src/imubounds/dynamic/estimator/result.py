@@ -103,6 +103,10 @@ class DynamicResult:
     paper: Any = None
     extra: dict[str, Any] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        g = "guaranteed" if self.summary.get("guaranteed") else "not guaranteed"
+        return f"DynamicResult(mode={self.mode!r}, {g}, verdicts={self.verdicts})"
+
     def to_dict(self) -> dict[str, Any]:
         """The ``modes.<mode>`` block of dynamic.json as plain JSON types (numpy numbers
         become Python numbers, nan/inf become None), as ``imubounds dynamic`` writes it."""
