@@ -23,9 +23,9 @@ settings.load_profile("ci" if os.environ.get("CI") else "default")
 
 # The library touches no files at import; the test run, like the CLI, drops numba
 # caches compiled from interval rules that have changed since.
-from imubounds import _numba_cache  # noqa: E402
+from imubounds.cli import numba_cache  # noqa: E402
 
-_numba_cache.refresh_all()
+numba_cache.refresh_all()
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"

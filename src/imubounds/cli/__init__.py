@@ -209,11 +209,11 @@ def _main(argv: list[str], state: dict[str, bool]) -> int:
     # The command line alone chooses the figure backend and touches numba caches;
     # importing the library does neither.
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from imubounds import _numba_cache
+    from imubounds.cli import numba_cache
     from imubounds.io.outputs import reset_committed_outputs
 
     reset_committed_outputs()
-    _numba_cache.refresh_all()
+    numba_cache.refresh_all()
     if not state["debug"]:
         warnings.showwarning = _one_line_warning
     return int(args.func(args) or 0)

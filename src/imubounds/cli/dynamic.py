@@ -264,7 +264,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     if full is not None:
         df = full.to_frame()
         write_with(out / "margins.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
-        st = _states_table(full)
+        st = full.states_frame()
         write_with(out / "states.csv", lambda p: st.to_csv(p, index=False, float_format="%.9g"))
     if "paper" in results:
         steps = _steps_table(results["paper"].paper)
@@ -274,7 +274,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
 
         title = f"{Path(str(drive.source)).name} ({drive.layout})"
         if full is not None:
-            P.save(P.plot_margins(full.to_dict(), title=title), out, "margins")
+            P.save(P.plot_margins(full.summary, title=title), out, "margins")
             P.save(P.plot_windows(full, title=title), out, "windows")
             P.save(P.plot_trajectory(full, drive, title=title), out, "trajectory")
         if "paper" in results:
@@ -290,7 +290,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         say(f"imubounds: note: {w}")
     say(f"dynamic ({', '.join(results)}) -> {args.out}")
     for mode, r in results.items():
-        s = r.to_dict()
+        s = r.summary
         tag = "guaranteed" if s.get("guaranteed") else "NOT guaranteed"
         say(f"  mode {mode} ({tag}):")
         for ch, v in s.get("verdict", {}).items():
@@ -316,24 +316,6 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             say(f"    empty intersections: {ei['count']} (see dynamic.json)")
     del np
     return messages
-
-
-def _states_table(res: Any) -> Any:
-    import pandas as pd
-
-    from imubounds.dynamic.estimator import smoother as SM
-    from imubounds.dynamic.estimator.result import _states
-
-    run = res.full
-    sm = run.smoother
-    ctx = run.ctx
-    df = pd.DataFrame({"time_s": sm.te + ctx.imu.t0})
-    for name, ((lo, hi), unit) in _states(ctx, sm).items():
-        u = unit.replace("/", "p")
-        df[f"{name}_lo_{u}"] = lo
-        df[f"{name}_hi_{u}"] = hi
-    del SM
-    return df
 
 
 def _steps_table(res: Any) -> Any:

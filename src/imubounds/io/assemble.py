@@ -266,7 +266,8 @@ def assemble_logs(
         if opts.rate_hz is None:
             raise InputError(
                 f"{source} has no time column (looked for time, time_s, t, timestamp, ...); "
-                "give the sample rate with --rate HZ or map one with --columns time=NAME"
+                "give the sample rate with --rate HZ (rate_hz= in Python) or map one with "
+                "--columns time=NAME"
             )
         rate = opts.rate_hz
         t = np.arange(n, dtype=np.float64) / rate

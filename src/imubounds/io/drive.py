@@ -116,7 +116,7 @@ class GnssStream:
         ok = np.isfinite(self.lat_deg) & np.isfinite(self.lon_deg)
         if self.fix is not None:
             ok &= self.fix.astype(bool)
-        return ok
+        return np.asarray(ok, dtype=bool)
 
     def check(self, src: str) -> None:
         n = self.t.shape[0]
@@ -403,6 +403,37 @@ class Drive:
         if s is None or s.t.size == 0:
             return None
         return float(s.t[0]), float(s.t[-1])
+
+    def __repr__(self) -> str:
+        return (
+            f"Drive(source={self.source!r}, layout={self.layout!r}, streams={self.streams()}, "
+            f"warnings={len(self.warnings)})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-able description of the drive (not the samples): source, layout, the
+        streams present with their sample count and time span (s), the IMU rate (Hz),
+        warnings, notes and the settings that were assumed (the ``input`` block of
+        dynamic.json, plus the spans)."""
+        spans: dict[str, Any] = {}
+        for name in self.streams():
+            s = getattr(self, name)
+            rng = self.time_range(name)
+            spans[name] = {
+                "samples": int(s.t.shape[0]),
+                "t_first_s": None if rng is None else rng[0],
+                "t_last_s": None if rng is None else rng[1],
+            }
+        return {
+            "source": self.source,
+            "layout": self.layout,
+            "streams": spans,
+            "imu_rate_hz": self.imu.rate_hz if self.imu is not None and self.imu.t.size > 1
+            else None,
+            "warnings": list(self.warnings),
+            "notes": list(self.notes),
+            "settings_assumed": list(self.settings.assumed),
+        }
 
     def streams(self) -> list[str]:
         """Names of the streams present."""

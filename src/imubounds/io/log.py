@@ -9,6 +9,7 @@ explicit (``"FLU"`` body axes unless a reader knows better).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -20,6 +21,10 @@ IMU_CHANNELS: tuple[str, ...] = (
     "accel_y",
     "accel_z",
 )
+
+#: Column-name suffix of each sensor's SI unit in :meth:`ImuLog.to_frame` (the
+#: readers recognise these names, so a frame written to CSV reads back unchanged).
+SI_SUFFIX: dict[str, str] = {"gyro": "rads", "accel": "mps2"}
 
 
 @dataclass
@@ -53,8 +58,16 @@ class ImuLog:
     frame: str = "unknown"
     warnings: list[str] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        return (
+            f"ImuLog(source={self.source!r}, channels={self.channel_names()}, "
+            f"rate_hz={self.rate_hz:g}, n_samples={self.n_samples}, "
+            f"duration_s={self.duration_s:g}, warnings={len(self.warnings)})"
+        )
+
     @property
     def n_samples(self) -> int:
+        """Number of samples."""
         return int(self.t.shape[0])
 
     @property
@@ -71,3 +84,38 @@ class ImuLog:
         """Channels present, in canonical order first, then any others."""
         known = [c for c in IMU_CHANNELS if c in self.channels]
         return known + [c for c in self.channels if c not in IMU_CHANNELS]
+
+    def si_unit(self, channel: str) -> str:
+        """SI unit of a channel's samples: ``"rad/s"`` (gyro) or ``"m/s^2"`` (accel)."""
+        return "rad/s" if channel.startswith("gyro") else "m/s^2"
+
+    def to_frame(self) -> Any:
+        """The samples as a :class:`pandas.DataFrame` in SI with the unit in each name:
+        ``time_s``, ``gyro_x_rads`` ... ``accel_z_mps2`` (names every reader recognises,
+        so ``read_log`` of the frame written to CSV gives the same log)."""
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {"time_s": np.asarray(self.t, dtype=np.float64)}
+        for name in self.channel_names():
+            kind = name.split("_")[0]
+            suffix = SI_SUFFIX.get(kind)
+            cols[f"{name}_{suffix}" if suffix else name] = np.asarray(self.channels[name])
+        return pd.DataFrame(cols)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-able description of the log (not the samples): source, rate, duration,
+        channels with their SI unit and input unit, frame and warnings (the ``input``
+        block of noise.json, plus the channels)."""
+        return {
+            "path": self.source,
+            "sample_rate_hz": float(self.rate_hz),
+            "duration_s": float(self.duration_s),
+            "n_samples": self.n_samples,
+            "channels": {
+                c: {"unit": self.si_unit(c), "input_unit": self.input_units.get(c)}
+                for c in self.channel_names()
+            },
+            "input_units": dict(self.input_units),
+            "frame": self.frame,
+            "warnings": list(self.warnings),
+        }

@@ -18,7 +18,7 @@ import gzip
 import io
 import re
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +29,8 @@ import pyarrow.csv as pacsv
 from imubounds.errors import InputError
 from imubounds.io.log import ImuLog
 
-from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
-from .columns import ColumnPlan, plan_columns
+from .assemble import OnGap, RawChannel, RawTime, ReadOptions, assemble_logs
+from .columns import ColumnPlan, plan_columns, recognise
 
 GZIP_MAGIC = b"\x1f\x8b"
 PARQUET_MAGIC = b"PAR1"
@@ -613,3 +613,101 @@ def read_parquet(path: Path, opts: ReadOptions) -> list[ImuLog]:
             )
     time, chans = _raw_from_arrays(plan, arrays)
     return assemble_logs(str(path), time, chans, opts, notes=plan.notes)
+
+
+def read_frame(
+    data: Any,
+    *,
+    rate_hz: float | None = None,
+    columns: Mapping[str, str] | None = None,
+    gyro_unit: str | None = None,
+    accel_unit: str | None = None,
+    time_unit: str | None = None,
+    gap_tolerance: float | None = None,
+    on_gap: OnGap = "refuse",
+    channels: Iterable[str] | None = None,
+    source: str = "<DataFrame>",
+) -> ImuLog:
+    """An :class:`ImuLog` from a :class:`pandas.DataFrame` or a mapping of columns,
+    with the recognition, unit conversion and checks of a file read.
+
+    Columns are recognised by name as in a CSV file (``time_s``, ``gyro_x_dps``,
+    ``accel_z_g``, ...; a bare ``gyro_x`` is rad/s and ``accel_x`` m/s^2, with a
+    warning in ``ImuLog.warnings``). A :class:`pandas.DatetimeIndex` or
+    :class:`pandas.TimedeltaIndex` is the time, and so is an index whose name is
+    recognised as time (``time_s``); otherwise give a time column or ``rate_hz``.
+    The other parameters are those of :func:`imubounds.io.read_imu`; with gaps and
+    ``on_gap="split"`` the longest segment is returned, with a warning.
+
+    Raises
+    ------
+    InputError
+        Not a table, no IMU column, non-numeric or missing values, bad time stamps.
+    OptionError
+        Invalid options (no time and no ``rate_hz``, an unknown unit, ...).
+    """
+    import pandas as pd
+
+    opts = ReadOptions(
+        rate_hz=rate_hz,
+        columns=columns,
+        gyro_unit=gyro_unit,
+        accel_unit=accel_unit,
+        time_unit=time_unit,
+        gap_tolerance=gap_tolerance,
+        on_gap=on_gap,
+        channels=None if channels is None else tuple(channels),
+    ).validated()
+    if isinstance(data, pd.DataFrame):
+        df = data
+    elif isinstance(data, Mapping):
+        try:
+            df = pd.DataFrame({str(k): np.asarray(v) for k, v in data.items()})
+        except ValueError as err:
+            raise InputError(f"{source}: the columns cannot form a table ({err})") from err
+    else:
+        raise InputError(
+            f"{source}: expected a pandas DataFrame or a mapping of column name -> samples, "
+            f"got {type(data).__name__}"
+        )
+    idx = df.index
+    if isinstance(idx, pd.DatetimeIndex | pd.TimedeltaIndex):
+        ns = idx.asi8 if isinstance(idx, pd.TimedeltaIndex) else idx.as_unit("ns").asi8
+        df = df.reset_index(drop=True)
+        df.insert(0, "timestamp_ns", np.asarray(ns, dtype=np.int64))
+    elif idx.name is not None and recognise(str(idx.name)) is not None:
+        df = df.reset_index()
+    header = [str(c) for c in df.columns]
+    if len(set(header)) != len(header):
+        raise InputError(f"{source}: column names repeat; give each column its own name")
+    plan = plan_columns(header, source, columns=opts.columns, channels=opts.channels)
+    arrays: dict[int, np.ndarray] = {}
+    for i in plan.indices():
+        col = df.iloc[:, i]
+        if col.isna().any():
+            first = int(np.flatnonzero(col.isna().to_numpy())[0])
+            raise InputError(
+                f"{source}, position {first}, column {header[i]!r}: the value is missing "
+                "(NaN/None); fill it or drop the row"
+            )
+        values = col.to_numpy()
+        if values.dtype.kind not in "iuf":
+            raise InputError(
+                f"{source}, column {header[i]!r}: type {values.dtype} is not numeric; "
+                "store numbers in it"
+            )
+        arrays[i] = values
+    time, chans = _raw_from_arrays(plan, arrays)
+    logs = assemble_logs(
+        source, time, chans, opts, row_label=lambda i: f"position {i}", notes=plan.notes
+    )
+    if len(logs) == 1:
+        return logs[0]
+    k = max(range(len(logs)), key=lambda i: logs[i].n_samples)
+    best = logs[k]
+    best.warnings.insert(
+        0,
+        f"{source}: {len(logs)} contiguous segments found; using segment {k + 1} "
+        f"(the longest, {best.n_samples} samples from t={best.t[0]:.6g} s)",
+    )
+    return best

@@ -1,8 +1,15 @@
 """Figures of the stationary analysis (Allan-family deviation with noise-term lines).
 
 Gyro curves are drawn in deg/h, accelerometer curves in m/s^2 (the usual
-reading units); every axis is labelled with its unit. Figures are made
-without choosing a backend (the command line picks Agg).
+reading units); every axis is labelled with its unit. Every function returns a
+:class:`matplotlib.figure.Figure` made without pyplot, so no backend is chosen
+and nothing is shown or written (the command line picks Agg and saves with
+:func:`save_figure`):
+
+* :func:`allan_figure` -- a whole :class:`~imubounds.stationary.pipeline.StaticResult`;
+* :func:`channel_figure` -- one channel (``ChannelResult.plot``);
+* :func:`plot_terms` -- a :class:`~imubounds.stationary.terms.Selection` with its curve;
+* :func:`plot_allan` -- a bare :class:`~imubounds.stationary.allan.AllanResult`.
 """
 
 from __future__ import annotations
@@ -11,7 +18,6 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -21,7 +27,9 @@ from imubounds.stationary.terms import READ_TAU
 from imubounds.units import DEG, HOUR
 
 if TYPE_CHECKING:
+    from imubounds.stationary.allan import AllanResult
     from imubounds.stationary.pipeline import ChannelResult, StaticResult
+    from imubounds.stationary.terms import Selection
 
 TERM_STYLE: dict[str, tuple[str, str]] = {
     "Q": ("tab:purple", "Q (slope −1)"),
@@ -185,9 +193,8 @@ def allan_figure(result: StaticResult) -> Figure:
     accels = [n for n in names if n.startswith("accel")]
     rows = [r for r in (gyros, accels) if r]
     ncols = max(len(r) for r in rows)
-    fig, axes = plt.subplots(
-        len(rows), ncols, figsize=(4.6 * ncols, 4.0 * len(rows)), squeeze=False
-    )
+    fig = Figure(figsize=(4.6 * ncols, 4.0 * len(rows)))
+    axes = fig.subplots(len(rows), ncols, squeeze=False)
     for i, row in enumerate(rows):
         for j in range(ncols):
             ax = axes[i][j]
@@ -215,10 +222,78 @@ def allan_figure(result: StaticResult) -> Figure:
     return fig
 
 
+def _new_axes(ax: Any, size: tuple[float, float] = (5.5, 4.4)) -> tuple[Figure, Any]:
+    if ax is not None:
+        return ax.figure, ax
+    fig = Figure(figsize=size)
+    return fig, fig.add_subplot(1, 1, 1)
+
+
+def channel_figure(ch: ChannelResult, ax: Any = None, terms_from: str = "fit") -> Figure:
+    """One channel drawn by :func:`plot_channel` on ``ax`` or on a new Figure."""
+    fig, a = _new_axes(ax)
+    plot_channel(a, ch, terms_from)
+    a.legend(fontsize=7, loc="upper right")
+    if ax is None:
+        fig.tight_layout()
+    return fig
+
+
+def plot_terms(sel: Selection, ax: Any = None, name: str = "") -> Figure:
+    """A :class:`~imubounds.stationary.terms.Selection` over its curve, drawn like a
+    channel of ``imubounds static`` (no models); ``sel.kind`` and ``sel.curve`` are
+    required."""
+    from types import SimpleNamespace
+
+    kind = sel.kind or "gyro"
+    view = SimpleNamespace(
+        kind=kind,
+        name=name or f"{kind} ({sel.estimator})",
+        allan=sel.curve,
+        allan_plain=None,
+        selected=sel,
+        fit=sel.fit,
+        slope=sel.slope,
+        models=None,
+    )
+    return channel_figure(view, ax=ax)  # type: ignore[arg-type]
+
+
+def plot_allan(curve: AllanResult, ax: Any = None, label: str | None = None) -> Figure:
+    """A bare Allan-family curve with its confidence bars, in the unit of its input
+    (``curve.unit``), log-log, on ``ax`` or on a new Figure."""
+    fig, a = _new_axes(ax)
+    tau = np.asarray(curve.tau)
+    dev = np.asarray(curve.dev)
+    lo, hi = np.asarray(curve.ci_lower), np.asarray(curve.ci_upper)
+    a.errorbar(
+        tau,
+        dev,
+        yerr=[np.clip(dev - lo, 0, None), np.clip(hi - dev, 0, None)],
+        fmt="o-",
+        ms=3,
+        lw=1.0,
+        capsize=2,
+        label=label or f"{'robust ' if curve.robust else ''}{curve.estimator} "
+        f"({curve.confidence:.1%} CI)",
+    )
+    a.set_xscale("log")
+    a.set_yscale("log")
+    a.set_xlabel("averaging time τ (s)")
+    a.set_ylabel(
+        f"{STAT_LABEL.get(curve.estimator, 'Allan deviation')} ({curve.unit or 'input unit'})"
+    )
+    a.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8)
+    if ax is None:
+        fig.tight_layout()
+    return fig
+
+
 def save_figure(
     fig: Figure, dest_stem: Path, formats: tuple[str, ...] = ("png", "svg")
 ) -> list[Path]:
-    """Save ``fig`` as ``dest_stem.png`` / ``.svg`` atomically and close it."""
+    """Save ``fig`` as ``dest_stem.png`` / ``.svg`` atomically."""
     out = []
     for fmt in formats:
         dest = dest_stem.with_suffix(f".{fmt}")
@@ -227,5 +302,4 @@ def save_figure(
             fig.savefig(p, format=fmt, dpi=130)
 
         out.append(write_with(dest, save))
-    plt.close(fig)
     return out

@@ -194,6 +194,9 @@ class AllanResult:
         Confidence level of the interval (0.683 = 1 sigma).
     robust : bool
         Whether ``dev`` is the outlier-resistant estimate (see the module notes).
+    unit : str or None
+        Unit of ``dev`` (that of the input signal: ``"rad/s"`` for a gyro,
+        ``"m/s^2"`` for an accelerometer), or None when the caller did not say.
     """
 
     tau: np.ndarray
@@ -209,6 +212,15 @@ class AllanResult:
     rate_hz: float
     confidence: float
     robust: bool = False
+    unit: str | None = None
+
+    def __repr__(self) -> str:
+        span = f"{self.tau[0]:.3g}..{self.tau[-1]:.3g} s" if self.tau.size else "none"
+        return (
+            f"AllanResult(estimator={self.estimator!r}, points={self.tau.size}, tau={span}, "
+            f"unit={self.unit!r}, rate_hz={self.rate_hz:g}, n_samples={self.n_samples}"
+            f"{', robust' if self.robust else ''})"
+        )
 
     @property
     def var(self) -> np.ndarray:
@@ -216,8 +228,12 @@ class AllanResult:
         return self.dev**2
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: arrays become lists of floats/ints."""
-        return {
+        """JSON-ready dict: arrays become lists of floats/ints (``unit`` only when known).
+
+        ``noise.json`` holds the same keys under ``channels.<ch>.allan`` with ``tau``
+        named ``tau_s`` and ``dev`` named ``adev``.
+        """
+        out = {
             "estimator": self.estimator,
             "n_samples": int(self.n_samples),
             "rate_hz": float(self.rate_hz),
@@ -233,6 +249,52 @@ class AllanResult:
             "noise_type": [NOISE_NAMES.get(int(v), f"alpha={int(v)}") for v in self.alpha],
             "robust": bool(self.robust),
         }
+        if self.unit is not None:
+            out["unit"] = self.unit
+        return out
+
+    def to_frame(self) -> Any:
+        """The curve as a :class:`pandas.DataFrame`, one row per averaging time.
+
+        Columns: ``tau_s``, ``m``, ``dev``, ``ci_lower``, ``ci_upper`` (in ``unit``),
+        ``edf``, ``n_terms``, ``alpha``, ``noise_type`` and ``unit`` (the unit of the
+        deviation, ``"unit of the input"`` when unknown).
+        """
+        import pandas as pd
+
+        d = self.to_dict()
+        return pd.DataFrame(
+            {
+                "tau_s": d["tau"],
+                "m": d["m"],
+                "dev": d["dev"],
+                "ci_lower": d["ci_lower"],
+                "ci_upper": d["ci_upper"],
+                "edf": d["edf"],
+                "n_terms": d["n_terms"],
+                "alpha": d["alpha"],
+                "noise_type": d["noise_type"],
+                "unit": self.unit or "unit of the input",
+            }
+        )
+
+    def plot(self, ax: Any = None) -> Any:
+        """Deviation against τ on log-log axes with the confidence bars.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Draw there; by default a new :class:`matplotlib.figure.Figure` is made
+            (no pyplot, the backend is left alone).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure drawn on.
+        """
+        from imubounds.report.static_plots import plot_allan
+
+        return plot_allan(self, ax=ax)
 
 
 # --------------------------------------------------------------------------
@@ -448,8 +510,11 @@ def _sx(t: float, f: float, alpha: int) -> float:
 
 
 def _sz(t: float, f: float, alpha: int, d: int) -> float:
-    return sum(
-        (-1) ** abs(k) * math.comb(2 * d, d + k) * _sx(t + k, f, alpha) for k in range(-d, d + 1)
+    return float(
+        sum(
+            (-1) ** abs(k) * math.comb(2 * d, d + k) * _sx(t + k, f, alpha)
+            for k in range(-d, d + 1)
+        )
     )
 
 

@@ -137,7 +137,7 @@ def block_average(y: ArrayLike, factor: int) -> NDArray[np.float64]:
     if factor <= 1:
         return arr.copy()
     n = (arr.size // factor) * factor
-    return arr[:n].reshape(-1, factor).mean(axis=1)
+    return np.asarray(arr[:n].reshape(-1, factor).mean(axis=1), dtype=np.float64)
 
 
 def sample_autocovariance(
@@ -763,7 +763,7 @@ class ArModel:
 
         def gamma(nlag: int) -> NDArray[np.float64]:
             r = self.autocovariance(nlag)
-            g = r[0] - r
+            g = np.asarray(r[0] - r, dtype=np.float64)
             g[0] = 0.0
             return g
 

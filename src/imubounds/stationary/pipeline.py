@@ -10,7 +10,7 @@ content of ``noise.json`` and whose :meth:`~StaticResult.kalibr_yaml` is
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -105,7 +105,16 @@ class ChannelResult:
 
     @property
     def kind(self) -> SensorKind:
+        """``"gyro"`` or ``"accel"``."""
         return sensor_kind(self.name)
+
+    def __repr__(self) -> str:
+        unit = si_unit_of_signal(self.kind)
+        return (
+            f"ChannelResult(name={self.name!r}, unit={unit!r}, N={self.terms_used['N']:.3g}, "
+            f"B={self.terms_used['B']:.3g}, sigma_c={self.sigma_c:.3g}, "
+            f"bound={self.bound:.3g} (k={self.k_sigma:g}), warnings={len(self.warnings)})"
+        )
 
     def to_json(self, k_sigma: float | None = None) -> dict[str, Any]:
         kind = self.kind
@@ -173,15 +182,97 @@ class ChannelResult:
             out["notes"] = list(self.notes)
         return out
 
+    def to_dict(self) -> dict[str, Any]:
+        """``channels.<name>`` of noise.json as plain JSON types (nan -> None)."""
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.to_json())
+        return out
+
+    def to_frame(self) -> Any:
+        """The selected terms of this channel, one row per term (see
+        :meth:`imubounds.stationary.terms.Selection.to_frame`), with a ``channel`` column."""
+        df = self.selected.to_frame()
+        df.insert(0, "channel", self.name)
+        return df
+
+    def plot(self, ax: Any = None) -> Any:
+        """This channel's curve with CI bars, the selected term lines, the fitted sum,
+        σ_min and the valid models (gyro in deg/h, accelerometer in m/s²).
+        Returns the :class:`matplotlib.figure.Figure` (a new one unless ``ax`` is given)."""
+        from imubounds.report.static_plots import channel_figure
+
+        return channel_figure(self, ax=ax)
+
 
 @dataclass
 class StaticResult:
-    """The result of :func:`analyse_static` for a whole log."""
+    """The result of :func:`analyse_static` (and :func:`imubounds.characterize`).
+
+    ``channels`` maps each analysed channel to its :class:`ChannelResult`;
+    :meth:`to_dict` is the content of ``noise.json``, :meth:`to_frame` the selected
+    terms of every channel, :meth:`plot` the Allan figure of ``imubounds static``.
+    """
 
     log: ImuLog
     settings: StaticSettings
     channels: dict[str, ChannelResult]
     notes: list[str] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return (
+            f"StaticResult(source={self.log.source!r}, channels={list(self.channels)}, "
+            f"rate_hz={self.log.rate_hz:g}, duration_s={self.log.duration_s:g}, "
+            f"estimator={self.settings.estimator!r})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``noise.json`` as plain JSON types (nan -> None)."""
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.to_json())
+        return out
+
+    def to_frame(self) -> Any:
+        """The selected terms of every channel: one row per channel and term, columns
+        ``channel``, ``term``, ``value`` (SI), ``unit``, ``status``, ``source``,
+        ``ci_lower``, ``ci_upper``, ``tau_s``, ``ieee_value``, ``ieee_unit``,
+        ``datasheet_value``, ``datasheet_unit`` (a :class:`pandas.DataFrame`)."""
+        import pandas as pd
+
+        return pd.concat([ch.to_frame() for ch in self.channels.values()], ignore_index=True)
+
+    def plot(self, ax: Any = None, channel: str | None = None) -> Any:
+        """The Allan figure: one panel per channel (gyros above accelerometers).
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Draw one channel there (``channel``, or the only one analysed).
+        channel : str, optional
+            The channel to draw (default: all in a new figure, or the only one).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A new figure (no pyplot, the backend is left alone) or that of ``ax``.
+        """
+        if ax is None and channel is None:
+            from imubounds.report.static_plots import allan_figure
+
+            return allan_figure(self)
+        if channel is None:
+            if len(self.channels) != 1:
+                raise OptionError(
+                    "one Axes holds one channel: give channel= (one of "
+                    f"{', '.join(self.channels)})"
+                )
+            channel = next(iter(self.channels))
+        if channel not in self.channels:
+            raise OptionError(
+                f"no channel {channel!r} in this result; available: {', '.join(self.channels)}"
+            )
+        return self.channels[channel].plot(ax=ax)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -348,6 +439,9 @@ def analyse_static(
         fit, slope, sel = analyse_curve(
             curve, prefer=settings.terms_from, confidence=settings.confidence
         )
+        kind = sensor_kind(name)
+        fit, slope = replace(fit, kind=kind), replace(slope, kind=kind)
+        sel = replace(sel, kind=kind, fit=fit, slope=slope)
         notes: list[str] = []
         warnings: list[str] = []
         rep = spikes.get(name)

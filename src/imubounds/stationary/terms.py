@@ -120,6 +120,8 @@ class NoiseTerms:
     JSON (local slope, share of the variance, ...); ``stats`` the fit's
     statistics. ``estimator``, ``rate_hz`` and ``n_samples`` are those of the
     curve, so :meth:`avar` draws the model in the curve's own statistic.
+    ``kind`` (``"gyro"`` or ``"accel"``, when known) gives the units of
+    :meth:`to_dict` and :meth:`to_frame`.
     """
 
     Q: float = 0.0
@@ -137,6 +139,7 @@ class NoiseTerms:
     estimator: str = "overlapping"
     rate_hz: float | None = None
     n_samples: int | None = None
+    kind: SensorKind | None = None
 
     def value(self, term: Term | str) -> float:
         return float(getattr(self, term))
@@ -172,6 +175,60 @@ class NoiseTerms:
         if self.notes:
             out["notes"] = list(self.notes)
         return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """:meth:`to_json` in the units of ``kind`` as plain JSON types (nan -> None): the
+        ``noise.fit`` or ``noise.slope`` block of noise.json."""
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.to_json(_known_kind(self.kind)))
+        return out
+
+    def to_frame(self) -> Any:
+        """One row per term: ``term``, ``value`` (SI), ``unit``, ``status``, ``ci_lower``,
+        ``ci_upper``, ``tau_s``, ``ieee_value``, ``ieee_unit``, ``datasheet_value``,
+        ``datasheet_unit`` (a :class:`pandas.DataFrame`)."""
+        return _terms_frame(self.to_dict(), source=None)
+
+
+def _known_kind(kind: SensorKind | None) -> SensorKind:
+    if kind is None:
+        raise OptionError(
+            "the sensor of these terms is unknown, so are their units: use "
+            "imubounds.noise_terms(curve, sensor='gyro' or 'accel')"
+        )
+    return kind
+
+
+def _terms_frame(d: Mapping[str, Any], source: str | None) -> Any:
+    """The per-term rows of a JSON terms block (``noise.fit``, ``noise.selected``)."""
+    import pandas as pd
+
+    rows = []
+    for t in TERMS:
+        e = d[t]
+        ci = e.get("ci") or [None, None]
+        row: dict[str, Any] = {
+            "term": t,
+            "value": e["value"],
+            "unit": e["unit"],
+            "status": e.get("status"),
+        }
+        if source is not None:
+            row["source"] = e.get(source)
+        row.update(
+            {
+                "ci_lower": ci[0],
+                "ci_upper": ci[1],
+                "tau_s": e.get("tau_s"),
+                "ieee_value": e["ieee"]["value"],
+                "ieee_unit": e["ieee"]["unit"],
+                "datasheet_value": e["datasheet"]["value"],
+                "datasheet_unit": e["datasheet"]["unit"],
+            }
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def term_entry(
@@ -288,7 +345,7 @@ def local_slopes(tau: ArrayLike, dev: ArrayLike) -> NDArray[np.float64]:
 
 def _log_sd(edf: NDArray[np.float64]) -> NDArray[np.float64]:
     """Standard deviation of ln(σ²_est) for a chi-squared estimate with ``edf`` dof."""
-    return np.sqrt(special.polygamma(1, np.maximum(edf, 0.5) / 2.0))
+    return np.sqrt(np.asarray(special.polygamma(1, np.maximum(edf, 0.5) / 2.0), dtype=np.float64))
 
 
 def _upper_points(c: _Curve, level: float = UPPER_BOUND_LEVEL) -> NDArray[np.float64]:
@@ -779,12 +836,67 @@ class SelectedTerm:
 
 @dataclass(frozen=True)
 class Selection:
-    """The selected Q, N, B, K, R and σ_min of one channel (see :func:`select_terms`)."""
+    """The selected Q, N, B, K, R and σ_min of one channel (see :func:`select_terms`).
+
+    What :func:`imubounds.noise_terms` returns. ``terms`` maps each of Q, N, B, K,
+    R to a :class:`SelectedTerm` (SI value, status, source, CI); ``sigma_min`` is
+    the lowest adequate point of the curve (``value`` in the signal's unit,
+    ``tau_s``, ``ci``, ``edf``). ``kind`` (``"gyro"`` or ``"accel"``) gives the units
+    of :meth:`to_dict` and :meth:`to_frame`; ``fit`` and ``slope`` are the two
+    estimates the selection chose from and ``curve`` the Allan curve they come from
+    (set by :func:`select_terms`; used by :meth:`plot`).
+    """
 
     terms: dict[str, SelectedTerm]
     sigma_min: dict[str, Any]
     estimator: str
     notes: list[str] = field(default_factory=list)
+    kind: SensorKind | None = None
+    fit: NoiseTerms | None = field(default=None, compare=False, repr=False)
+    slope: NoiseTerms | None = field(default=None, compare=False, repr=False)
+    curve: AllanCurve | None = field(default=None, compare=False, repr=False)
+
+    def __repr__(self) -> str:
+        from imubounds.units import SI_UNITS
+
+        parts = []
+        for t in TERMS:
+            s = self.terms[t]
+            if s.value is None:
+                parts.append(f"{t}=n/a")
+                continue
+            unit = f" {SI_UNITS[self.kind][t]}" if self.kind is not None else ""
+            mark = "<=" if s.status == "upper_bound" else ""
+            parts.append(f"{t}={mark}{s.value:.3g}{unit}")
+        return f"Selection(kind={self.kind!r}, estimator={self.estimator!r}, {', '.join(parts)})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``noise.selected`` block of noise.json as plain JSON types (nan -> None).
+
+        Per term ``{"value" (SI), "unit", "status", "from", "ci", "ieee", "datasheet"}``
+        and ``sigma_min``.
+        """
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.to_json(_known_kind(self.kind)))
+        return out
+
+    def to_frame(self) -> Any:
+        """One row per term: ``term``, ``value`` (SI), ``unit``, ``status``, ``source``,
+        ``ci_lower``, ``ci_upper``, ``tau_s``, ``ieee_value``, ``ieee_unit``,
+        ``datasheet_value``, ``datasheet_unit`` (a :class:`pandas.DataFrame`)."""
+        return _terms_frame(self.to_dict(), source="from")
+
+    def plot(self, ax: Any = None) -> Any:
+        """The curve with the selected term lines (dotted where only an upper bound is
+        known), the fitted sum and σ_min; gyro in deg/h, accelerometer in m/s².
+        Returns the :class:`matplotlib.figure.Figure` (a new one unless ``ax`` is given)."""
+        if self.curve is None or self.fit is None or self.slope is None:
+            raise OptionError("these terms carry no curve to plot (made without select_terms)")
+        _known_kind(self.kind)
+        from imubounds.report.static_plots import plot_terms
+
+        return plot_terms(self, ax=ax)
 
     def value(self, term: str) -> float:
         """SI value used downstream (0 only for a term the estimator cannot see)."""
@@ -891,7 +1003,15 @@ def select_terms(
         if t in ("N", "B", "K"):
             notes.append(note)
     smin = sigma_min(c, _fit_weights(fit, c.tau.size))
-    return Selection(terms=out, sigma_min=smin, estimator=c.estimator, notes=notes)
+    return Selection(
+        terms=out,
+        sigma_min=smin,
+        estimator=c.estimator,
+        notes=notes,
+        fit=fit,
+        slope=slope,
+        curve=curve,
+    )
 
 
 def analyse_curve(

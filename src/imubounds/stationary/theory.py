@@ -209,7 +209,7 @@ def _total(term: str, m: NDArray[np.float64], t0: float, n: float) -> NDArray[np
     if term == "Q":
         even = (np.round(m) % 2 == 0).astype(np.float64)
         s = 6.0 * inner + 2.0 * (10.0 * (m - 1.0) + 4.0 * even)
-        return s / (2.0 * tau**2 * (n - 1.0))
+        return np.asarray(s / (2.0 * tau**2 * (n - 1.0)), dtype=np.float64)
     # R: phase x_k = a k² (+ linear), a = R t0²/2
     a2 = (t0 * t0 / 2.0) ** 2
     s = 4.0 * m**4 * inner + 2.0 * _tot_edge_ramp(m)

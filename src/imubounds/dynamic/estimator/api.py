@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from imubounds.dynamic.estimator.result import DynamicResult
-from imubounds.errors import OptionError
+from imubounds.errors import InputError, OptionError
+
+if TYPE_CHECKING:
+    from imubounds.io.drive import Drive
+    from imubounds.stationary.pipeline import StaticResult
 
 MODES = ("full", "paper")
 
 
 def dynamic_margins(
-    drive: Any,
+    drive: Drive,
     *,
-    noise: str | Path | dict[str, Any] | None = None,
+    noise: str | Path | dict[str, Any] | StaticResult | None = None,
     mode: str = "full",
     **options: Any,
 ) -> DynamicResult:
@@ -26,7 +30,9 @@ def dynamic_margins(
         A :class:`imubounds.io.drive.Drive` (IMU plus any aiding sensors, SI units).
     noise:
         The IMU's noise: a ``noise.json`` of ``imubounds static`` (path or loaded
-        dict); when None, ``drive.settings.imu`` (drive.yaml) or the MTx preset.
+        dict) or the :class:`~imubounds.stationary.pipeline.StaticResult` of
+        :func:`imubounds.characterize`; when None, ``drive.settings.imu`` (drive.yaml),
+        the ``imu_spec`` option, or the MTx preset.
     mode:
         ``"full"`` (default): guaranteed window-mean margins per averaging time with
         verdicts, and the whole-trip interval smoother (docs/dynamic-method.md).
@@ -44,9 +50,18 @@ def dynamic_margins(
         table), ``.plot(ax=None)`` (margins vs tau).
     """
     from imubounds.interval.rounding import nearest
+    from imubounds.io.drive import Drive as _Drive
+    from imubounds.stationary.pipeline import StaticResult as _StaticResult
 
     if mode not in MODES:
         raise OptionError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if not isinstance(drive, _Drive):
+        raise InputError(
+            "dynamic_margins takes a Drive (from imubounds.read_drive or simulate_trip(...)"
+            f".drive), got {type(drive).__name__}"
+        )
+    if isinstance(noise, _StaticResult):
+        noise = noise.to_dict()
     drive.check()
     with nearest():
         if mode == "full":
@@ -57,4 +72,5 @@ def dynamic_margins(
             return DynamicResult("full", full_summary(run, drive), full=run)
         from imubounds.dynamic.estimator.paper import run_paper
 
-        return run_paper(drive, noise, **options)
+        paper: DynamicResult = run_paper(drive, noise, **options)
+        return paper

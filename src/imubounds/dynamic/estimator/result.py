@@ -79,7 +79,7 @@ def _inside_angle(lo: np.ndarray, hi: np.ndarray, x: np.ndarray) -> np.ndarray:
     mid = np.where(fin, 0.5 * (np.where(fin, lo, 0) + np.where(fin, hi, 0)), x)
     m = np.round((mid - x) / (2 * math.pi))
     xx = x + 2 * math.pi * m
-    return ~fin & (lo <= hi) | ((lo <= xx) & (xx <= hi))
+    return np.asarray(~fin & (lo <= hi) | ((lo <= xx) & (xx <= hi)), dtype=bool)
 
 
 @dataclass
@@ -103,9 +103,17 @@ class DynamicResult:
     paper: Any = None
     extra: dict[str, Any] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        g = "guaranteed" if self.summary.get("guaranteed") else "not guaranteed"
+        return f"DynamicResult(mode={self.mode!r}, {g}, verdicts={self.verdicts})"
+
     def to_dict(self) -> dict[str, Any]:
-        """The ``modes.<mode>`` block of dynamic.json (plain JSON types)."""
-        return self.summary
+        """The ``modes.<mode>`` block of dynamic.json as plain JSON types (numpy numbers
+        become Python numbers, nan/inf become None), as ``imubounds dynamic`` writes it."""
+        from imubounds.io.outputs import to_jsonable
+
+        out: dict[str, Any] = to_jsonable(self.summary)
+        return out
 
     def to_frame(self) -> Any:
         """The margins table: one row per channel and averaging time (SI units)."""
@@ -119,7 +127,29 @@ class DynamicResult:
 
     @property
     def verdicts(self) -> dict[str, str]:
+        """Channel -> verdict (``consistent``, ``exceeds`` or ``undecided``)."""
         return dict(self.summary.get("verdict", {}))
+
+    def states_frame(self) -> Any:
+        """Mode full: the smoother's state intervals at its epochs (``states.csv``):
+        ``time_s`` and ``<state>_lo_<unit>``, ``<state>_hi_<unit>`` for east and north
+        (m), heading (rad), body velocities u, v and speed (m/s)."""
+        import pandas as pd
+
+        from imubounds.errors import AnalysisError
+
+        run = self.full
+        if run is None or run.smoother is None:
+            raise AnalysisError(
+                "no state intervals: they come from mode full's whole-trip smoother"
+            )
+        sm = run.smoother
+        df = pd.DataFrame({"time_s": sm.te + run.ctx.imu.t0})
+        for name, ((lo, hi), unit) in state_intervals(run.ctx, sm).items():
+            u = unit.replace("/", "p")
+            df[f"{name}_lo_{u}"] = lo
+            df[f"{name}_hi_{u}"] = hi
+        return df
 
     def plot(self, ax: Any = None) -> Any:
         """Margins against tau (log-log): median and max half-width of the guaranteed
@@ -223,7 +253,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "by_sensor": _count_by(sm.dropped),
         }
         out["contracted_aiding"] = _contracted(ctx, sm)
-        states = _states(ctx, sm)
+        states = state_intervals(ctx, sm)
         out["states_summary"] = {
             k: {"median_halfwidth": _pct(0.5 * (v[1] - v[0]), 50), "unit": u}
             for k, (v, u) in states.items()
@@ -283,8 +313,9 @@ def _assumptions(ctx: Any) -> list[str]:
     return a + list(ctx.assumptions)
 
 
-def _states(ctx: Any, sm: Any) -> dict[str, Any]:
-    """State intervals at the epochs, body velocities u, v from the horizontal ones."""
+def state_intervals(ctx: Any, sm: Any) -> dict[str, Any]:
+    """State intervals at the smoother's epochs: name -> ((lo, hi), unit) for east,
+    north, heading, body velocities u, v (from the horizontal ones) and speed."""
     from imubounds.interval import IntervalArray as IA
     from imubounds.interval import cos, sin
 

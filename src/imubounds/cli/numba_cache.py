@@ -39,9 +39,10 @@ def refresh(package_dir: Path, extra_dirs: Iterable[Path] = ()) -> None:
 def refresh_all() -> None:
     """Refresh the caches of every package whose compiled code inlines the interval rules.
 
-    Called by the command-line entry point only (importing the library touches no files).
+    Called by the command-line entry point only (importing the library touches no files);
+    the test suite calls it once at start-up.
     """
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parent.parent
     interval = root / "interval"
     refresh(interval)
     refresh(root / "dynamic" / "estimator", [interval])
