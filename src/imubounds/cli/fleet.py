@@ -62,8 +62,8 @@ def register(sub: Any) -> None:
         help="per-unit memory setting: larger logs take the out-of-core path",
     )  # fmt: skip
     p.add_argument(
-        "--task-size", default="32MB", metavar="SIZE",
-        help="group small logs into tasks of about SIZE of input (default 32MB)",
+        "--task-size", default="8MB", metavar="SIZE",
+        help="group small logs into tasks of about SIZE of input (default 8MB)",
     )  # fmt: skip
     p.add_argument(
         "--outlier-z", type=positive_float, default=3.5, metavar="Z",

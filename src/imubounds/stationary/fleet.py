@@ -22,9 +22,12 @@ the analysis settings, and a finished unit's result is stored as
 The client hashes the files and owns the cache, so remote workers need only
 read the logs (the paths must be valid on the workers).
 
-Tasks are sized to seconds of work: units are grouped by file size into tasks
-of about ``target_task_bytes`` (longest-first onto the lightest task), with at
-least 4 tasks per worker when there are enough units.
+Tasks are sized to about a second of work: units are grouped by file size into
+tasks of about ``target_task_bytes`` (8 MB: a 30 min, 100 Hz CSV.gz log; longest
+first onto the lightest task), with at least 4 tasks per worker when there are
+enough units; with fewer than 2 units per worker, long logs are split by
+channel (:func:`plan_work`). Each Dask worker is warmed once (imports, numba
+kernels) by a worker plugin, and runs the Allan kernels single-threaded.
 
 Spec format (YAML)::
 
@@ -87,6 +90,7 @@ __all__ = [
 ]
 
 FORMAT = "imubounds.stationary.fleet/1"
+REPORT_ADVICE = "move it away or use --no-report"
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
 Progress = Callable[[str, int, int], None]
 
@@ -284,7 +288,7 @@ def content_key(source: str | Path, settings: FleetSettings) -> str:
 
 
 def plan_tasks(
-    sizes: Sequence[int], n_workers: int, target_task_bytes: int = 32 << 20
+    sizes: Sequence[int], n_workers: int, target_task_bytes: int = 8 << 20
 ) -> list[list[int]]:
     """Group units (by index) into tasks of about ``target_task_bytes`` each.
 
@@ -776,7 +780,7 @@ def run_fleet(
     n_workers: int = 2,
     threads_per_worker: int = 1,
     spec: FleetSpec | str | Path | None = None,
-    target_task_bytes: int = 32 << 20,
+    target_task_bytes: int = 8 << 20,
     min_split_bytes: int = 4 << 20,
     numba_threads: int | None = None,
     outlier_z: float = DEFAULT_OUTLIER_Z,
@@ -811,8 +815,10 @@ def run_fleet(
     target_task_bytes, min_split_bytes : int
         Task sizing (:func:`plan_tasks`, :func:`plan_work`).
     numba_threads : int, optional
-        Threads of the Allan kernels in each task; default 1 on Dask (the
-        fleet is parallel across units), numba's default in-process.
+        Threads of the Allan kernels in each task; on Dask by default the cores
+        of this machine shared among the worker threads when all workers run
+        here, else 1 (the fleet is parallel across units: more kernel threads
+        than cores only contend); numba's default in-process.
     outlier_z : float
         ``|z|`` above which a unit is flagged (:mod:`.fleet_stats`).
     compare : path, optional
@@ -842,6 +848,10 @@ def run_fleet(
     sources = expand_globs([str(p) for p in patterns])
     names = unit_names(sources)
     out = ensure_dir(outdir)
+    if report:  # a report.html imubounds did not write is refused before the long run
+        from imubounds.io.outputs import check_output_file
+
+        check_output_file(out / "report.html", option="-o", advice=REPORT_ADVICE)
     cache = ensure_dir(out / ".cache")
 
     # ---- content keys and cache lookup (client side)
@@ -888,10 +898,10 @@ def run_fleet(
 
                 ensure_warm(client, settings)
                 sched_name = str(client.scheduler.address)
-                workers = sum(
-                    int(w.get("nthreads", 1))
-                    for w in client.scheduler_info().get("workers", {}).values()
-                ) or max(1, n_workers)
+                info = list(client.scheduler_info().get("workers", {}).values())
+                workers = sum(int(w.get("nthreads", 1)) for w in info) or max(1, n_workers)
+                if numba_threads is None:
+                    numba_threads = _kernel_threads(info)
             sizes = [source_size(sources[i]) for i in todo]
             work = plan_work(sizes, workers, min_split_bytes)
             wsizes = [sizes[j] // (p[1] if p else 1) for j, p in work]
@@ -929,7 +939,7 @@ def run_fleet(
                 from dask.distributed import as_completed
 
                 futures = {
-                    client.submit(analyse_batch, args, settings, numba_threads or 1,
+                    client.submit(analyse_batch, args, settings, numba_threads,
                                   pure=False): items  # fmt: skip
                     for items, args in tasks
                 }
@@ -995,10 +1005,27 @@ def run_fleet(
     result.seconds = time.perf_counter() - t_start
     write_json(out / "fleet.json", result.summary())
     if report:
-        from imubounds.report.html import write_report
+        from imubounds.io.outputs import output_file
+        from imubounds.report.html import build_report
 
-        write_report(out)
+        text = build_report(out)
+        with output_file(out / "report.html", option="-o", advice=REPORT_ADVICE) as tmp:
+            tmp.write_text(text, encoding="utf-8")
     return result
+
+
+def _kernel_threads(workers: Sequence[Mapping[str, Any]]) -> int:
+    """Threads for the Allan kernels in each task: the cores of this machine shared among
+    the worker threads when every worker runs here (a local cluster), else 1."""
+    import os
+    import socket
+
+    hosts = {str(w.get("host", "")) for w in workers}
+    local = {"127.0.0.1", "localhost", "::1", socket.gethostname()}
+    if workers and hosts <= local:
+        threads = sum(int(w.get("nthreads", 1)) for w in workers)
+        return max(1, (os.cpu_count() or 1) // max(1, threads))
+    return 1
 
 
 @contextmanager
