@@ -713,8 +713,8 @@ def build_report(directory: str | Path) -> str:
     fleet_json = root / "fleet.json"
     if static_dir is None and not dyn_dirs and not fleet_json.is_file():
         raise InputError(
-            f"{root}: no noise.json, dynamic.json or fleet.json found (also looked in static/ "
-            "and dynamic/); run 'imubounds static', 'dynamic' or 'fleet' with -o there first"
+            f"{root}: no noise.json or dynamic.json found (also looked in static/ and dynamic/), "
+            "nor fleet.json; run 'imubounds static', 'dynamic' or 'fleet' with -o there first"
         )
     if fleet_json.is_file():
         fleet = _result_json(fleet_json)
