@@ -306,6 +306,20 @@ def test_channel_parts_together_are_the_whole_unit(fleet_dir: Path) -> None:
     assert plan_work([1000], 2) == [(0, None)], "a short log is not worth splitting"
 
 
+def test_a_long_log_split_by_channel_gives_the_whole_units_table(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    src = [str(fleet_dir / "unit02.csv.gz")]
+    whole = run_fleet(src, tmp_path / "a", n_workers=0, plot=False)
+    split = run_fleet(src, tmp_path / "b", n_workers=0, plot=False, min_split_bytes=0)
+    assert whole.n_tasks == 1 and split.n_tasks == 2
+    pd.testing.assert_frame_equal(split.table, whole.table)
+    # the cache holds the whole unit, not a part
+    again = run_fleet(src, tmp_path / "b", n_workers=0, plot=False)
+    assert again.n_cached == 1
+    pd.testing.assert_frame_equal(again.table, whole.table)
+
+
 # --------------------------------------------------------------------------
 # issue 15: fsspec inputs
 # --------------------------------------------------------------------------

@@ -872,6 +872,9 @@ def run_fleet(
             try:
                 res = json.loads(hit.read_text(encoding="utf-8"))
                 res["path"], res["unit"] = src, names[i]
+                # JSON has no NaN: the cache holds null for an unresolved term
+                res["rows"] = [{k: math.nan if v is None else v for k, v in row.items()}
+                               for row in res["rows"]]  # fmt: skip
                 results[i] = res
                 n_cached += 1
             except (OSError, ValueError):
