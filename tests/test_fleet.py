@@ -299,19 +299,25 @@ def test_channel_parts_together_are_the_whole_unit(fleet_dir: Path) -> None:
         assert merged["rows"] == whole["rows"]
         for ch, c in whole["curves"].items():
             np.testing.assert_array_equal(merged["curves"][ch]["adev"], c["adev"])
-    # one long log on 2 workers is split by channel; many units are not
-    assert plan_work([10 << 20], 2) == [(0, (j, 6)) for j in range(6)]
-    assert plan_work([10 << 20] * 3, 2) == [(i, (j, 2)) for i in range(3) for j in range(2)]
-    assert plan_work([10 << 20] * 4, 2) == [(i, None) for i in range(4)]
+    # one long log on 2 workers is split by channel; as many units as workers are not
+    assert plan_work([10 << 20], 2) == [(0, (0, 2)), (0, (1, 2))]
+    assert plan_work([10 << 20], 4) == [(0, (j, 6)) for j in range(6)]
+    assert plan_work([10 << 20] * 2, 4) == [(i, (j, 2)) for i in range(2) for j in range(2)]
+    assert plan_work([10 << 20] * 3, 2) == [(i, None) for i in range(3)]
     assert plan_work([1000], 2) == [(0, None)], "a short log is not worth splitting"
+    assert plan_work([10 << 20], 1) == [(0, None)]
 
 
 def test_a_long_log_split_by_channel_gives_the_whole_units_table(
     fleet_dir: Path, tmp_path: Path
 ) -> None:
+    from dask.distributed import Client, LocalCluster
+
     src = [str(fleet_dir / "unit02.csv.gz")]
     whole = run_fleet(src, tmp_path / "a", n_workers=0, plot=False)
-    split = run_fleet(src, tmp_path / "b", n_workers=0, plot=False, min_split_bytes=0)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as lc, Client(lc) as client:  # fmt: skip
+        split = run_fleet(src, tmp_path / "b", client=client, plot=False, min_split_bytes=0)
     assert whole.n_tasks == 1 and split.n_tasks == 2
     pd.testing.assert_frame_equal(split.table, whole.table)
     # the cache holds the whole unit, not a part

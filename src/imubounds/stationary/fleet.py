@@ -25,7 +25,7 @@ read the logs (the paths must be valid on the workers).
 Tasks are sized to about a second of work: units are grouped by file size into
 tasks of about ``target_task_bytes`` (8 MB: a 30 min, 100 Hz CSV.gz log; longest
 first onto the lightest task), with at least 4 tasks per worker when there are
-enough units; with fewer than 2 units per worker, long logs are split by
+enough units; with fewer units than workers, long logs are split by
 channel (:func:`plan_work`). Each Dask worker is warmed once (imports, numba
 kernels) by a worker plugin, and runs the Allan kernels single-threaded.
 
@@ -747,17 +747,20 @@ def plan_work(
     sizes: Sequence[int], n_workers: int, min_split_bytes: int = 4 << 20
 ) -> list[tuple[int, tuple[int, int] | None]]:
     """Units of work: ``(unit index, channel part)``; a unit whole (part ``None``) or,
-    when there are fewer than 2 units per worker, a log of at least ``min_split_bytes``
-    split by channel into ``(i, n)`` parts (n of 2, 3 or 6 slices of the six IMU
-    channels), so that every worker is busy."""
+    when there are fewer units than workers, a log of at least ``min_split_bytes`` split
+    by channel into ``(i, n)`` parts (n of 2, 3 or 6 contiguous slices of the six IMU
+    channels, the fewest that give every worker a part).
+
+    Each part reads the whole log again (reading a CSV.gz is about 40 % of a unit's
+    time), so a split pays only when workers would otherwise be idle: 3 units on 2
+    workers are not split (6 parts would read 6 logs for 3 units' analysis)."""
     n = len(sizes)
-    want = 2 * max(1, n_workers)
+    w = max(1, n_workers)
     items: list[tuple[int, tuple[int, int] | None]] = []
     for i, size in enumerate(sizes):
         parts = 1
-        if 0 < n < want and size >= min_split_bytes:
-            need = math.ceil(want / n)
-            parts = next((k for k in (2, 3, 6) if k >= need), 6)
+        if 0 < n < w and size >= min_split_bytes:
+            parts = next((k for k in (2, 3, 6) if k >= math.ceil(w / n)), 6)
         if parts == 1:
             items.append((i, None))
         else:
