@@ -109,6 +109,8 @@ def main() -> None:
     ap.add_argument("--scaling", default="1,2,4", help="worker counts of the scaling table")
     ap.add_argument("--repeat", type=int, default=3, help="runs per warm measurement")
     ap.add_argument("--cli-units", type=int, default=0, help="units timed for the CLI loop")
+    ap.add_argument("--long-minutes", type=float, default=0.0,
+                    help="also time one unit this long (split by channel across the workers)")
     a = ap.parse_args()
     load0 = os.getloadavg()
     paths = _make_fleet(a.units, a.minutes, a.rate)
@@ -196,6 +198,32 @@ def main() -> None:
     res2 = run_fleet(paths, out, settings, n_workers=0, plot=False)
     t_cached = time.perf_counter() - t0
 
+    long_case: dict[str, Any] = {}
+    if a.long_minutes > 0:
+        (lp,) = _make_fleet(1, a.long_minutes, a.rate)
+        lserial, lruns = [], []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            one = analyse_unit(lp, settings)
+            lserial.append(time.perf_counter() - t0)
+        with LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0") \
+                as lc, Client(lc) as cl:  # fmt: skip
+            ensure_warm(cl, settings)
+            for _ in range(a.repeat):
+                shutil.rmtree(out, ignore_errors=True)
+                t0 = time.perf_counter()
+                lres = run_fleet([lp], out, settings, client=cl, plot=False)
+                lruns.append(time.perf_counter() - t0)
+        lsame, lworst = _same([one], lres)
+        same &= lsame
+        worst = max(worst, lworst)
+        long_case = {"minutes": a.long_minutes, "serial_s": statistics.median(lserial),
+                     "dask_warm_s": statistics.median(lruns), "tasks": lres.n_tasks,
+                     "speedup": statistics.median(lserial) / statistics.median(lruns)}  # fmt: skip
+        print(f"one unit of {a.long_minutes:g} min: serial {long_case['serial_s']:.2f} s, "
+              f"{a.workers} workers {long_case['dask_warm_s']:.2f} s ({lres.n_tasks} channel "
+              f"parts, {long_case['speedup']:.2f}x)", flush=True)  # fmt: skip
+
     t_cli = math.nan
     if a.cli_units > 0:
         n_cli = min(a.cli_units, len(paths))
@@ -219,6 +247,7 @@ def main() -> None:
         "dask_first_run_s": t_first, "dask_warm_s": t_warm,
         "speedup_warm": t_serial / t_warm, "speedup_cold": t_serial / t_cold,
         "scaling": table, "cached_rerun_s": t_cached, "n_cached_rerun": res2.n_cached,
+        "long_unit": long_case,
         "cli_loop_s_extrapolated": t_cli,
         "identical_to_serial": same, "largest_relative_difference": worst,
     }  # fmt: skip
