@@ -9,12 +9,13 @@ CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
   keeps numba's default thread count (all cores) for the Allan kernels, so it
   is the fairest single-process baseline; its CPU time / wall time says how
   many cores it kept busy. "serial cold" adds the process's warm-up;
-* **Dask cold**: a new ``LocalCluster`` (``--workers`` single-threaded worker
-  processes) started, warmed (the worker plugin) and the fleet run, cache
-  emptied first; the start-up and warm-up are also given on their own;
-* **Dask warm**: the same cluster, already up and warm, run again
-  ``--repeat`` times with the cache emptied (as with ``--scheduler`` of a
-  running cluster); the median is reported;
+* **Dask cold**: a new local cluster (:func:`~imubounds.stationary.fleet.local_cluster`,
+  ``--workers`` single-threaded worker processes) started, warmed (the worker
+  plugin) and the fleet run, cache emptied first; the start-up and warm-up are
+  also given on their own;
+* **Dask warm**: a cluster already up and warm (as with ``--scheduler`` of a
+  running cluster), run ``--repeat`` times with the cache emptied; the median
+  is reported (the ``--workers`` row of the scaling table);
 * a **scaling table** for 1, 2 and 4 workers (warm clusters, median of
   ``--repeat`` runs): speed-up over the serial loop and over 1 worker, and the
   parallel efficiency ``T(1 worker) / (w * T(w workers))``;
@@ -99,7 +100,13 @@ def main() -> None:
     import h5py  # noqa: F401  (import order, see tests/conftest.py)
 
     from imubounds.stationary._fleet_dask import ensure_warm
-    from imubounds.stationary.fleet import FleetSettings, analyse_unit, run_fleet, warm_up
+    from imubounds.stationary.fleet import (
+        FleetSettings,
+        analyse_unit,
+        local_cluster,
+        run_fleet,
+        warm_up,
+    )
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--units", type=int, default=16)
@@ -135,7 +142,7 @@ def main() -> None:
           f"{statistics.median(cpu_serial) / t_serial:.2f} cores; warm-up {t_warm_serial:.1f} s",
           flush=True)  # fmt: skip
 
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
     def worker_cpu(client: Any) -> float:
         return float(sum(client.run(time.process_time).values()))
@@ -151,7 +158,7 @@ def main() -> None:
 
     # ---- cold: start a cluster, warm it, run
     t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0")
+    cluster = local_cluster(a.workers, 1)
     client = Client(cluster)
     t_start = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -168,8 +175,7 @@ def main() -> None:
     # ---- warm clusters: the scaling table (the --workers row is "Dask warm")
     table = []
     for w in sorted({int(x) for x in a.scaling.split(",")} | {a.workers}):
-        with LocalCluster(n_workers=w, threads_per_worker=1, dashboard_address=":0") as lc, \
-                Client(lc) as cl:  # fmt: skip
+        with local_cluster(w, 1) as lc, Client(lc) as cl:
             ensure_warm(cl, settings)
             runs, cpus = [], []
             for _ in range(a.repeat):
@@ -206,8 +212,7 @@ def main() -> None:
             t0 = time.perf_counter()
             one = analyse_unit(lp, settings)
             lserial.append(time.perf_counter() - t0)
-        with LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0") \
-                as lc, Client(lc) as cl:  # fmt: skip
+        with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
             ensure_warm(cl, settings)
             for _ in range(a.repeat):
                 shutil.rmtree(out, ignore_errors=True)

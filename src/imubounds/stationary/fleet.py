@@ -81,6 +81,7 @@ __all__ = [
     "fleet_stats_figure",
     "is_url",
     "load_spec",
+    "local_cluster",
     "parse_spec",
     "plan_tasks",
     "plan_work",
@@ -1037,7 +1038,7 @@ def _kernel_threads(workers: Sequence[Mapping[str, Any]]) -> int:
 @contextmanager
 def _open_client(scheduler: str | None, n_workers: int, threads_per_worker: int) -> Iterator[Any]:
     """A client of the scheduler at ``scheduler``, or of a new local cluster (closed after)."""
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
     if scheduler:
         try:
@@ -1050,13 +1051,46 @@ def _open_client(scheduler: str | None, n_workers: int, threads_per_worker: int)
         with client:
             yield client
         return
-    with LocalCluster(
-        n_workers=max(1, n_workers),
-        threads_per_worker=max(1, threads_per_worker),
-        processes=True,
-        dashboard_address=":0",
-    ) as cluster, Client(cluster) as client:
+    with local_cluster(n_workers, threads_per_worker) as cluster, Client(cluster) as client:
         yield client
+
+
+#: Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in workers (to return memory to the
+#: system early). Setting it makes glibc keep its mmap threshold at 128 KiB, so every
+#: array of a unit is mapped and zero-filled afresh: measured 30x the page faults and
+#: about 25 % more CPU per unit than the same analysis in a plain process.
+_DASK_TRIM = ("MALLOC_TRIM_THRESHOLD_", "65536")
+
+
+def local_cluster(n_workers: int = 2, threads_per_worker: int = 1, **kwargs: Any) -> Any:
+    """A ``dask.distributed.LocalCluster`` of worker processes set up for fleets.
+
+    As ``LocalCluster(n_workers, threads_per_worker, processes=True)`` but without
+    Dask's ``MALLOC_TRIM_THRESHOLD_=65536`` in the workers (see :data:`_DASK_TRIM`;
+    a value the user set to something else is kept). The caller closes it.
+    """
+    import os
+
+    import dask
+    from dask.distributed import LocalCluster
+
+    name, dask_value = _DASK_TRIM
+    inherited = os.environ.get(name)
+    if inherited == dask_value:  # left by an earlier Dask nanny in this process
+        del os.environ[name]
+    try:
+        with dask.config.set({f"distributed.nanny.pre-spawn-environ.{name}": inherited
+                              if inherited not in (None, dask_value) else None}):  # fmt: skip
+            return LocalCluster(
+                n_workers=max(1, n_workers),
+                threads_per_worker=max(1, threads_per_worker),
+                processes=True,
+                dashboard_address=kwargs.pop("dashboard_address", ":0"),
+                **kwargs,
+            )
+    finally:
+        if inherited is not None:
+            os.environ[name] = inherited
 
 
 # --------------------------------------------------------------------------
