@@ -192,6 +192,8 @@ def test_plan_tasks_covers_every_unit_once(sizes: list[int], w: int) -> None:
     assert flat == list(range(len(sizes)))
     assert len(tasks) >= min(len(sizes), 4 * w)
     assert len(tasks) <= max(len(sizes), 0)
+    if len(tasks) < len(sizes) and all(s == sizes[0] for s in sizes):
+        assert len(tasks) % w == 0, "equal units: every worker gets as many tasks"
 
 
 def test_spec_parsing(fleet_dir: Path) -> None:

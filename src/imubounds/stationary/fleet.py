@@ -294,14 +294,17 @@ def plan_tasks(
     """Group units (by index) into tasks of about ``target_task_bytes`` each.
 
     At least ``min(len(sizes), 4 * n_workers)`` tasks, so that every worker
-    has work; longest-processing-time-first assignment.
+    has work, and a multiple of ``n_workers`` when there are units enough (16
+    equal units on 2 workers: 16 tasks, not 15 with one of two units that the
+    other worker waits for); longest-processing-time-first assignment.
     """
     n = len(sizes)
     if n == 0:
         return []
     total = int(sum(sizes))
-    k = max(math.ceil(total / max(1, target_task_bytes)), min(n, 4 * max(1, n_workers)))
-    k = min(k, n)
+    w = max(1, n_workers)
+    k = max(math.ceil(total / max(1, target_task_bytes)), min(n, 4 * w))
+    k = min(math.ceil(k / w) * w, n)
     loads = [0] * k
     tasks: list[list[int]] = [[] for _ in range(k)]
     for i in sorted(range(n), key=lambda i: -sizes[i]):
