@@ -117,7 +117,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs per warm measurement")
     ap.add_argument("--cli-units", type=int, default=0, help="units timed for the CLI loop")
     ap.add_argument("--long-minutes", type=float, default=0.0,
-                    help="also time one unit this long (split by channel across the workers)")
+                    help="also time one unit this long, split by channel across the workers "
+                    "(--split-channels) and as one task")
     a = ap.parse_args()
     load0 = os.getloadavg()
     paths = _make_fleet(a.units, a.minutes, a.rate)
@@ -214,20 +215,25 @@ def main() -> None:
             lserial.append(time.perf_counter() - t0)
         with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
             ensure_warm(cl, settings)
+            lwhole = []
             for _ in range(a.repeat):
-                shutil.rmtree(out, ignore_errors=True)
-                t0 = time.perf_counter()
-                lres = run_fleet([lp], out, settings, client=cl, plot=False)
-                lruns.append(time.perf_counter() - t0)
-        lsame, lworst = _same([one], lres)
-        same &= lsame
-        worst = max(worst, lworst)
-        long_case = {"minutes": a.long_minutes, "serial_s": statistics.median(lserial),
-                     "dask_warm_s": statistics.median(lruns), "tasks": lres.n_tasks,
-                     "speedup": statistics.median(lserial) / statistics.median(lruns)}  # fmt: skip
-        print(f"one unit of {a.long_minutes:g} min: serial {long_case['serial_s']:.2f} s, "
-              f"{a.workers} workers {long_case['dask_warm_s']:.2f} s ({lres.n_tasks} channel "
-              f"parts, {long_case['speedup']:.2f}x)", flush=True)  # fmt: skip
+                for split, runs in ((True, lruns), (False, lwhole)):
+                    shutil.rmtree(out, ignore_errors=True)
+                    t0 = time.perf_counter()
+                    lres = run_fleet([lp], out, settings, client=cl, plot=False,
+                                     split_channels=split)  # fmt: skip
+                    runs.append(time.perf_counter() - t0)
+                    lsame, lworst = _same([one], lres)
+                    same &= lsame
+                    worst = max(worst, lworst)
+        ls, lsp, lwh = (statistics.median(x) for x in (lserial, lruns, lwhole))
+        long_case = {"minutes": a.long_minutes, "serial_s": ls, "dask_split_s": lsp,
+                     "dask_whole_s": lwh, "speedup_split": ls / lsp,
+                     "speedup_whole": ls / lwh}  # fmt: skip
+        print(f"one unit of {a.long_minutes:g} min: serial {long_case['serial_s']:.2f} s; "
+              f"{a.workers} workers split by channel {long_case['dask_split_s']:.2f} s "
+              f"({long_case['speedup_split']:.2f}x), one task {long_case['dask_whole_s']:.2f} s "
+              f"({long_case['speedup_whole']:.2f}x)", flush=True)  # fmt: skip
 
     t_cli = math.nan
     if a.cli_units > 0:

@@ -331,7 +331,8 @@ def test_a_long_log_split_by_channel_gives_the_whole_units_table(
     whole = run_fleet(src, tmp_path / "a", n_workers=0, plot=False)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                       dashboard_address=":0") as lc, Client(lc) as client:  # fmt: skip
-        split = run_fleet(src, tmp_path / "b", client=client, plot=False, min_split_bytes=0)
+        split = run_fleet(src, tmp_path / "b", client=client, plot=False, split_channels=True,
+                          min_split_bytes=0)  # fmt: skip
     assert whole.n_tasks == 1 and split.n_tasks == 2
     pd.testing.assert_frame_equal(split.table, whole.table)
     # the cache holds the whole unit, not a part

@@ -62,8 +62,13 @@ def register(sub: Any) -> None:
         help="per-unit memory setting: larger logs take the out-of-core path",
     )  # fmt: skip
     p.add_argument(
-        "--task-size", default="8MB", metavar="SIZE",
-        help="group small logs into tasks of about SIZE of input (default 8MB)",
+        "--task-size", default="4MiB", metavar="SIZE",
+        help="group small logs into tasks of about SIZE of input (default 4MiB)",
+    )  # fmt: skip
+    p.add_argument(
+        "--split-channels", action="store_true",
+        help="with fewer logs than worker threads, split each log by channel across workers "
+        "(each part parses the whole log: pays only when the analysis outweighs the reading)",
     )  # fmt: skip
     p.add_argument(
         "--outlier-z", type=positive_float, default=3.5, metavar="Z",
@@ -117,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
             threads_per_worker=args.threads_per_worker, spec=args.spec,
             target_task_bytes=parse_memory(args.task_size), plot=not args.no_plot,
             outlier_z=args.outlier_z, compare=args.compare, report=not args.no_report,
+            split_channels=args.split_channels,
             progress=progress,
         )  # fmt: skip
     summ = res.summary()

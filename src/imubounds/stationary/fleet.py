@@ -22,12 +22,14 @@ the analysis settings, and a finished unit's result is stored as
 The client hashes the files and owns the cache, so remote workers need only
 read the logs (the paths must be valid on the workers).
 
-Tasks are sized to about a second of work: units are grouped by file size into
-tasks of about ``target_task_bytes`` (8 MB: a 30 min, 100 Hz CSV.gz log; longest
-first onto the lightest task), with at least 4 tasks per worker when there are
-enough units; with fewer units than workers, long logs are split by
-channel (:func:`plan_work`). Each Dask worker is warmed once (imports, numba
-kernels) by a worker plugin, and runs the Allan kernels single-threaded.
+Tasks are sized to under a second of work: units are grouped by file size into
+tasks of about ``target_task_bytes`` (4 MiB; a 30 min, 100 Hz CSV.gz log is
+7 MB, a task of its own; longest first onto the lightest task), with at least
+4 tasks per worker when there are enough units; with ``split_channels`` and
+fewer units than workers, long logs are split by channel (:func:`plan_work`).
+Each Dask worker is warmed once (imports, numba kernels) by a worker plugin;
+local clusters (:func:`local_cluster`) share the cores among the workers'
+Allan kernels and start workers without Dask's ``MALLOC_TRIM_THRESHOLD_``.
 
 Spec format (YAML)::
 
@@ -289,7 +291,7 @@ def content_key(source: str | Path, settings: FleetSettings) -> str:
 
 
 def plan_tasks(
-    sizes: Sequence[int], n_workers: int, target_task_bytes: int = 8 << 20
+    sizes: Sequence[int], n_workers: int, target_task_bytes: int = 4 << 20
 ) -> list[list[int]]:
     """Group units (by index) into tasks of about ``target_task_bytes`` each.
 
@@ -787,7 +789,8 @@ def run_fleet(
     n_workers: int = 2,
     threads_per_worker: int = 1,
     spec: FleetSpec | str | Path | None = None,
-    target_task_bytes: int = 8 << 20,
+    target_task_bytes: int = 4 << 20,
+    split_channels: bool = False,
     min_split_bytes: int = 4 << 20,
     numba_threads: int | None = None,
     outlier_z: float = DEFAULT_OUTLIER_Z,
@@ -819,8 +822,14 @@ def run_fleet(
         in this process, without Dask.
     spec : FleetSpec or path, optional
         Datasheet limits for the pass/fail table.
-    target_task_bytes, min_split_bytes : int
-        Task sizing (:func:`plan_tasks`, :func:`plan_work`).
+    target_task_bytes : int
+        Task sizing (:func:`plan_tasks`).
+    split_channels : bool
+        With fewer units than workers, split logs of at least ``min_split_bytes``
+        by channel (:func:`plan_work`). Off by default: each part parses the whole
+        log again, and parsing (multi-threaded already) is over half of a long
+        CSV.gz unit's time: measured slower than one task (0.66-0.83x, a 4 h
+        log on 2 workers). It can pay with many workers per unit.
     numba_threads : int, optional
         Threads of the Allan kernels in each task; on Dask by default the cores
         of this machine shared among the worker threads when all workers run
@@ -913,7 +922,8 @@ def run_fleet(
                 if numba_threads is None:
                     numba_threads = _kernel_threads(info)
             sizes = [source_size(sources[i]) for i in todo]
-            work = plan_work(sizes, workers, min_split_bytes)
+            work = (plan_work(sizes, workers, min_split_bytes) if split_channels
+                    else [(j, None) for j in range(len(sizes))])  # fmt: skip
             wsizes = [sizes[j] // (p[1] if p else 1) for j, p in work]
             groups = plan_tasks(wsizes, workers, target_task_bytes)
             n_tasks = len(groups)
