@@ -19,6 +19,9 @@ CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 * a **scaling table** for 1, 2 and 4 workers (warm clusters, median of
   ``--repeat`` runs): speed-up over the serial loop and over 1 worker, and the
   parallel efficiency ``T(1 worker) / (w * T(w workers))``;
+* **paired** runs: the serial loop and a warm ``--workers`` Dask run alternately,
+  ``--pairs`` times; the median of the per-pair ratios is the figure least
+  disturbed by load from elsewhere on a shared machine;
 * a cached rerun and, optionally, a loop of ``imubounds static FILE`` processes.
 
 Every Dask result is compared with the serial loop: all noise terms, CIs and
@@ -115,6 +118,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--scaling", default="1,2,4", help="worker counts of the scaling table")
     ap.add_argument("--repeat", type=int, default=3, help="runs per warm measurement")
+    ap.add_argument("--pairs", type=int, default=5,
+                    help="alternate serial / warm Dask runs this many times (paired ratio)")
     ap.add_argument("--cli-units", type=int, default=0, help="units timed for the CLI loop")
     ap.add_argument("--long-minutes", type=float, default=0.0,
                     help="also time one unit this long, split by channel across the workers "
@@ -192,6 +197,24 @@ def main() -> None:
             print(f"dask warm, {w} workers: {', '.join(f'{t:.2f}' for t in runs)} s "
                   f"({res.n_tasks} tasks, CPU {statistics.median(cpus):.1f} s)",
                   flush=True)  # fmt: skip
+    # ---- paired: serial loop and warm Dask run alternately, so that load from elsewhere
+    # on a shared machine falls on both alike; the median of the per-pair ratios
+    pairs = []
+    with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
+        ensure_warm(cl, settings)
+        for _ in range(a.pairs):
+            t0 = time.perf_counter()
+            serial = [analyse_unit(p, settings) for p in paths]
+            ts = time.perf_counter() - t0
+            td, res, _ = fresh_run(cl)
+            s, wr = _same(serial, res)
+            same &= s
+            worst = max(worst, wr)
+            pairs.append({"serial_s": ts, "dask_s": td, "ratio": ts / td})
+            print(f"pair: serial {ts:.2f} s, dask {a.workers} workers {td:.2f} s, "
+                  f"{ts / td:.2f}x", flush=True)  # fmt: skip
+    paired_ratio = statistics.median(p["ratio"] for p in pairs) if pairs else math.nan
+
     t1 = next(r["median_s"] for r in table if r["workers"] == 1) if any(
         r["workers"] == 1 for r in table) else math.nan  # fmt: skip
     for r in table:
@@ -258,6 +281,7 @@ def main() -> None:
         "dask_first_run_s": t_first, "dask_warm_s": t_warm,
         "speedup_warm": t_serial / t_warm, "speedup_cold": t_serial / t_cold,
         "scaling": table, "cached_rerun_s": t_cached, "n_cached_rerun": res2.n_cached,
+        "paired": pairs, "paired_ratio_median": paired_ratio,
         "long_unit": long_case,
         "cli_loop_s_extrapolated": t_cli,
         "identical_to_serial": same, "largest_relative_difference": worst,
@@ -274,6 +298,7 @@ def main() -> None:
               f"{r['cpu_s']:>6.1f}")  # fmt: skip
     print(f"serial {t_serial:.2f} s; Dask {a.workers} workers warm {t_warm:.2f} s "
           f"({t_serial / t_warm:.2f}x), cold {t_cold:.1f} s ({t_serial / t_cold:.2f}x); "
+          f"paired serial/Dask ratio, median of {len(pairs)}: {paired_ratio:.2f}x; "
           f"identical to serial (1e-12): {same}")  # fmt: skip
     (DATA / "bench_fleet.json").write_text(json.dumps(summary, indent=2))
 
