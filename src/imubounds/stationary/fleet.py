@@ -445,16 +445,19 @@ def analyse_batch(
 ) -> list[dict[str, Any]]:
     """One task: :func:`analyse_unit` of each ``(source, unit, part)``.
 
-    ``numba_threads`` caps the threads of the parallel Allan kernels in this task
-    (1 on Dask workers by default: the fleet is parallel across units, and
-    workers x kernel threads beyond the cores only contend). The sums do not
+    ``numba_threads`` caps the threads of the parallel Allan kernels and of the
+    CSV parser (pyarrow) in this task (on Dask workers by default the cores
+    shared among the worker threads: the fleet is parallel across units, and
+    workers x threads beyond the cores only contend). The sums do not
     depend on the thread count (fixed task split, ``math.fsum`` reduction).
     """
     if numba_threads:
         import numba
+        import pyarrow
 
         cap = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
         numba.set_num_threads(max(1, min(int(numba_threads), cap)))
+        pyarrow.set_cpu_count(max(1, int(numba_threads)))  # the CSV parser's threads
     return [analyse_unit(src, settings, part, unit=unit) for src, unit, part in items]
 
 
