@@ -1,15 +1,32 @@
-"""Benchmark: fleet throughput on Dask vs a serial loop (issue 7).
+"""Benchmark: fleet throughput on Dask vs a serial loop (issues 7 and 15).
 
 Simulates ``--units`` static logs (``--minutes`` at ``--rate`` Hz, six axes,
 CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 
-* a serial loop of :func:`imubounds.stationary.fleet.analyse_unit` in this process;
-* :func:`imubounds.stationary.fleet.run_fleet` on a fresh ``LocalCluster`` with
-  ``--workers`` single-threaded worker processes (cluster start-up included),
-  cache emptied first;
-* the same again (everything from the cache);
-* a loop of ``imubounds static FILE`` processes (the first ``--cli-units``
-  timed, extrapolated to all units).
+* **serial**: a loop of :func:`imubounds.stationary.fleet.analyse_unit` over every
+  unit in this process, after :func:`~imubounds.stationary.fleet.warm_up` (imports
+  and numba kernels loaded: the same state as a warm worker). The serial loop
+  keeps numba's default thread count (all cores) for the Allan kernels, so it
+  is the fairest single-process baseline; its CPU time / wall time says how
+  many cores it kept busy. "serial cold" adds the process's warm-up;
+* **Dask cold**: a new local cluster (:func:`~imubounds.stationary.fleet.local_cluster`,
+  ``--workers`` single-threaded worker processes) started, warmed (the worker
+  plugin) and the fleet run, cache emptied first; the start-up and warm-up are
+  also given on their own;
+* **Dask warm**: a cluster already up and warm (as with ``--scheduler`` of a
+  running cluster), run ``--repeat`` times with the cache emptied; the median
+  is reported (the ``--workers`` row of the scaling table);
+* a **scaling table** for 1, 2 and 4 workers (warm clusters, median of
+  ``--repeat`` runs): speed-up over the serial loop and over 1 worker, and the
+  parallel efficiency ``T(1 worker) / (w * T(w workers))``;
+* **paired** runs: the serial loop and a warm ``--workers`` Dask run alternately,
+  ``--pairs`` times; the median of the per-pair ratios is the figure least
+  disturbed by load from elsewhere on a shared machine;
+* a cached rerun and, optionally, a loop of ``imubounds static FILE`` processes.
+
+Every Dask result is compared with the serial loop: all noise terms, CIs and
+sigma_c to 1e-12 relative, the Allan curves exactly. The machine's load average
+before and after is printed: on a shared machine timings are noisy; repeat.
 
 Usage::
 
@@ -20,101 +37,269 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import shutil
+import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "_data"
 
 
-def main() -> None:
-    import h5py  # noqa: F401  (import order, see tests/conftest.py)
-    import pandas as pd
-
-    from imubounds.stationary.fleet import FleetSettings, analyse_unit, expand_globs, run_fleet
+def _make_fleet(units: int, minutes: float, rate: float) -> list[str]:
+    from imubounds.stationary.fleet import expand_globs
     from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--units", type=int, default=16)
-    ap.add_argument("--minutes", type=float, default=30.0)
-    ap.add_argument("--rate", type=float, default=100.0)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--cli-units", type=int, default=4, help="units timed for the CLI loop")
-    a = ap.parse_args()
     DATA.mkdir(exist_ok=True)
     (DATA / ".gitignore").write_text("*\n")
-    d = DATA / "fleet"
+    d = DATA / f"fleet_{units}x{minutes:g}min_{rate:g}Hz"
     d.mkdir(exist_ok=True)
     spec = NoiseSpec.from_mapping(
         {"gyro": {"N": "0.5 deg/sqrt(h)", "B": "20 deg/h"},
          "accel": {"N": "0.05 m/s/sqrt(h)", "B": "0.5 mg"}}
     )  # fmt: skip
     t0 = time.perf_counter()
-    for i in range(a.units):
+    for i in range(units):
         p = d / f"unit{i:04d}.csv.gz"
         if not p.exists():
-            write_csv(simulate(spec, a.rate, a.minutes * 60.0, seed=1000 + i), p)
-    print(f"{a.units} units of {a.minutes:g} min at {a.rate:g} Hz "
-          f"({sum(p.stat().st_size for p in d.glob('*.csv.gz')) / 1e6:.0f} MB), "
+            write_csv(simulate(spec, rate, minutes * 60.0, seed=1000 + i), p)
+    size = sum(p.stat().st_size for p in d.glob("*.csv.gz")) / 1e6
+    print(f"{units} units of {minutes:g} min at {rate:g} Hz ({size:.0f} MB CSV.gz), "
           f"ready in {time.perf_counter() - t0:.0f} s", flush=True)  # fmt: skip
-    paths = expand_globs([str(d / "unit*.csv.gz")])[: a.units]
-    settings = FleetSettings()
+    return expand_globs([str(d / "unit*.csv.gz")])[:units]
 
-    t0 = time.perf_counter()
-    serial = [analyse_unit(str(p), settings) for p in paths]
-    t_serial = time.perf_counter() - t0
-    assert all(r["status"] == "ok" for r in serial)
 
-    out = DATA / "fleet_out"
-    shutil.rmtree(out, ignore_errors=True)
-    t0 = time.perf_counter()
-    res = run_fleet([str(p) for p in paths], out, settings, n_workers=a.workers)
-    t_dask = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    res2 = run_fleet([str(p) for p in paths], out, settings, plot=False)
-    t_cached = time.perf_counter() - t0
-    # a cluster that is already up and warm (imports and numba caches loaded), as with
-    # --scheduler ADDRESS of a running scheduler
-    from dask.distributed import Client, LocalCluster
+def _same(serial: list[dict[str, Any]], res: Any) -> tuple[bool, float]:
+    """Whether a fleet result equals the serial loop: terms to 1e-12 relative, curves exact.
+    Returns (identical, largest relative difference seen)."""
+    import numpy as np
 
-    with LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0") as lc:
-        with Client(lc) as client:
-            client.gather(client.map(analyse_unit, [str(p) for p in paths[:a.workers]],
-                                     settings=settings, pure=False))  # fmt: skip
-            shutil.rmtree(out, ignore_errors=True)
-            t0 = time.perf_counter()
-            run_fleet([str(p) for p in paths], out, settings, client=client)
-            t_warm = time.perf_counter() - t0
-    cols = [c for c in res.table.columns if c not in ("unit", "path", "status", "error")]
-    same = all(
-        pd.DataFrame(r["rows"])[cols].equals(
-            res.table[res.table.unit == r["unit"]][cols].reset_index(drop=True)
-        )
-        for r in serial
+    t = res.table
+    worst = 0.0
+    ok = True
+    for r in serial:
+        sub = t[t.unit == r["unit"]].set_index("channel")
+        for row in r["rows"]:
+            got = sub.loc[row["channel"]]
+            for k, v in row.items():
+                if isinstance(v, float):
+                    g = float(got[k])
+                    if math.isnan(v) and math.isnan(g):
+                        continue
+                    rel = abs(g - v) / max(abs(v), 1e-300)
+                    worst = max(worst, rel)
+                    ok &= rel <= 1e-12
+            c = res.curves[r["unit"]][row["channel"]]
+            ok &= bool(np.array_equal(np.asarray(c["adev"]), r["curves"][row["channel"]]["adev"]))
+    return ok, worst
+
+
+def main() -> None:
+    import h5py  # noqa: F401  (import order, see tests/conftest.py)
+
+    from imubounds.stationary._fleet_dask import ensure_warm
+    from imubounds.stationary.fleet import (
+        FleetSettings,
+        analyse_unit,
+        local_cluster,
+        run_fleet,
+        warm_up,
     )
-    # the user's alternative: one `imubounds static` process per file
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--units", type=int, default=16)
+    ap.add_argument("--minutes", type=float, default=30.0)
+    ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--scaling", default="1,2,4", help="worker counts of the scaling table")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per warm measurement")
+    ap.add_argument("--pairs", type=int, default=5,
+                    help="alternate serial / warm Dask runs this many times (paired ratio)")
+    ap.add_argument("--cli-units", type=int, default=0, help="units timed for the CLI loop")
+    ap.add_argument("--long-minutes", type=float, default=0.0,
+                    help="also time one unit this long, split by channel across the workers "
+                    "(--split-channels) and as one task")
+    a = ap.parse_args()
+    load0 = os.getloadavg()
+    paths = _make_fleet(a.units, a.minutes, a.rate)
+    settings = FleetSettings()
+    out = DATA / "fleet_out"
+
+    import numba
+
     t0 = time.perf_counter()
-    n_cli = max(1, min(a.cli_units, len(paths)))
-    for p in paths[:n_cli]:
-        subprocess.run(
-            [sys.executable, "-m", "imubounds", "static", str(p), "-o", str(DATA / "cli_out"),
-             "--models", "none", "--no-plot", "--no-report", "-q"], check=True,
-        )  # fmt: skip
-    t_cli = (time.perf_counter() - t0) * len(paths) / n_cli
+    t_warm_serial = warm_up(settings)
+    t_serial_runs, cpu_serial = [], []
+    serial: list[dict[str, Any]] = []
+    for _ in range(a.repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        serial = [analyse_unit(p, settings) for p in paths]
+        t_serial_runs.append(time.perf_counter() - t0)
+        cpu_serial.append(time.process_time() - c0)
+    assert all(r["status"] == "ok" for r in serial)
+    t_serial = statistics.median(t_serial_runs)
+    print(f"serial loop (numba threads {numba.get_num_threads()}): "
+          f"{', '.join(f'{t:.2f}' for t in t_serial_runs)} s; CPU/wall "
+          f"{statistics.median(cpu_serial) / t_serial:.2f} cores; warm-up {t_warm_serial:.1f} s",
+          flush=True)  # fmt: skip
+
+    from dask.distributed import Client
+
+    def worker_cpu(client: Any) -> float:
+        return float(sum(client.run(time.process_time).values()))
+
+    def fresh_run(client: Any) -> tuple[float, Any, float]:
+        """Wall time, result and CPU seconds of the workers plus this process (the client)."""
+        shutil.rmtree(out, ignore_errors=True)
+        c0 = worker_cpu(client) + time.process_time()
+        t0 = time.perf_counter()
+        res = run_fleet(paths, out, settings, client=client, plot=False)
+        t = time.perf_counter() - t0
+        return t, res, worker_cpu(client) + time.process_time() - c0
+
+    # ---- cold: start a cluster, warm it, run
+    t0 = time.perf_counter()
+    cluster = local_cluster(a.workers, 1)
+    client = Client(cluster)
+    t_start = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ensure_warm(client, settings)
+    t_warmup = time.perf_counter() - t0
+    t_first, res, _ = fresh_run(client)
+    t_cold = t_start + t_warmup + t_first
+    same, worst = _same(serial, res)
+    print(f"dask cold, {a.workers} workers: start {t_start:.1f} s + warm-up {t_warmup:.1f} s "
+          f"+ run {t_first:.2f} s = {t_cold:.1f} s; identical {same}", flush=True)  # fmt: skip
+    client.close()
+    cluster.close()
+
+    # ---- warm clusters: the scaling table (the --workers row is "Dask warm")
+    table = []
+    for w in sorted({int(x) for x in a.scaling.split(",")} | {a.workers}):
+        with local_cluster(w, 1) as lc, Client(lc) as cl:
+            ensure_warm(cl, settings)
+            runs, cpus = [], []
+            for _ in range(a.repeat):
+                t, res, cpu = fresh_run(cl)
+                runs.append(t)
+                cpus.append(cpu)
+                s, wr = _same(serial, res)
+                same &= s
+                worst = max(worst, wr)
+            table.append({"workers": w, "runs_s": runs, "median_s": statistics.median(runs),
+                          "min_s": min(runs), "cpu_s": statistics.median(cpus),
+                          "tasks": res.n_tasks})  # fmt: skip
+            print(f"dask warm, {w} workers: {', '.join(f'{t:.2f}' for t in runs)} s "
+                  f"({res.n_tasks} tasks, CPU {statistics.median(cpus):.1f} s)",
+                  flush=True)  # fmt: skip
+    # ---- paired: serial loop and warm Dask run alternately, so that load from elsewhere
+    # on a shared machine falls on both alike; the median of the per-pair ratios
+    pairs = []
+    with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
+        ensure_warm(cl, settings)
+        for _ in range(a.pairs):
+            t0 = time.perf_counter()
+            serial = [analyse_unit(p, settings) for p in paths]
+            ts = time.perf_counter() - t0
+            td, res, _ = fresh_run(cl)
+            s, wr = _same(serial, res)
+            same &= s
+            worst = max(worst, wr)
+            pairs.append({"serial_s": ts, "dask_s": td, "ratio": ts / td})
+            print(f"pair: serial {ts:.2f} s, dask {a.workers} workers {td:.2f} s, "
+                  f"{ts / td:.2f}x", flush=True)  # fmt: skip
+    paired_ratio = statistics.median(p["ratio"] for p in pairs) if pairs else math.nan
+
+    t1 = next(r["median_s"] for r in table if r["workers"] == 1) if any(
+        r["workers"] == 1 for r in table) else math.nan  # fmt: skip
+    for r in table:
+        r["speedup_vs_serial_best"] = min(t_serial_runs) / r["min_s"]
+        r["speedup_vs_serial"] = t_serial / r["median_s"]
+        r["speedup_vs_1_worker"] = t1 / r["median_s"]
+        r["efficiency"] = t1 / (r["workers"] * r["median_s"])
+    t_warm = next(r["median_s"] for r in table if r["workers"] == a.workers)
+
+    t0 = time.perf_counter()
+    res2 = run_fleet(paths, out, settings, n_workers=0, plot=False)
+    t_cached = time.perf_counter() - t0
+
+    long_case: dict[str, Any] = {}
+    if a.long_minutes > 0:
+        (lp,) = _make_fleet(1, a.long_minutes, a.rate)
+        lserial, lruns = [], []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            one = analyse_unit(lp, settings)
+            lserial.append(time.perf_counter() - t0)
+        with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
+            ensure_warm(cl, settings)
+            lwhole = []
+            for _ in range(a.repeat):
+                for split, runs in ((True, lruns), (False, lwhole)):
+                    shutil.rmtree(out, ignore_errors=True)
+                    t0 = time.perf_counter()
+                    lres = run_fleet([lp], out, settings, client=cl, plot=False,
+                                     split_channels=split)  # fmt: skip
+                    runs.append(time.perf_counter() - t0)
+                    lsame, lworst = _same([one], lres)
+                    same &= lsame
+                    worst = max(worst, lworst)
+        ls, lsp, lwh = (statistics.median(x) for x in (lserial, lruns, lwhole))
+        long_case = {"minutes": a.long_minutes, "serial_s": ls, "dask_split_s": lsp,
+                     "dask_whole_s": lwh, "speedup_split": ls / lsp,
+                     "speedup_whole": ls / lwh}  # fmt: skip
+        print(f"one unit of {a.long_minutes:g} min: serial {long_case['serial_s']:.2f} s; "
+              f"{a.workers} workers split by channel {long_case['dask_split_s']:.2f} s "
+              f"({long_case['speedup_split']:.2f}x), one task {long_case['dask_whole_s']:.2f} s "
+              f"({long_case['speedup_whole']:.2f}x)", flush=True)  # fmt: skip
+
+    t_cli = math.nan
+    if a.cli_units > 0:
+        n_cli = min(a.cli_units, len(paths))
+        t0 = time.perf_counter()
+        for p in paths[:n_cli]:
+            subprocess.run(
+                [sys.executable, "-m", "imubounds", "static", p, "-o", str(DATA / "cli_out"),
+                 "--models", "none", "--no-plot", "--no-report", "-q"], check=True,
+            )  # fmt: skip
+        t_cli = (time.perf_counter() - t0) * len(paths) / n_cli
+
     summary = {
         "units": a.units, "minutes": a.minutes, "rate_hz": a.rate, "workers": a.workers,
-        "serial_s": t_serial, "dask_s": t_dask, "cached_rerun_s": t_cached,
+        "cpu_count": os.cpu_count(), "load_avg_before": load0, "load_avg_after": os.getloadavg(),
+        "serial_numba_threads": numba.get_num_threads(),
+        "serial_s": t_serial, "serial_runs_s": t_serial_runs,
+        "serial_cpu_per_wall": statistics.median(cpu_serial) / t_serial,
+        "serial_cpu_s": statistics.median(cpu_serial),
+        "serial_cold_s": t_serial + t_warm_serial,
+        "dask_cold_s": t_cold, "dask_cluster_start_s": t_start, "dask_warmup_s": t_warmup,
+        "dask_first_run_s": t_first, "dask_warm_s": t_warm,
+        "speedup_warm": t_serial / t_warm, "speedup_cold": t_serial / t_cold,
+        "scaling": table, "cached_rerun_s": t_cached, "n_cached_rerun": res2.n_cached,
+        "paired": pairs, "paired_ratio_median": paired_ratio,
+        "long_unit": long_case,
         "cli_loop_s_extrapolated": t_cli,
-        "serial_units_per_s": a.units / t_serial, "dask_units_per_s": a.units / t_dask,
-        "dask_warm_cluster_s": t_warm, "speedup_warm": t_serial / t_warm,
-        "speedup": t_serial / t_dask, "speedup_vs_cli_loop": t_cli / t_dask,
-        "tasks": res.n_tasks, "n_cached_rerun": res2.n_cached,
-        "identical_to_serial": same,
+        "identical_to_serial": same, "largest_relative_difference": worst,
     }  # fmt: skip
     print(json.dumps(summary, indent=2))
+    print(f"\n{'workers':>7} {'median s':>9} {'best s':>7} {'vs serial':>9} {'best/best':>9} "
+          f"{'vs 1 worker':>11} {'efficiency':>10} {'CPU s':>6}")  # fmt: skip
+    print(f"{'serial':>7} {t_serial:>9.2f} {min(t_serial_runs):>7.2f} {'':>9} {'':>9} {'':>11} "
+          f"{'':>10} {statistics.median(cpu_serial):>6.1f}")  # fmt: skip
+    for r in table:
+        print(f"{r['workers']:>7} {r['median_s']:>9.2f} {r['min_s']:>7.2f} "
+              f"{r['speedup_vs_serial']:>8.2f}x {r['speedup_vs_serial_best']:>8.2f}x "
+              f"{r['speedup_vs_1_worker']:>10.2f}x {r['efficiency']:>10.2f} "
+              f"{r['cpu_s']:>6.1f}")  # fmt: skip
+    print(f"serial {t_serial:.2f} s; Dask {a.workers} workers warm {t_warm:.2f} s "
+          f"({t_serial / t_warm:.2f}x), cold {t_cold:.1f} s ({t_serial / t_cold:.2f}x); "
+          f"paired serial/Dask ratio, median of {len(pairs)}: {paired_ratio:.2f}x; "
+          f"identical to serial (1e-12): {same}")  # fmt: skip
     (DATA / "bench_fleet.json").write_text(json.dumps(summary, indent=2))
 
 

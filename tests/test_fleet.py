@@ -52,13 +52,25 @@ def fleet_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def cluster():  # noqa: ANN201
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
-    c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
+    from imubounds.stationary.fleet import local_cluster
+
+    c = local_cluster(2, 1)
     client = Client(c)
     yield client
     client.close()
     c.close()
+
+
+def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold(cluster) -> None:  # noqa: ANN001
+    """Dask's MALLOC_TRIM_THRESHOLD_=65536 costs ~25 % CPU per unit; local_cluster drops it
+    (the other pre-spawn settings, e.g. OMP_NUM_THREADS=1, stay)."""
+    import os
+
+    env = cluster.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_")
+    assert len(env) == 2 and set(env.values()) == {None}, env
+    assert set(cluster.run(os.environ.get, "OMP_NUM_THREADS").values()) == {"1"}
 
 
 def test_fleet_with_a_corrupt_unit(fleet_dir: Path, tmp_path: Path, cluster) -> None:  # noqa: ANN001
@@ -142,15 +154,20 @@ def test_same_numbers_as_the_static_command(fleet_dir: Path, tmp_path: Path) -> 
             assert row["sigma_c"] == pytest.approx(sigma_c, rel=1e-12)
 
 
-def test_cli_fleet_scheduler_address(fleet_dir: Path, tmp_path: Path, capsys, cluster) -> None:  # noqa: ANN001, E501
+def test_cli_fleet_scheduler_address_exits_1_when_a_unit_fails(
+    fleet_dir: Path, tmp_path: Path, capsys, cluster  # noqa: ANN001
+) -> None:
     from imubounds.cli import main
 
     out = tmp_path / "cli"
     code = main(["fleet", str(fleet_dir / "unit0[01].csv.gz"), str(fleet_dir / "unit_c*"),
                  "-o", str(out), "--json", "-q", "--no-plot",
                  "--scheduler", cluster.scheduler.address])  # fmt: skip
-    assert code == 0
-    summ = json.loads(capsys.readouterr().out)
+    assert code == 1, "a failed unit must give a non-zero exit"
+    cap = capsys.readouterr()
+    assert "1 of 3 units failed" in cap.err
+    assert "unit_corrupt: " in cap.err and "gzip" in cap.err
+    summ = json.loads(cap.out)
     assert summ["n_ok"] == 2 and summ["n_failed"] == 1
     assert summ["terms_ieee"]["gyro"]["N"]["unit_ieee"] == "deg/h^0.5"
     assert summ["scheduler"] == cluster.scheduler.address
@@ -175,6 +192,8 @@ def test_plan_tasks_covers_every_unit_once(sizes: list[int], w: int) -> None:
     assert flat == list(range(len(sizes)))
     assert len(tasks) >= min(len(sizes), 4 * w)
     assert len(tasks) <= max(len(sizes), 0)
+    if len(tasks) < len(sizes) and all(s == sizes[0] for s in sizes):
+        assert len(tasks) % w == 0, "equal units: every worker gets as many tasks"
 
 
 def test_spec_parsing(fleet_dir: Path) -> None:
@@ -202,3 +221,298 @@ def test_large_unit_goes_out_of_core_with_the_same_terms(fleet_dir: Path) -> Non
             assert b[t] == pytest.approx(a[t], rel=1e-9, abs=1e-300)
     np.testing.assert_allclose(ooc["curves"]["gyro_x"]["adev"], mem["curves"]["gyro_x"]["adev"],
                                rtol=1e-12)  # fmt: skip
+
+
+# --------------------------------------------------------------------------
+# issue 15: unit names, exit status, version in the cache key, channel parts
+# --------------------------------------------------------------------------
+def test_content_key_depends_on_the_imubounds_version(
+    fleet_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import imubounds.stationary.fleet as fleet
+
+    src = fleet_dir / "unit00.csv.gz"
+    k = content_key(src, FleetSettings())
+    monkeypatch.setattr(fleet, "__version__", "999.0")
+    assert content_key(src, FleetSettings()) != k
+
+
+def test_unit_names_are_paths_relative_to_the_common_folder(tmp_path: Path) -> None:
+    from imubounds.stationary.fleet import unit_names
+
+    a, b = tmp_path / "siteA" / "unit1.csv.gz", tmp_path / "siteB" / "deep" / "unit1.csv.gz"
+    assert unit_names([a, b]) == ["siteA/unit1", "siteB/deep/unit1"]
+    assert unit_names([a]) == ["unit1"]
+    # two files differing only in their suffixes keep their whole names
+    c = tmp_path / "siteA" / "unit1.csv"
+    assert unit_names([a, c]) == ["unit1.csv.gz", "unit1.csv"]
+    assert unit_names(["memory://x/siteA/u.csv", "memory://x/siteB/u.csv"]) == [
+        "siteA/u", "siteB/u"]  # fmt: skip
+
+
+def test_same_named_units_in_two_folders_stay_separate(fleet_dir: Path, tmp_path: Path) -> None:
+    logs = tmp_path / "logs"
+    for site, src in (("siteA", "unit00"), ("siteB", "unit03")):
+        (logs / site).mkdir(parents=True)
+        (logs / site / "unit1.csv.gz").write_bytes((fleet_dir / f"{src}.csv.gz").read_bytes())
+    res = run_fleet([str(logs / "*" / "*.csv.gz")], tmp_path / "out", n_workers=0, plot=False)
+    ok = res.table[res.table.status == "ok"]
+    assert sorted(set(ok.unit)) == ["siteA/unit1", "siteB/unit1"]
+    assert len(ok) == 12
+    n = ok[ok.channel == "gyro_x"].set_index("unit")["N"] * 60 / DEG
+    assert n["siteA/unit1"] == pytest.approx(0.5, rel=0.1)
+    assert n["siteB/unit1"] == pytest.approx(1.5, rel=0.1), "unit03 is the 1.5 deg/sqrt(h) one"
+    assert set(res.curves) == {"siteA/unit1", "siteB/unit1"}
+
+
+def test_cli_exits_1_with_a_failure_summary_even_when_quiet(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from imubounds.cli import main
+
+    code = main(["fleet", str(fleet_dir / "unit00.csv.gz"), str(fleet_dir / "unit_c*"),
+                 "-o", str(tmp_path / "o"), "--workers", "0", "-q", "--no-plot"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "1 of 2 units failed (exit 1)" in err and "unit_corrupt" in err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--outlier-z", "0"], "--outlier-z"),
+        (["--compare", "no/such/dir"], "no fleet.parquet"),
+        (["--workers", "-1"], "--workers"),
+    ],
+)
+def test_cli_bad_fleet_options_are_one_line_errors(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
+    message: str,
+) -> None:
+    from imubounds.cli import main
+
+    with pytest.raises(SystemExit) as exc:  # argparse exits; ImuboundsError returns 2
+        code = main(["fleet", str(fleet_dir / "unit00.csv.gz"), "-o", str(tmp_path / "o"),
+                     "-q", *args])  # fmt: skip
+        raise SystemExit(code)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_channel_parts_together_are_the_whole_unit(fleet_dir: Path) -> None:
+    from imubounds.stationary.fleet import _merge_parts, plan_work
+
+    src = str(fleet_dir / "unit01.csv.gz")
+    whole = analyse_unit(src, FleetSettings())
+    for n in (2, 3, 6):
+        parts = [analyse_unit(src, FleetSettings(), (i, n)) for i in range(n)]
+        merged = _merge_parts(parts)
+        assert [r["channel"] for r in merged["rows"]] == [r["channel"] for r in whole["rows"]]
+        assert merged["rows"] == whole["rows"]
+        for ch, c in whole["curves"].items():
+            np.testing.assert_array_equal(merged["curves"][ch]["adev"], c["adev"])
+    # one long log on 2 workers is split by channel; as many units as workers are not
+    assert plan_work([10 << 20], 2) == [(0, (0, 2)), (0, (1, 2))]
+    assert plan_work([10 << 20], 4) == [(0, (j, 6)) for j in range(6)]
+    assert plan_work([10 << 20] * 2, 4) == [(i, (j, 2)) for i in range(2) for j in range(2)]
+    assert plan_work([10 << 20] * 3, 2) == [(i, None) for i in range(3)]
+    assert plan_work([1000], 2) == [(0, None)], "a short log is not worth splitting"
+    assert plan_work([10 << 20], 1) == [(0, None)]
+
+
+def test_a_long_log_split_by_channel_gives_the_whole_units_table(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    from dask.distributed import Client, LocalCluster
+
+    src = [str(fleet_dir / "unit02.csv.gz")]
+    whole = run_fleet(src, tmp_path / "a", n_workers=0, plot=False)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as lc, Client(lc) as client:  # fmt: skip
+        split = run_fleet(src, tmp_path / "b", client=client, plot=False, split_channels=True,
+                          min_split_bytes=0)  # fmt: skip
+    assert whole.n_tasks == 1 and split.n_tasks == 2
+    pd.testing.assert_frame_equal(split.table, whole.table)
+    # the cache holds the whole unit, not a part
+    again = run_fleet(src, tmp_path / "b", n_workers=0, plot=False)
+    assert again.n_cached == 1
+    pd.testing.assert_frame_equal(again.table, whole.table)
+
+
+# --------------------------------------------------------------------------
+# issue 15: fsspec inputs
+# --------------------------------------------------------------------------
+def _put_in_memory(fleet_dir: Path, root: str) -> None:
+    import fsspec
+
+    fs = fsspec.filesystem("memory")
+    for site, src in (("siteA", "unit00"), ("siteB", "unit01")):
+        fs.pipe(f"{root}/{site}/unit.csv.gz", (fleet_dir / f"{src}.csv.gz").read_bytes())
+    fs.pipe(f"{root}/siteB/broken.csv.gz", b"\x1f\x8b\x08\x00 not really gzip")
+
+
+def _expected_n(fleet_dir: Path, unit: str) -> float:
+    row = analyse_unit(str(fleet_dir / f"{unit}.csv.gz"), FleetSettings())["rows"][0]
+    return float(row["N"])
+
+
+def test_fsspec_memory_urls_serial_in_process(fleet_dir: Path, tmp_path: Path) -> None:
+    _put_in_memory(fleet_dir, "/imubounds-test-serial")
+    res = run_fleet(["memory:///imubounds-test-serial/**/*.csv.gz"], tmp_path / "o",
+                    n_workers=0, plot=False)  # fmt: skip
+    ok = res.table[res.table.status == "ok"]
+    assert sorted(set(res.table.unit)) == ["siteA/unit", "siteB/broken", "siteB/unit"]
+    gx = ok[ok.channel == "gyro_x"].set_index("unit")["N"]
+    assert gx["siteA/unit"] == pytest.approx(_expected_n(fleet_dir, "unit00"), rel=1e-12)
+    assert gx["siteB/unit"] == pytest.approx(_expected_n(fleet_dir, "unit01"), rel=1e-12)
+    # the failure names the URL, not the temporary local copy
+    (bad,) = res.failed
+    assert bad["error"].startswith("memory:///imubounds-test-serial/siteB/broken.csv.gz")
+    # cached by content on the rerun
+    res2 = run_fleet(["memory:///imubounds-test-serial/**/*.csv.gz"], tmp_path / "o",
+                     n_workers=0, plot=False)  # fmt: skip
+    assert res2.n_cached == 2
+
+
+def test_fsspec_memory_urls_on_a_threads_dask_cluster(fleet_dir: Path, tmp_path: Path) -> None:
+    """memory:// lives in one process: this covers the Dask path with in-process workers."""
+    from dask.distributed import Client, LocalCluster
+
+    _put_in_memory(fleet_dir, "/imubounds-test-dask")
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as lc, Client(lc) as client:  # fmt: skip
+        res = run_fleet(["memory:///imubounds-test-dask/*/unit.csv.gz"], tmp_path / "o",
+                        client=client, plot=False)  # fmt: skip
+    assert res.ok
+    gx = res.table[res.table.channel == "gyro_x"].set_index("unit")["N"]
+    assert gx["siteB/unit"] == pytest.approx(_expected_n(fleet_dir, "unit01"), rel=1e-12)
+
+
+def test_fsspec_file_urls_read_by_process_workers(
+    fleet_dir: Path, tmp_path: Path, cluster  # noqa: ANN001
+) -> None:
+    """file:// URLs go through fsspec in separate worker processes (as s3:// would)."""
+    url = f"file://{fleet_dir.as_posix()}/unit0[12].csv.gz"
+    res = run_fleet([url], tmp_path / "o", client=cluster, plot=False)
+    assert res.ok and sorted(set(res.table.unit)) == ["unit01", "unit02"]
+    assert all(p.startswith("file://") for p in res.table.path)
+    gx = res.table[res.table.channel == "gyro_x"].set_index("unit")["N"]
+    assert gx["unit02"] == pytest.approx(_expected_n(fleet_dir, "unit02"), rel=1e-12)
+
+
+def test_unknown_url_protocol_is_a_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from imubounds.cli import main
+
+    code = main(["fleet", "nosuchproto://bucket/*.csv", "-o", str(tmp_path / "o"), "-q"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "nosuchproto://bucket/*.csv" in err and len(err.splitlines()) == 1
+
+
+# --------------------------------------------------------------------------
+# issue 15: fleet statistics, outliers, drift
+# --------------------------------------------------------------------------
+NOISY_UNIT, NOISY_FACTOR, N_STATS_UNITS = 5, 3.0, 8
+GYRO_N, ACCEL_N = 0.5, 0.05  # deg/sqrt(h), m/s/sqrt(h)
+
+
+def _stats_unit(i: int, factor: float, path: Path) -> None:
+    from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
+
+    spec = NoiseSpec.from_mapping(
+        {"gyro": {"N": f"{GYRO_N * factor} deg/sqrt(h)", "B": "10 deg/h"},
+         "accel": {"N": f"{ACCEL_N * factor} m/s/sqrt(h)", "B": "0.05 mg"}}
+    )  # fmt: skip
+    write_csv(simulate(spec, RATE, 300.0, seed=500 + i), path)
+
+
+@pytest.fixture(scope="module")
+def stats_fleet(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """8 units of 5 min; unit 5's white noise (N, gyro and accel) is 3x the others';
+    a first run (previous) and a second run in which unit 2 became twice as noisy."""
+    d = tmp_path_factory.mktemp("stats")
+    for i in range(N_STATS_UNITS):
+        _stats_unit(i, NOISY_FACTOR if i == NOISY_UNIT else 1.0, d / f"u{i}.csv.gz")
+    (d / "spec.yaml").write_text("gyro:\n  N: 1.0 deg/sqrt(h)\n")
+    prev = d / "run1"
+    run_fleet([str(d / "u*.csv.gz")], prev, n_workers=0, spec=d / "spec.yaml", plot=False)
+    _stats_unit(2, 2.0, d / "u2.csv.gz")
+    return d, prev
+
+
+def test_noisier_unit_is_the_only_outlier_on_n(stats_fleet: tuple[Path, Path]) -> None:
+    _, prev = stats_fleet  # run1, before unit 2 changed
+    table = pd.read_parquet(prev / "fleet.parquet")
+    summ = json.loads((prev / "fleet.json").read_text())
+    stats = summ["statistics"]
+    assert stats["threshold_z"] == 3.5
+    n_out = [o for o in stats["outliers"] if o["term"] == "N"]
+    assert {o["unit"] for o in n_out} == {f"u{NOISY_UNIT}"}, n_out
+    assert {o["channel"] for o in n_out} == {"gyro_x", "gyro_y", "gyro_z",
+                                              "accel_x", "accel_y", "accel_z"}  # fmt: skip
+    # the parquet carries the same flags; every other unit's |z| on N is below the threshold
+    noisy = table.unit == f"u{NOISY_UNIT}"
+    assert table[noisy]["N_outlier"].all() and not table[~noisy]["N_outlier"].any()
+    assert (table[~noisy]["N_z"].abs() < 3.5).all()
+    # z is consistent with the factor: value / median = exp(z * log_spread) ~ 3 (gyro)
+    terms = {(r["channel"], r["term"]): r for r in stats["terms"]}
+    for o in n_out:
+        s = terms[(o["channel"], "N")]["log_spread"]
+        # (equal for an odd count; for 8 units the median is the mean of the middle two)
+        assert np.exp(o["z"] * s) == pytest.approx(o["ratio_to_median"], rel=1e-3)
+        if o["kind"] == "gyro":
+            assert o["ratio_to_median"] == pytest.approx(NOISY_FACTOR, rel=0.1)
+            assert o["z"] > np.log(NOISY_FACTOR * 0.9) / s
+    gx = terms[("gyro_x", "N")]
+    assert gx["unit_ieee"] == "deg/h^0.5" and gx["unit_si"] == "rad/s^0.5"
+    assert gx["median_ieee"] == pytest.approx(GYRO_N, rel=0.1)
+    assert gx["n"] == N_STATS_UNITS and gx["spread"] > 0 and gx["iqr"] > 0
+    # and against the datasheet: only the noisy unit fails N < 1 deg/sqrt(h)
+    assert summ["spec"]["units_failing"] == [f"u{NOISY_UNIT}"]
+
+
+def test_outlier_threshold_is_an_option(stats_fleet: tuple[Path, Path], tmp_path: Path) -> None:
+    d, prev = stats_fleet
+    # the noisy unit's gyro z is ~ln(3)/spread; a threshold above it flags nothing
+    summ = json.loads((prev / "fleet.json").read_text())
+    zmax = max(abs(o["z"]) for o in summ["statistics"]["outliers"])
+    res = run_fleet([str(d / "u*.csv.gz")], tmp_path / "o", n_workers=0, plot=False,
+                    outlier_z=zmax * 1.01)  # fmt: skip
+    assert res.stats.outliers.empty and not res.table["outlier"].any()
+
+
+def test_drift_since_the_previous_run(stats_fleet: tuple[Path, Path], tmp_path: Path) -> None:
+    from imubounds.cli import main
+
+    d, prev = stats_fleet
+    out = tmp_path / "run2"
+    code = main(["fleet", str(d / "u*.csv.gz"), "-o", str(out), "--workers", "0", "-q",
+                 "--compare", str(prev), "--spec", str(d / "spec.yaml")])  # fmt: skip
+    assert code == 0
+    summ = json.loads((out / "fleet.json").read_text())
+    drift = pd.DataFrame(summ["drift"]["rows"])
+    n = drift[drift.term == "N"]
+    changed = n[n.unit == "u2"]
+    assert len(changed) == 6
+    gyro = changed[changed.kind == "gyro"]
+    assert np.allclose(gyro.ratio, 2.0, rtol=0.1), gyro.ratio
+    np.testing.assert_allclose(gyro.diff_ieee, gyro.value_ieee - gyro.previous_ieee)
+    assert (gyro.unit_ieee == "deg/h^0.5").all()
+    # the other units' files did not change: ratio exactly 1, within the CIs
+    same = drift[drift.unit != "u2"]
+    known = same.ratio.notna()  # a term the short logs do not resolve has no ratio
+    assert known[same.term == "N"].all()
+    assert (same.ratio[known] == 1.0).all() and not same.beyond_ci.any()
+    assert summ["drift"]["units_beyond_ci"] == ["u2"]
+    table = pd.read_parquet(out / "fleet.parquet")
+    for col in ("N_prev", "N_ratio", "N_diff", "N_z", "N_outlier", "B_z", "K_z", "outlier"):
+        assert col in table.columns
+    # the HTML report has the statistics, outlier and drift tables and both figures
+    html = (out / "report.html").read_text()
+    for text in ("Noise terms across units", "Outliers", "Drift since", "deg/h^0.5",
+                 "box: quartiles", f"u{NOISY_UNIT}"):  # fmt: skip
+        assert text in html, text
+    assert html.count("data:image/png;base64") == 2

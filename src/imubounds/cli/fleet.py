@@ -1,4 +1,9 @@
-"""``imubounds fleet GLOB... -o DIR``: characterise many units on Dask."""
+"""``imubounds fleet GLOB... -o DIR``: characterise many units on Dask.
+
+Exit codes: 0 when every unit was analysed; 1 when at least one unit failed
+(the others are analysed and written, and a failure summary is printed on
+stderr); 2 for bad input or options, as every command.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +13,17 @@ import math
 import sys
 from typing import Any
 
-from imubounds.cli._common import Reporter, add_log_options, parse_taus
+from imubounds.cli._common import (
+    Reporter,
+    add_log_options,
+    nonneg_int,
+    parse_taus,
+    positive_float,
+    positive_int,
+)
+
+#: Exit code when some units failed (the rest were analysed and written).
+EXIT_UNITS_FAILED = 1
 
 ESTIMATORS = ("overlapping", "non-overlapping", "modified", "hadamard", "total")
 
@@ -20,13 +35,23 @@ def register(sub: Any) -> None:
         description="Run the static pipeline (Allan deviation, noise terms) over many logs on "
         "a Dask cluster (local by default) and write DIR/fleet.parquet (one row per unit and "
         "channel), DIR/fleet.json, DIR/fleet.png and, with --spec, DIR/passfail.csv. Units "
-        "already done (same file content and settings) are taken from DIR/.cache.",
+        "already done (same file content, settings and imubounds version) are taken from "
+        "DIR/.cache. Logs may be local paths or fsspec URLs (s3://, gs://, https://, file://; "
+        "s3fs/gcsfs/aiohttp needed for those). Units are named by their path relative to the "
+        "common folder of all logs. fleet.json, fleet.parquet and report.html hold the "
+        "spread of N, B, K across units, robust-z outliers and, with --compare, each unit's "
+        "drift since a previous run.",
+        epilog="exit status: 0 every unit analysed; 1 some unit failed (the others are "
+        "written; a failure summary is printed); 2 bad input or options",
     )
     p.add_argument("logs", nargs="+", metavar="GLOB", help="log files or glob patterns")
     p.add_argument("-o", "--out", default="fleet", metavar="DIR", help="output directory")
     p.add_argument("--scheduler", metavar="ADDRESS", help="running dask scheduler, tcp://h:8786")
-    p.add_argument("--workers", type=int, default=2, help="local cluster workers (default 2)")
-    p.add_argument("--threads-per-worker", type=int, default=1, help="default 1")
+    p.add_argument(
+        "--workers", type=nonneg_int, default=2,
+        help="local cluster workers (default 2); 0 runs the units in this process, no Dask",
+    )  # fmt: skip
+    p.add_argument("--threads-per-worker", type=positive_int, default=1, help="default 1")
     p.add_argument("--spec", metavar="YAML", help="datasheet limits (max N, B, K per kind)")
     p.add_argument("--tau", default="octave", help="tau grid (as for static)")
     p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping")
@@ -37,10 +62,25 @@ def register(sub: Any) -> None:
         help="per-unit memory setting: larger logs take the out-of-core path",
     )  # fmt: skip
     p.add_argument(
-        "--task-size", default="32MB", metavar="SIZE",
-        help="group small logs into tasks of about SIZE of input (default 32MB)",
+        "--task-size", default="4MiB", metavar="SIZE",
+        help="group small logs into tasks of about SIZE of input (default 4MiB)",
     )  # fmt: skip
-    p.add_argument("--no-plot", action="store_true", help="skip fleet.png/.svg")
+    p.add_argument(
+        "--split-channels", action="store_true",
+        help="with fewer logs than worker threads, split each log by channel across workers "
+        "(each part parses the whole log: pays only when the analysis outweighs the reading)",
+    )  # fmt: skip
+    p.add_argument(
+        "--outlier-z", type=positive_float, default=3.5, metavar="Z",
+        help="flag a unit whose robust z-score of a term (on the log scale) exceeds Z "
+        "(default 3.5)",
+    )  # fmt: skip
+    p.add_argument(
+        "--compare", metavar="PREVIOUS_DIR",
+        help="output directory of a previous fleet run: drift of each unit's terms",
+    )  # fmt: skip
+    p.add_argument("--no-plot", action="store_true", help="skip the figures")
+    p.add_argument("--no-report", action="store_true", help="skip report.html")
     p.add_argument("--json", action="store_true", help="print fleet.json on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     add_log_options(p)
@@ -81,11 +121,11 @@ def run(args: argparse.Namespace) -> int:
             args.logs, args.out, settings, scheduler=args.scheduler, n_workers=args.workers,
             threads_per_worker=args.threads_per_worker, spec=args.spec,
             target_task_bytes=parse_memory(args.task_size), plot=not args.no_plot,
+            outlier_z=args.outlier_z, compare=args.compare, report=not args.no_report,
+            split_channels=args.split_channels,
             progress=progress,
         )  # fmt: skip
     summ = res.summary()
-    for f in res.failed:
-        rep.warn(f"unit {f['unit']} failed: {f['error']}")
     if args.json:
         json.dump(summ, sys.stdout, indent=2, default=float)
         print()
@@ -103,6 +143,21 @@ def run(args: argparse.Namespace) -> int:
                         f"  {kind:<5} {t}: median {_g(s['median'])} {s['unit_ieee']}"
                         f"  (5-95 %: {_g(s['p05'])} .. {_g(s['p95'])}, {s['n']} axes)"
                     )
+        stats = summ.get("statistics") or {}
+        if stats.get("outliers"):
+            print(f"outliers (|z| > {stats['threshold_z']:g}): "
+                  + "; ".join(f"{o['unit']} {o['channel']} {o['term']} z={o['z']:+.1f} "
+                              f"(x{o['ratio_to_median']:.3g} the median)"
+                              for o in stats["outliers"]))  # fmt: skip
+        if "drift" in summ:
+            d = summ["drift"]
+            print(
+                f"drift since {d['compared_with']}: {d['n_units_compared']} units compared, "
+                f"{len(d['units_beyond_ci'])} changed beyond their CIs"
+                + (f" ({', '.join(d['units_beyond_ci'])})" if d["units_beyond_ci"] else "")
+                + (f"; new: {', '.join(d['new_units'])}" if d["new_units"] else "")
+                + (f"; gone: {', '.join(d['missing_units'])}" if d["missing_units"] else "")
+            )
         if "spec" in summ:
             sp = summ["spec"]
             print(
@@ -110,4 +165,11 @@ def run(args: argparse.Namespace) -> int:
                 + (f": {', '.join(sp['units_failing'])}" if sp["units_failing"] else "")
             )
     rep.info(f"wrote {', '.join(res.files.values())} to {args.out}")
+    if res.failed:
+        # the failure summary is printed even with --quiet: the exit status alone says little
+        print(f"imubounds: {len(res.failed)} of {summ['n_units']} units failed "
+              f"(exit {EXIT_UNITS_FAILED}):", file=sys.stderr)  # fmt: skip
+        for f in res.failed:
+            print(f"  {f['unit']}: {f['error']}", file=sys.stderr)
+        return EXIT_UNITS_FAILED
     return 0
