@@ -278,6 +278,24 @@ def test_cli_exits_1_with_a_failure_summary_even_when_quiet(
     assert "Traceback" not in err
 
 
+@pytest.mark.parametrize("missing", ["no/such/unit.csv", "no_such_dir/*.csv.gz"])
+def test_a_pattern_matching_nothing_is_an_error_among_others(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], missing: str
+) -> None:
+    """A missing path or an empty glob is a one-line error (exit 2), also when the other
+    patterns match: a fleet never leaves units out unnoticed, and nothing is written."""
+    from imubounds.cli import main
+
+    out = tmp_path / "o"
+    code = main(["fleet", str(fleet_dir / "unit00.csv.gz"), str(tmp_path / missing),
+                 "-o", str(out), "-q", "--workers", "0"])  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert "no log file matches" in err and missing in err and len(err.splitlines()) == 1, err
+    assert "1 file(s) matched the other patterns" in err
+    assert not (out / "fleet.json").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

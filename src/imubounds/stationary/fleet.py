@@ -190,7 +190,9 @@ def expand_globs(patterns: Iterable[str | Path]) -> list[str]:
     Raises
     ------
     InputError
-        When a pattern matches nothing (all are named), or a URL cannot be listed.
+        When any pattern matches no file (a missing path or an empty glob would
+        otherwise leave units out of the fleet unnoticed; all such patterns are
+        named), or a URL cannot be listed.
     """
     import glob
 
@@ -210,8 +212,12 @@ def expand_globs(patterns: Iterable[str | Path]) -> list[str]:
             empty.append(pat)
         for k, h in zip(keys, files, strict=True):
             out.setdefault(k, h)
-    if not out:
-        raise InputError(f"no log file matches {', '.join(map(repr, empty))}; check the pattern")
+    if empty:
+        what = "no log file matches" if len(empty) == 1 else "no log files match"
+        raise InputError(
+            f"{what} {', '.join(map(repr, empty))}; check the pattern"
+            + (f" ({len(out)} file(s) matched the other patterns)" if out else "")
+        )
     return [out[k] for k in sorted(out)]
 
 
