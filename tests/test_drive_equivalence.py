@@ -93,14 +93,19 @@ def test_convert_then_dynamic_equals_dynamic_on_the_source(
     assert a["enclosure"]["position"] == b["enclosure"]["position"] == 1.0
 
 
-def test_paper_mode_on_a_simulated_drive_in_memory_equals_its_layout(tmp_path: Path) -> None:
+def test_paper_mode_on_a_simulated_drive_in_memory_equals_its_layout(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The simulator's drive carries its swing calibration as (n, 2) pairs in memory;
     mode paper reads them as it reads compass_cal.csv from the written layout."""
     sim = make_trip("paper", seed=5, duration_s=200.0, distance_m=2000.0)
     assert isinstance(sim.drive.settings.heading.calibration, np.ndarray)
     mem = dynamic_margins(sim.drive, mode="paper").to_dict()
-    write_layout(sim.drive, tmp_path / "drive")
-    disk = dynamic_margins(read_drive(tmp_path / "drive"), mode="paper").to_dict()
+    # a relative path, as `make demo` gives (the calibration file was joined to the
+    # drive's folder twice: out/sim/out/sim/compass_cal.csv)
+    monkeypatch.chdir(tmp_path)
+    write_layout(sim.drive, Path("drive"))
+    disk = dynamic_margins(read_drive(Path("drive")), mode="paper").to_dict()
     assert mem["guaranteed"] is False and "not guaranteed" in mem["statement"]
     assert mem["verdict"] == disk["verdict"]
     for ch, rows in mem["margins"].items():

@@ -322,7 +322,7 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
         check_input_path(p, key, directory=False)
     except InputError as err:
         raise InputError(f"{where}: {key}: {err}") from None
-    return str(p)
+    return str(p.absolute())  # absolute: it must not be joined to the drive's folder again
 
 
 def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None) -> None:
