@@ -50,7 +50,7 @@ __version__ = "0.1.0"
 _LAZY: dict[str, str] = {
     # functions
     "read_log": "imubounds.api",
-    "read_frame": "imubounds.api",
+    "read_frame": "imubounds.io.table",
     "allan": "imubounds.api",
     "noise_terms": "imubounds.api",
     "characterize": "imubounds.api",
@@ -111,7 +111,6 @@ if TYPE_CHECKING:
         allan,
         characterize,
         noise_terms,
-        read_frame,
         read_log,
         simulate_trip,
     )
@@ -122,6 +121,7 @@ if TYPE_CHECKING:
     from imubounds.io.drive_readers import bundled_drive_log, read_drive
     from imubounds.io.log import ImuLog
     from imubounds.io.registry import bundled_static_log
+    from imubounds.io.table import read_frame
     from imubounds.stationary.allan import AllanResult
     from imubounds.stationary.pipeline import ChannelResult, StaticResult, StaticSettings
     from imubounds.stationary.terms import NoiseTerms, SelectedTerm, Selection

@@ -47,7 +47,6 @@ __all__ = [
     "allan",
     "characterize",
     "noise_terms",
-    "read_frame",
     "read_log",
     "simulate_trip",
 ]
@@ -131,48 +130,6 @@ def read_log(
         on_gap=on_gap,
         channels=channels,
         format_options=fmt,
-    )
-
-
-def read_frame(
-    data: pd.DataFrame | Mapping[str, ArrayLike],
-    *,
-    rate_hz: float | None = None,
-    columns: Mapping[str, str] | None = None,
-    gyro_unit: str | None = None,
-    accel_unit: str | None = None,
-    time_unit: str | None = None,
-    on_gap: OnGap = "refuse",
-    channels: Iterable[str] | None = None,
-    source: str = "<DataFrame>",
-) -> ImuLog:
-    """An :class:`~imubounds.io.log.ImuLog` from a pandas DataFrame or a dict of arrays.
-
-    The columns are recognised and checked exactly as in a file (see
-    :func:`read_log`): ``time_s`` (or a DatetimeIndex) or ``rate_hz`` gives the time;
-    ``gyro_x_dps``, ``accel_z_g``, ... give the channels and their units (a bare
-    ``gyro_x`` is taken as rad/s and ``accel_x`` as m/s^2, with a warning).
-    ``ImuLog.to_frame()`` gives a frame this function reads back unchanged.
-
-    Raises
-    ------
-    InputError
-        No IMU column, missing or non-finite values, time stamps out of order, gaps.
-    OptionError
-        No time and no ``rate_hz``, an unknown unit or column key.
-    """
-    from imubounds.io.table import read_frame as _read
-
-    return _read(
-        data,
-        rate_hz=rate_hz,
-        columns=columns,
-        gyro_unit=gyro_unit,
-        accel_unit=accel_unit,
-        time_unit=time_unit,
-        on_gap=on_gap,
-        channels=channels,
-        source=source,
     )
 
 
@@ -462,6 +419,8 @@ def characterize(
     bad = [m for m in models if m not in known]
     if isinstance(models, str) or bad:
         raise OptionError(f"models: give a sequence of {', '.join(known)}, got {models!r}")
+    from imubounds.io.table import read_frame
+
     if isinstance(data, _ImuLog):
         if gyro_unit is not None or accel_unit is not None:
             raise OptionError("an ImuLog is already in SI: gyro_unit/accel_unit do not apply")

@@ -20,7 +20,7 @@ import re
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -31,6 +31,10 @@ from imubounds.io.log import ImuLog
 
 from .assemble import OnGap, RawChannel, RawTime, ReadOptions, assemble_logs
 from .columns import ColumnPlan, plan_columns, recognise
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from numpy.typing import ArrayLike
 
 GZIP_MAGIC = b"\x1f\x8b"
 PARQUET_MAGIC = b"PAR1"
@@ -616,7 +620,7 @@ def read_parquet(path: Path, opts: ReadOptions) -> list[ImuLog]:
 
 
 def read_frame(
-    data: Any,
+    data: pd.DataFrame | Mapping[str, ArrayLike],
     *,
     rate_hz: float | None = None,
     columns: Mapping[str, str] | None = None,
