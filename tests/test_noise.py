@@ -7,6 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from imubounds.errors import AnalysisError, InputError
 from imubounds.stationary import theory
@@ -15,6 +17,8 @@ from imubounds.stationary.terms import (
     B_FACTOR,
     EDF_MIN,
     TERMS,
+    _eta_from_residuals,
+    _median_small,
     analyse_curve,
     avar_terms,
     fit_slopes,
@@ -317,3 +321,50 @@ def test_too_short_curve_is_an_analysis_error() -> None:
         fit_terms(one)
     with pytest.raises(AnalysisError):
         fit_slopes(one)
+
+
+# ---- the fit's fast median and misfit are the np.median versions, bit for bit
+_finite = st.floats(min_value=-1e12, max_value=1e12, allow_nan=False, allow_infinity=False)
+
+
+@given(st.lists(_finite, min_size=1, max_size=60))
+def test_median_small_is_np_median_bit_for_bit(values: list[float]) -> None:
+    v = np.array(values)
+    assert _median_small(v.copy()) == float(np.median(v))
+    v[len(values) // 2] = np.nan
+    assert math.isnan(_median_small(v.copy())) and math.isnan(float(np.median(v)))
+
+
+def _eta_reference(lr: np.ndarray, sd: np.ndarray, w: np.ndarray) -> float:
+    """The misfit as first written, with np.median (the plain reference)."""
+    from scipy import stats
+
+    keep = w > 0
+    if np.count_nonzero(keep) < 3:
+        return 0.0
+    a = np.abs(lr[keep])
+    s = sd[keep]
+    target = float(stats.norm.ppf(0.75))
+    if float(np.median(a / s)) <= target:
+        return 0.0
+    lo, hi = 0.0, float(np.max(a)) * 10.0 + 1e-12
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if float(np.median(a / np.sqrt(s * s + mid * mid))) > target:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@given(
+    st.lists(
+        st.tuples(st.floats(-3.0, 3.0), st.floats(0.01, 2.0), st.sampled_from([0.0, 0.5, 1.0])),
+        min_size=0, max_size=40,
+    )
+)  # fmt: skip
+def test_misfit_equals_the_np_median_reference(points: list[tuple[float, float, float]]) -> None:
+    lr = np.array([p[0] for p in points], dtype=float)
+    sd = np.array([p[1] for p in points], dtype=float)
+    w = np.array([p[2] for p in points], dtype=float)
+    assert _eta_from_residuals(lr, sd, w) == _eta_reference(lr, sd, w)

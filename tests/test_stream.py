@@ -263,3 +263,32 @@ def test_route_outofcore(npy_path: Path, tmp_path: Path) -> None:
     big = tmp_path / "b.csv"
     pd.DataFrame({"time_s": np.arange(20000) / RATE, "gyro_x": np.zeros(20000)}).to_csv(big)
     assert route_outofcore(big, "64KiB") is not None
+
+
+def test_text_size_bound_routes_as_the_opened_log(tmp_path: Path) -> None:
+    """route_outofcore decides a small text log from its size alone: the bound is never
+    below what the opened log says, for plain and gzip CSV of any column count."""
+    import gzip
+
+    import pandas as pd
+
+    from imubounds.io.chunked import open_chunked, text_bytes_bound
+
+    for ncol in (1, 6, 12):
+        for n in (5, 300, 30000):
+            df = pd.DataFrame({"time_s": np.arange(n) / RATE})
+            for j in range(ncol):
+                df[f"gyro_{'xyz'[j % 3]}{j // 3 or ''}"] = np.sin(np.arange(n) * (j + 1))
+            plain = tmp_path / f"t{ncol}_{n}.csv"
+            df.to_csv(plain, index=False)
+            gz = tmp_path / f"t{ncol}_{n}.csv.gz"
+            gz.write_bytes(gzip.compress(plain.read_bytes()))
+            for p in (plain, gz):
+                opened = open_chunked(p).bytes_in_memory()
+                bound = text_bytes_bound(p)
+                assert bound is not None and opened <= bound <= 3 * opened + 40_000, (p, opened)
+                for mem in {max(65536, m) for m in (opened - 1, opened, bound)}:
+                    want = None if opened <= mem else "out-of-core"
+                    got = route_outofcore(p, mem)
+                    assert (got is None) == (want is None), (p, mem)
+    assert text_bytes_bound(tmp_path / "x.npy") is None

@@ -599,3 +599,20 @@ def _numeric(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+
+def text_bytes_bound(path: Path) -> int | None:
+    """An upper bound of :meth:`ChunkedLog.bytes_in_memory` for a text log (CSV, TSV,
+    TXT, DAT, optionally gzip), from its size alone; ``None`` for another format.
+
+    The row estimate there is size / (12 bytes per value), so the column count
+    cancels: routing a small file needs no header or time read."""
+    if not path.name.lower().endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
+        return None
+    from .table import GZIP_MAGIC
+
+    with open(path, "rb") as f:
+        gz = f.read(2) == GZIP_MAGIC
+    size = path.stat().st_size * (3 if gz else 1)
+    return (size // 12 + 1) * 8 * 4 + 8 * 4 * 1024  # n >= 1 row of up to 1024 columns

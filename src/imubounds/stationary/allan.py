@@ -76,6 +76,7 @@ drops the last overlapping term (sums N-2m terms, divides by N-2m+1).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -546,10 +547,14 @@ _G_TABLE3 = {1: (6.0, 4.0), 2: (15.23, 12.0), 3: (47.8, 40.0)}
 _J_MAX = 100
 
 
+@functools.lru_cache(maxsize=4096)
 def edf_greenhall(
     alpha: int, d: int, m: int, n_phase: int, overlapping: bool, modified: bool
 ) -> float:
     """Equivalent degrees of freedom by Greenhall's algorithm.
+
+    Memoised: a pure function of its six integers, asked again for every channel
+    of a log (same ``m`` and ``n_phase``) and every unit of a fleet of equal logs.
 
     Parameters
     ----------

@@ -856,6 +856,8 @@ def route_outofcore(
         in_memory_ok = True
     except ImuboundsError:
         in_memory_ok = False
+    if in_memory_ok and _small_text(Path(path), mem):
+        return None  # the decision below, from the size alone (no header or time read)
     try:
         log = open_chunked(path, **open_kwargs)
     except ImuboundsError:
@@ -865,3 +867,15 @@ def route_outofcore(
     if not in_memory_ok or log.bytes_in_memory() > mem:
         return log
     return None
+
+
+def _small_text(path: Path, mem: int) -> bool:
+    """Whether ``path`` is a text log whose in-memory need is under ``mem`` bytes
+    whatever its columns (:func:`imubounds.io.chunked.text_bytes_bound`)."""
+    from imubounds.io.chunked import text_bytes_bound
+
+    try:
+        bound = text_bytes_bound(path)
+    except OSError:
+        return False
+    return bound is not None and bound <= mem
