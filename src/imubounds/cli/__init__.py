@@ -206,14 +206,16 @@ def _main(argv: list[str], state: dict[str, bool]) -> int:
         return done.code if isinstance(done.code, int) else 2
     args.argv = argv
     state["debug"] = bool(getattr(args, "debug", False) or os.environ.get("IMUBOUNDS_DEBUG"))
-    # The command line alone chooses the figure backend and touches numba caches;
-    # importing the library does neither.
+    # The command line alone chooses the figure backend, touches numba caches and
+    # tunes malloc; importing the library does none of these.
     os.environ.setdefault("MPLBACKEND", "Agg")
     from imubounds.cli import numba_cache
     from imubounds.io.outputs import reset_committed_outputs
+    from imubounds.runtime import tune_malloc
 
     reset_committed_outputs()
     numba_cache.refresh_all()
+    tune_malloc()  # freed arrays kept for reuse: ~20 % less CPU per log (imubounds.runtime)
     if not state["debug"]:
         warnings.showwarning = _one_line_warning
     return int(args.func(args) or 0)
