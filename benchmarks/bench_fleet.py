@@ -6,9 +6,13 @@ CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 * **serial**: a loop of :func:`imubounds.stationary.fleet.analyse_unit` over every
   unit in this process, after :func:`~imubounds.stationary.fleet.warm_up` (imports
   and numba kernels loaded: the same state as a warm worker). The serial loop
-  keeps numba's default thread count (all cores) for the Allan kernels, so it
-  is the fairest single-process baseline; its CPU time / wall time says how
-  many cores it kept busy. "serial cold" adds the process's warm-up;
+  keeps numba's default thread count (all cores) for the Allan kernels and runs
+  with the same malloc settings as the fleet's workers and the CLI
+  (:func:`imubounds.runtime.tune_malloc`), so that the ratio is the parallel gain
+  alone; its CPU time / wall time says how many cores it kept busy. "serial
+  cold" adds the process's warm-up. The same loop in a plain Python process
+  (glibc's default malloc: a notebook user's loop) is also timed, in a
+  subprocess;
 * **Dask cold**: a new local cluster (:func:`~imubounds.stationary.fleet.local_cluster`,
   ``--workers`` single-threaded worker processes) started, warmed (the worker
   plugin) and the fleet run, cache emptied first; the start-up and warm-up are
@@ -74,6 +78,26 @@ def _make_fleet(units: int, minutes: float, rate: float) -> list[str]:
     return expand_globs([str(d / "unit*.csv.gz")])[:units]
 
 
+def _plain_process_loop(paths: list[str], repeat: int) -> list[float]:
+    """Wall times of the serial loop in a new plain Python process (glibc's default
+    malloc, numba's default threads), after its warm-up."""
+    code = (
+        "import json, sys, time\n"
+        "import h5py\n"
+        "from imubounds.stationary.fleet import FleetSettings, analyse_unit, warm_up\n"
+        "paths, repeat = json.loads(sys.argv[1]), int(sys.argv[2])\n"
+        "s = FleetSettings(); warm_up(s); out = []\n"
+        "for _ in range(repeat):\n"
+        "    t0 = time.perf_counter(); [analyse_unit(p, s) for p in paths]\n"
+        "    out.append(time.perf_counter() - t0)\n"
+        "print(json.dumps(out))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+    done = subprocess.run([sys.executable, "-c", code, json.dumps(paths), str(repeat)],
+                          check=True, capture_output=True, text=True, env=env)  # fmt: skip
+    return [float(x) for x in json.loads(done.stdout.strip().splitlines()[-1])]
+
+
 def _same(serial: list[dict[str, Any]], res: Any) -> tuple[bool, float]:
     """Whether a fleet result equals the serial loop: terms to 1e-12 relative, curves exact.
     Returns (identical, largest relative difference seen)."""
@@ -132,6 +156,12 @@ def main() -> None:
 
     import numba
 
+    from imubounds.runtime import tune_malloc
+
+    untuned = _plain_process_loop(paths, a.repeat)
+    print(f"serial loop in a plain process (default malloc): "
+          f"{', '.join(f'{t:.2f}' for t in untuned)} s", flush=True)  # fmt: skip
+    tune_malloc()
     t0 = time.perf_counter()
     t_warm_serial = warm_up(settings)
     t_serial_runs, cpu_serial = [], []
@@ -274,6 +304,9 @@ def main() -> None:
         "cpu_count": os.cpu_count(), "load_avg_before": load0, "load_avg_after": os.getloadavg(),
         "serial_numba_threads": numba.get_num_threads(),
         "serial_s": t_serial, "serial_runs_s": t_serial_runs,
+        "serial_plain_process_s": statistics.median(untuned),
+        "serial_plain_process_runs_s": untuned,
+        "speedup_warm_vs_plain_process_serial": statistics.median(untuned) / t_warm,
         "serial_cpu_per_wall": statistics.median(cpu_serial) / t_serial,
         "serial_cpu_s": statistics.median(cpu_serial),
         "serial_cold_s": t_serial + t_warm_serial,
@@ -296,6 +329,8 @@ def main() -> None:
               f"{r['speedup_vs_serial']:>8.2f}x {r['speedup_vs_serial_best']:>8.2f}x "
               f"{r['speedup_vs_1_worker']:>10.2f}x {r['efficiency']:>10.2f} "
               f"{r['cpu_s']:>6.1f}")  # fmt: skip
+    print(f"serial loop in a plain process (default malloc) {statistics.median(untuned):.2f} s: "
+          f"Dask {a.workers} workers warm {statistics.median(untuned) / t_warm:.2f}x")  # fmt: skip
     print(f"serial {t_serial:.2f} s; Dask {a.workers} workers warm {t_warm:.2f} s "
           f"({t_serial / t_warm:.2f}x), cold {t_cold:.1f} s ({t_serial / t_cold:.2f}x); "
           f"paired serial/Dask ratio, median of {len(pairs)}: {paired_ratio:.2f}x; "

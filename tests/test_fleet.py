@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import h5py  # noqa: F401  (before codac, see conftest)
@@ -63,14 +64,32 @@ def cluster():  # noqa: ANN201
     c.close()
 
 
-def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold(cluster) -> None:  # noqa: ANN001
-    """Dask's MALLOC_TRIM_THRESHOLD_=65536 costs ~25 % CPU per unit; local_cluster drops it
-    (the other pre-spawn settings, e.g. OMP_NUM_THREADS=1, stay)."""
+def test_local_cluster_workers_get_the_fleet_process_settings(cluster) -> None:  # noqa: ANN001
+    """Dask's MALLOC_TRIM_THRESHOLD_=65536 costs ~25 % CPU per unit: local_cluster's
+    workers get imubounds.runtime.MALLOC_SETTINGS instead (freed memory kept for reuse),
+    no statistical profiler and slow housekeeping ticks, a core each; the other
+    pre-spawn settings (OMP_NUM_THREADS=1) stay."""
     import os
 
-    env = cluster.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_")
-    assert len(env) == 2 and set(env.values()) == {None}, env
+    import dask
+
+    from imubounds.runtime import MALLOC_SETTINGS
+
+    for key, value in MALLOC_SETTINGS.items():
+        env = cluster.run(os.environ.get, key)
+        assert len(env) == 2 and set(env.values()) == {os.environ.get(key, str(value))}, env
     assert set(cluster.run(os.environ.get, "OMP_NUM_THREADS").values()) == {"1"}
+    prof = cluster.run(dask.config.get, "distributed.worker.profile.enabled")
+    assert set(prof.values()) == {False}
+    assert set(cluster.run(dask.config.get, "distributed.admin.tick.interval").values()) == {"1s"}
+    # the settings were scoped to the cluster's start: this process's config is as it was
+    assert dask.config.get("distributed.worker.profile.enabled") is True
+    # each worker pinned to a core of its own when the cores allow (2 workers here)
+    masks = [frozenset(m) for m in cluster.run(os.sched_getaffinity, 0).values()]
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert all(len(m) == 1 for m in masks) and len(set(masks)) == 2, masks
+    else:
+        assert set(masks) == {frozenset(os.sched_getaffinity(0))}
 
 
 def test_fleet_with_a_corrupt_unit(fleet_dir: Path, tmp_path: Path, cluster) -> None:  # noqa: ANN001
@@ -135,6 +154,31 @@ def test_fleet_with_a_corrupt_unit(fleet_dir: Path, tmp_path: Path, cluster) -> 
     t2 = pd.read_parquet(out / "fleet.parquet")
     pd.testing.assert_frame_equal(t2[t2.status == "ok"].reset_index(drop=True),
                                   ok.reset_index(drop=True))  # fmt: skip
+
+
+def test_cached_units_are_not_sent_and_an_all_cached_fleet_starts_no_cluster(
+    fleet_dir: Path, tmp_path: Path, cluster  # noqa: ANN001
+) -> None:
+    """The client hashes unit by unit and submits only the units not cached (the hashing
+    of later units overlaps the analysis); a fleet found all cached starts no cluster."""
+    units = tmp_path / "units"
+    units.mkdir()
+    for i in range(3):
+        shutil.copy(fleet_dir / f"unit{i:02d}.csv.gz", units / f"unit{i:02d}.csv.gz")
+    out = tmp_path / "out"
+    first = run_fleet([str(units / "*.csv.gz")], out, n_workers=0, plot=False)
+    assert first.ok and first.n_cached == 0
+    # every unit cached: no cluster is started (n_workers=2 would start one)
+    again = run_fleet([str(units / "*.csv.gz")], out, n_workers=2, plot=False)
+    assert again.scheduler == "(all cached)" and again.n_tasks == 0 and again.n_cached == 3
+    # one unit changed (another unit's bytes): only it goes to the workers
+    shutil.copy(fleet_dir / "unit03.csv.gz", units / "unit01.csv.gz")
+    third = run_fleet([str(units / "*.csv.gz")], out, client=cluster, plot=False)
+    assert third.n_cached == 2 and third.n_tasks == 1 and third.ok
+    t1, t3 = first.table.set_index(["unit", "channel"]), third.table.set_index(["unit", "channel"])
+    for u in ("unit00", "unit02"):
+        assert (t3.loc[u, "N"] == t1.loc[u, "N"]).all()
+    assert not np.allclose(t3.loc["unit01", "N"], t1.loc["unit01", "N"])
 
 
 def test_same_numbers_as_the_static_command(fleet_dir: Path, tmp_path: Path) -> None:

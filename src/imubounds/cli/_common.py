@@ -360,6 +360,8 @@ class Reporter:
         if bar is None:
             bar = tqdm(total=total, desc=stage, unit="step", file=sys.stderr, leave=False)
             self._bars[stage] = bar
+        if bar.total != total:  # a total found as the work goes (fleet units not cached)
+            bar.total = total
         bar.n = done
         bar.refresh()
         if done >= total:

@@ -113,10 +113,13 @@ def to_jsonable(obj: Any) -> Any:
     return _clean(obj)
 
 
-def write_json(dest: str | os.PathLike[str], data: Any) -> Path:
-    """Write ``data`` as indented JSON (nan/inf become null) atomically."""
+def write_json(dest: str | os.PathLike[str], data: Any, *, indent: int | None = 2) -> Path:
+    """Write ``data`` as JSON (nan/inf become null) atomically: indented, or compact
+    with ``indent=None`` (a cache file: the C encoder, several times faster)."""
+    text = json.dumps(_clean(data), indent=indent, allow_nan=False,
+                      separators=None if indent is not None else (",", ":"))  # fmt: skip
     with atomic_open(dest) as f:
-        json.dump(_clean(data), f, indent=2, allow_nan=False)
+        f.write(text)
         f.write("\n")
     return Path(dest)
 
