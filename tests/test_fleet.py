@@ -322,6 +322,33 @@ def test_cli_exits_1_with_a_failure_summary_even_when_quiet(
     assert "Traceback" not in err
 
 
+def test_cli_fleet_writes_run_json_last_and_the_report_shows_the_command(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    """As every command: run.json (command, version, the files written) completes the set;
+    the report says how to reproduce it; files of an earlier run there stay imubounds'."""
+    from imubounds.cli import main
+
+    out = tmp_path / "o"
+    argv = ["static", str(fleet_dir / "unit00.csv.gz"), "-o", str(out), "--models", "none",
+            "--no-plot", "--no-report", "-q"]  # fmt: skip
+    assert main(argv) == 0  # an earlier run of another command in the same folder
+    argv = ["fleet", str(fleet_dir / "unit0[01].csv.gz"), "-o", str(out), "--workers", "0",
+            "-q", "--no-plot"]  # fmt: skip
+    assert main(argv) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["command_name"] == "fleet" and run["complete"] is True
+    assert run["command"].startswith("imubounds fleet ") and "--workers 0" in run["command"]
+    assert set(run["files"]) == {"fleet.parquet", "fleet.json", "report.html", "run.json"}
+    assert run["n_units"] == 2 and run["n_failed"] == 0
+    assert set(run["earlier_files"]) == {"noise.json", "imu.yaml"}
+    assert "imubounds fleet " in (out / "report.html").read_text()
+    # a library call writes no run.json of its own
+    lib = tmp_path / "lib"
+    run_fleet([str(fleet_dir / "unit00.csv.gz")], lib, n_workers=0, plot=False)
+    assert not (lib / "run.json").exists()
+
+
 @pytest.mark.parametrize("missing", ["no/such/unit.csv", "no_such_dir/*.csv.gz"])
 def test_a_pattern_matching_nothing_is_an_error_among_others(
     fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], missing: str

@@ -5,11 +5,11 @@ imubounds changes nothing); a notebook user may call :func:`tune_malloc` once.
 glibc's malloc returns freed memory to the system early: above a 128 KiB
 threshold (raised dynamically up to 32 MiB) arrays get their own mapping, and
 the top of the heap is trimmed as soon as a few MiB are free. An analysis makes
-many short-lived arrays of a log's length (1.4 MB for 30 min at 100 Hz), so every
+many short-lived arrays of a log's length (1.4 MB for 30 min at 100 Hz), so each
 one is mapped, zero-filled and faulted in afresh: measured 27 000 page faults per
-unit of the fleet benchmark, and about 20 % of a static analysis' time. The
-settings below keep up to :data:`MALLOC_SETTINGS` ``TRIM`` bytes of freed memory
-for reuse (26 times fewer faults, 20 % less CPU per unit, same results).
+unit of the fleet benchmark. With :data:`MALLOC_SETTINGS` (up to 256 MiB of freed
+memory kept for reuse) there were 25 times fewer, and about 20 % less CPU per
+unit, with the same results.
 """
 
 from __future__ import annotations

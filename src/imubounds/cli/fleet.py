@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
             target_task_bytes=parse_memory(args.task_size), plot=not args.no_plot,
             outlier_z=args.outlier_z, compare=args.compare, report=not args.no_report,
             split_channels=args.split_channels,
-            progress=progress,
+            progress=progress, argv=getattr(args, "argv", None),
         )  # fmt: skip
     summ = res.summary()
     if args.json:

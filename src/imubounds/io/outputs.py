@@ -39,7 +39,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -169,6 +169,35 @@ def write_run_record(outdir: str | os.PathLike[str], argv: list[str] | None, **e
         **extra,
     }
     return write_json(Path(outdir) / "run.json", record)
+
+
+def listed_files(target: str | os.PathLike[str]) -> set[str]:
+    """Relative names of the files the last imubounds run in ``target`` listed as its own
+    (its ``run.json``, and an interrupted commit's record)."""
+    return _written_by_imubounds(Path(target))
+
+
+def record_written_files(
+    target: str | os.PathLike[str],
+    argv: Sequence[str] | None,
+    files: Iterable[str],
+    *,
+    earlier: Iterable[str] = (),
+    complete: bool = True,
+    **extra: Any,
+) -> Path:
+    """Write ``target/run.json`` for files a command wrote in place (each atomically, not
+    as an :class:`OutputSet`: the fleet, whose cache fills as units finish): the command,
+    version and platform, and ``files``. ``earlier`` names files of earlier runs
+    (:func:`listed_files`, read before this run removed their ``run.json``): those still
+    there and not rewritten stay imubounds' (``earlier_files``)."""
+    t = Path(target)
+    names = sorted({str(f) for f in files})
+    old = sorted(n for n in set(earlier)
+                 if n not in names and n != RUN_RECORD and (t / n).is_file())  # fmt: skip
+    return write_run_record(t, list(argv) if argv is not None else None, files=names,
+                            complete=complete, **({"earlier_files": old} if old else {}),
+                            **extra)  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- records

@@ -806,6 +806,7 @@ def run_fleet(
     plot: bool = True,
     report: bool = False,
     progress: Progress | None = None,
+    argv: Sequence[str] | None = None,
 ) -> FleetResult:
     """Characterise every log matching ``patterns``; write the fleet outputs.
 
@@ -850,7 +851,11 @@ def run_fleet(
     report : bool
         Also write ``report.html`` (:func:`imubounds.report.html.write_report`).
     progress : callable(stage, done, total), optional
-        ``"hash"`` then ``"units"``.
+        ``"hash"`` then ``"units"`` (interleaved on Dask).
+    argv : sequence of str, optional
+        The command line (``imubounds`` arguments) that asked for this run: then
+        ``run.json`` (command, version, platform, the files written) is written
+        last, as by every command (the library call alone writes none).
 
     Returns
     -------
@@ -1050,6 +1055,11 @@ def run_fleet(
     )  # fmt: skip
 
     files = {"table": "fleet.parquet", "summary": "fleet.json"}
+    if argv is not None:  # the old set is no longer complete (its files stay imubounds')
+        from imubounds.io.outputs import listed_files, record_written_files
+
+        earlier = listed_files(out)
+        (out / "run.json").unlink(missing_ok=True)
     write_with(out / "fleet.parquet", lambda p: table.to_parquet(p, index=False))
     if passfail is not None:
         write_with(out / "passfail.csv", lambda p: passfail.to_csv(p, index=False))
@@ -1071,13 +1081,21 @@ def run_fleet(
     result.files = files
     result.seconds = time.perf_counter() - t_start
     write_json(out / "fleet.json", result.summary())
+    record: dict[str, Any] = {"command_name": "fleet", "n_units": len(sources),
+              "n_failed": len(result.failed)}  # fmt: skip
     if report:
         from imubounds.io.outputs import output_file
         from imubounds.report.html import build_report
 
+        if argv is not None:  # the report shows the command (not yet a complete set)
+            record_written_files(out, argv, [*files.values(), "run.json"], earlier=earlier,
+                                 complete=False, **record)  # fmt: skip
         text = build_report(out)
         with output_file(out / "report.html", option="-o", advice=REPORT_ADVICE) as tmp:
             tmp.write_text(text, encoding="utf-8")
+    if argv is not None:
+        record_written_files(out, argv, [*files.values(), "run.json"], earlier=earlier,
+                             **record)  # fmt: skip
     return result
 
 
