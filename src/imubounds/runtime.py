@@ -33,9 +33,10 @@ _MALLOPT = {"MALLOC_TRIM_THRESHOLD_": -1, "MALLOC_TOP_PAD_": -2, "MALLOC_MMAP_TH
 
 
 def malloc_environment() -> dict[str, str]:
-    """The :data:`MALLOC_SETTINGS` a new process should get in its environment: those
-    the user has not set already (a user's value wins)."""
-    return {k: str(v) for k, v in MALLOC_SETTINGS.items() if k not in os.environ}
+    """The malloc environment a new process should get: :data:`MALLOC_SETTINGS`, with
+    the value of this process's environment where the user set one (a user's value
+    wins; given explicitly, so that a launcher's own default cannot replace it)."""
+    return {k: os.environ.get(k, str(v)) for k, v in MALLOC_SETTINGS.items()}
 
 
 def tune_malloc() -> bool:

@@ -601,7 +601,6 @@ def _numeric(text: str) -> bool:
     return True
 
 
-
 def text_bytes_bound(path: Path) -> int | None:
     """An upper bound of :meth:`ChunkedLog.bytes_in_memory` for a text log (CSV, TSV,
     TXT, DAT, optionally gzip), from its size alone; ``None`` for another format.

@@ -903,8 +903,8 @@ def run_fleet(
             results[i] = _failed_result(src, names[i], f"{src}: cannot read ({why})")
             counts["failed"] += 1
         keys[i] = key
-        hit = cache / f"{key}.json"
-        if key is not None and hit.is_file():
+        hit = cache / f"{key}.json" if key is not None else None
+        if hit is not None and hit.is_file():
             try:
                 res = json.loads(hit.read_text(encoding="utf-8"))
                 res["path"], res["unit"] = src, names[i]
@@ -1171,13 +1171,13 @@ def local_cluster(
     import dask
     from dask.distributed import LocalCluster
 
-    from imubounds.runtime import MALLOC_SETTINGS
+    from imubounds.runtime import malloc_environment
 
     name, dask_value = _DASK_TRIM
     inherited = os.environ.get(name)
     if inherited == dask_value:  # left by an earlier Dask nanny in this process
         del os.environ[name]
-    environ = {k: os.environ.get(k, str(v)) for k, v in MALLOC_SETTINGS.items()}
+    environ = malloc_environment()
     try:
         with dask.config.set({
             **FLEET_WORKER_CONFIG,
