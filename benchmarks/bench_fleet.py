@@ -26,6 +26,18 @@ CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 * **paired** runs: the serial loop and a warm ``--workers`` Dask run alternately,
   ``--pairs`` times; the median of the per-pair ratios is the figure least
   disturbed by load from elsewhere on a shared machine;
+* **the fleet command in one process** (``run_fleet(..., n_workers=0)``, what
+  ``imubounds fleet --workers 0`` runs): the serial loop plus the fleet's own
+  work (hashing for the cache, cache files, tables, statistics), the same
+  outputs as a Dask run;
+* **the machine's ceiling**: two independent plain processes (no Dask), set up
+  as the fleet's workers (tuned malloc, one thread each, a core each, warmed),
+  each analysing half of the units at the same time, alternately with one such
+  process analysing all of them. No scheduler can do better than these two
+  processes on this machine: their time, against the serial loop, is the
+  highest speed-up the fleet could show here, and the Dask run is given as a
+  share of it. On a virtual machine whose cores are shared (or SMT siblings on
+  the host), two busy processes run slower each than one alone;
 * a cached rerun and, optionally, a loop of ``imubounds static FILE`` processes.
 
 Every Dask result is compared with the serial loop: all noise terms, CIs and
@@ -96,6 +108,77 @@ def _plain_process_loop(paths: list[str], repeat: int) -> list[float]:
     done = subprocess.run([sys.executable, "-c", code, json.dumps(paths), str(repeat)],
                           check=True, capture_output=True, text=True, env=env)  # fmt: skip
     return [float(x) for x in json.loads(done.stdout.strip().splitlines()[-1])]
+
+
+def _independent_process(conn: Any, core: int | None) -> None:
+    """One plain process set up as a fleet worker (tuned malloc, one thread, a core),
+    analysing the batches it is sent; replies with (wall s, CPU s) per batch."""
+    if core is not None and hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {core})
+    from imubounds.runtime import tune_malloc
+
+    tune_malloc()
+    from imubounds.stationary.fleet import analyse_batch, warm_up
+
+    settings = conn.recv()
+    warm_up(settings)
+    analyse_batch([], settings, numba_threads=1)  # numba and pyarrow: one thread each
+    conn.send("ready")
+    while (items := conn.recv()) is not None:
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = analyse_batch(items, settings, numba_threads=1)
+        ok = all(r["status"] == "ok" for r in res)
+        conn.send((time.perf_counter() - t0, time.process_time() - c0, ok))
+
+
+def _machine_ceiling(paths: list[str], settings: Any, repeat: int) -> dict[str, Any]:
+    """Two independent processes, each half of the units at once, alternately with one
+    process doing all units: the speed-up the machine itself gives this workload."""
+    import multiprocessing as mp
+
+    from imubounds.stationary.fleet import unit_names
+
+    ctx = mp.get_context("spawn")
+    cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    pipes, procs = [], []
+    for k in range(2):
+        here, there = ctx.Pipe()
+        core = cores[k] if len(cores) >= 2 else None
+        pr = ctx.Process(target=_independent_process, args=(there, core), daemon=True)
+        pr.start()
+        here.send(settings)
+        pipes.append(here)
+        procs.append(pr)
+    try:
+        for c in pipes:
+            if c.recv() != "ready":
+                raise RuntimeError("an independent process did not start")
+        items = [(p, n, None) for p, n in zip(paths, unit_names(paths), strict=True)]
+        halves = [items[0::2], items[1::2]]
+        one, two, cpu_two = [], [], []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            pipes[0].send(items)
+            _, _, ok = pipes[0].recv()
+            one.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            for c, h in zip(pipes, halves, strict=True):
+                c.send(h)
+            got = [c.recv() for c in pipes]
+            two.append(time.perf_counter() - t0)
+            cpu_two.append(sum(g[1] for g in got))
+            if not (ok and all(g[2] for g in got)):
+                raise RuntimeError("a unit failed in an independent process")
+    finally:
+        for c in pipes:
+            c.send(None)
+        for pr in procs:
+            pr.join(timeout=30)
+    return {"one_process_runs_s": one, "two_processes_runs_s": two,
+            "one_process_s": statistics.median(one), "two_processes_s": statistics.median(two),
+            "two_processes_cpu_s": statistics.median(cpu_two),
+            "gain_two_vs_one": statistics.median(a / b for a, b in zip(one, two, strict=True)),
+            "pinned": len(cores) >= 2}  # fmt: skip
 
 
 def _same(serial: list[dict[str, Any]], res: Any) -> tuple[bool, float]:
@@ -177,6 +260,24 @@ def main() -> None:
           f"{', '.join(f'{t:.2f}' for t in t_serial_runs)} s; CPU/wall "
           f"{statistics.median(cpu_serial) / t_serial:.2f} cores; warm-up {t_warm_serial:.1f} s",
           flush=True)  # fmt: skip
+
+    # ---- the fleet command in one process: the same outputs as a Dask run
+    t_fleet_serial_runs = []
+    for _ in range(a.repeat):
+        shutil.rmtree(out, ignore_errors=True)
+        t0 = time.perf_counter()
+        run_fleet(paths, out, settings, n_workers=0, plot=False)
+        t_fleet_serial_runs.append(time.perf_counter() - t0)
+    t_fleet_serial = statistics.median(t_fleet_serial_runs)
+    print(f"fleet command in one process (--workers 0, same outputs): "
+          f"{', '.join(f'{t:.2f}' for t in t_fleet_serial_runs)} s", flush=True)  # fmt: skip
+
+    # ---- the machine's ceiling: two independent processes, no Dask
+    ceiling = _machine_ceiling(paths, settings, a.repeat)
+    print(f"independent processes (no Dask), one thread each: one process "
+          f"{', '.join(f'{t:.2f}' for t in ceiling['one_process_runs_s'])} s; two at once "
+          f"{', '.join(f'{t:.2f}' for t in ceiling['two_processes_runs_s'])} s; gain "
+          f"{ceiling['gain_two_vs_one']:.2f}x", flush=True)  # fmt: skip
 
     from dask.distributed import Client
 
@@ -261,14 +362,15 @@ def main() -> None:
     long_case: dict[str, Any] = {}
     if a.long_minutes > 0:
         (lp,) = _make_fleet(1, a.long_minutes, a.rate)
-        lserial, lruns = [], []
+        lserial: list[float] = []
+        lruns: list[float] = []
         for _ in range(a.repeat):
             t0 = time.perf_counter()
             one = analyse_unit(lp, settings)
             lserial.append(time.perf_counter() - t0)
         with local_cluster(a.workers, 1) as lc, Client(lc) as cl:
             ensure_warm(cl, settings)
-            lwhole = []
+            lwhole: list[float] = []
             for _ in range(a.repeat):
                 for split, runs in ((True, lruns), (False, lwhole)):
                     shutil.rmtree(out, ignore_errors=True)
@@ -315,6 +417,11 @@ def main() -> None:
         "speedup_warm": t_serial / t_warm, "speedup_cold": t_serial / t_cold,
         "scaling": table, "cached_rerun_s": t_cached, "n_cached_rerun": res2.n_cached,
         "paired": pairs, "paired_ratio_median": paired_ratio,
+        "fleet_serial_s": t_fleet_serial, "fleet_serial_runs_s": t_fleet_serial_runs,
+        "speedup_warm_vs_fleet_serial": t_fleet_serial / t_warm,
+        "machine_ceiling": ceiling,
+        "ceiling_vs_serial": t_serial / ceiling["two_processes_s"],
+        "dask_share_of_ceiling": ceiling["two_processes_s"] / t_warm,
         "long_unit": long_case,
         "cli_loop_s_extrapolated": t_cli,
         "identical_to_serial": same, "largest_relative_difference": worst,
@@ -331,6 +438,13 @@ def main() -> None:
               f"{r['cpu_s']:>6.1f}")  # fmt: skip
     print(f"serial loop in a plain process (default malloc) {statistics.median(untuned):.2f} s: "
           f"Dask {a.workers} workers warm {statistics.median(untuned) / t_warm:.2f}x")  # fmt: skip
+    print(f"fleet command in one process (--workers 0) {t_fleet_serial:.2f} s: "
+          f"Dask {a.workers} workers warm {t_fleet_serial / t_warm:.2f}x")  # fmt: skip
+    t2p = ceiling["two_processes_s"]
+    print(f"machine ceiling: two independent processes {t2p:.2f} s = "
+          f"{t_serial / t2p:.2f}x the serial loop (one process alone "
+          f"{ceiling['one_process_s']:.2f} s, gain {ceiling['gain_two_vs_one']:.2f}x); "
+          f"Dask {a.workers} workers warm {t_warm:.2f} s = {t2p / t_warm:.0%} of it")  # fmt: skip
     print(f"serial {t_serial:.2f} s; Dask {a.workers} workers warm {t_warm:.2f} s "
           f"({t_serial / t_warm:.2f}x), cold {t_cold:.1f} s ({t_serial / t_cold:.2f}x); "
           f"paired serial/Dask ratio, median of {len(pairs)}: {paired_ratio:.2f}x; "
