@@ -316,6 +316,12 @@ INPUT_CASES = [
     for ooc in (False, True)
 ]
 INPUT_CASES += [
+    Case("static on a URL (only the fleet reads URLs)",
+         lambda d: ["static", "https://example.com/units/u1.csv.gz", "-o", str(d / "o"), *FAST],
+         2, ("https://example.com/units/u1.csv.gz: a URL", "imubounds fleet", "download it")),
+    Case("dynamic on a URL",
+         lambda d: ["dynamic", "s3://bucket/drive/", "-o", str(d / "o")], 2,
+         ("s3://bucket/drive/: a URL", "download it")),
     Case("simulate-noise --from-noise a named pipe",
          lambda d: ["simulate-noise", "--from-noise", str(_fifo(d, "n.json")), "--duration",
                     "10", "-o", str(d / "x.csv")], 2, ("--from-noise", "named pipe")),

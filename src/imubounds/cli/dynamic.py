@@ -145,9 +145,13 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
     """A :class:`~imubounds.io.drive.Drive` from any supported input, through the one
     reader registry :func:`imubounds.io.read_drive`."""
     from imubounds.io import read_drive
+    from imubounds.io.validate import is_url
 
     for p in paths:
         if not Path(p).exists():
+            if is_url(p):
+                raise InputError(f"{p}: a URL; imubounds dynamic reads local files and "
+                                 "folders: download it first")  # fmt: skip
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import stat
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -129,6 +130,15 @@ def _num(x: object) -> str:
 
 
 # ----------------------------------------------------------------------------- paths
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
+
+
+def is_url(source: str | os.PathLike[str]) -> bool:
+    """Whether ``source`` is an fsspec URL (``s3://``, ``gs://``, ``https://``, ``memory://``,
+    ``file://`` ...) rather than a local path."""
+    return isinstance(source, str) and bool(_URL.match(source))
+
+
 def check_input_path(
     path: str | os.PathLike[str],
     *,
@@ -166,6 +176,11 @@ def check_input_path(
     try:
         st = os.stat(p)
     except FileNotFoundError:
+        if is_url(path):  # Path() has folded its "//": name it as given
+            raise InputError(
+                f"{path}: a URL; this command reads local files (imubounds fleet reads "
+                "fsspec URLs: s3://, gs://, https://): download it first"
+            ) from None
         raise InputError(f"{missing}; check the path") from None
     except NotADirectoryError:
         raise InputError(f"{missing} (a folder in that path is a file); check the path") from None

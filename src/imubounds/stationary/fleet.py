@@ -66,6 +66,7 @@ import numpy as np
 
 from imubounds import __version__
 from imubounds.errors import ImuboundsError, InputError, OptionError
+from imubounds.io.validate import is_url
 from imubounds.stationary.fleet_stats import DEFAULT_OUTLIER_Z, STAT_TERMS
 
 __all__ = [
@@ -136,17 +137,10 @@ class FleetSettings:
         )
 
 
-_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 _GLOB_MAGIC = re.compile(r"[*?\[]")
 #: Suffixes taken off a file name to name its unit (in this order, each at most once).
 UNIT_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".csv", ".tsv", ".txt", ".parquet", ".npy",
                  ".h5", ".hdf5", ".bin", ".ulg", ".bag", ".mcap")  # fmt: skip
-
-
-def is_url(source: str | Path) -> bool:
-    """Whether ``source`` is an fsspec URL (``s3://``, ``gs://``, ``https://``, ``memory://``,
-    ``file://`` ...) rather than a local path."""
-    return isinstance(source, str) and bool(_URL.match(source))
 
 
 def _url_fs(url: str) -> tuple[Any, str]:
