@@ -31,11 +31,15 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
+T = TypeVar("T")
 
-def _cluster_sizes_like_allan_variance(n: int, points: int) -> np.ndarray:
+
+def _cluster_sizes_like_allan_variance(n: int, points: int) -> tuple[np.ndarray, int]:
     from allan_variance import avar as av
 
     n_clusters = points
@@ -46,14 +50,14 @@ def _cluster_sizes_like_allan_variance(n: int, points: int) -> np.ndarray:
         n_clusters += 1
 
 
-def _best(fn, repeat: int) -> tuple[float, object]:
+def _best(fn: Callable[[], T], repeat: int) -> tuple[float, T]:
     best = float("inf")
-    out = None
-    for _ in range(repeat):
+    outs: list[T] = []
+    for _ in range(max(1, repeat)):
         t = time.perf_counter()
-        out = fn()
+        outs = [fn()]
         best = min(best, time.perf_counter() - t)
-    return best, out
+    return best, outs[0]
 
 
 def _cold_compile_seconds() -> float:

@@ -35,7 +35,7 @@ def _boxes(n: int, seed: int = 0) -> dict[str, np.ndarray]:
 
 
 @njit(cache=True)
-def _loop(op, zlo, zhi, xlo, xhi, ylo, yhi):  # type: ignore[no-untyped-def]
+def _loop(op, zlo, zhi, xlo, xhi, ylo, yhi):
     bad = 0
     for i in range(zlo.size):
         if op == 0:
