@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -489,6 +490,95 @@ def test_fsspec_file_urls_read_by_process_workers(
     assert all(p.startswith("file://") for p in res.table.path)
     gx = res.table[res.table.channel == "gyro_x"].set_index("unit")["N"]
     assert gx["unit02"] == pytest.approx(_expected_n(fleet_dir, "unit02"), rel=1e-12)
+
+
+class _StubStore:
+    """An fsspec file system's ``info``/``ukey``, as a remote store would answer."""
+
+    def __init__(self, info: dict[str, object]) -> None:
+        self._info = info
+
+    def info(self, path: str) -> dict[str, object]:
+        return dict(self._info, name=path)
+
+    def ukey(self, path: str) -> str:
+        return "same-for-every-version"  # as fsspec's HTTPFileSystem: the URL only
+
+
+def test_remote_fingerprint_takes_strong_validators_only() -> None:
+    from imubounds.stationary.fleet import remote_fingerprint
+
+    s3 = remote_fingerprint(_StubStore({"size": 10, "ETag": '"abc"'}), "b/u.csv")
+    assert s3 is not None and "abc" in s3
+    assert remote_fingerprint(_StubStore({"size": 10, "ETag": '"abd"'}), "b/u.csv") != s3
+    gcs = _StubStore({"size": 10, "md5Hash": "q1==", "crc32c": "x", "updated": "t"})
+    assert remote_fingerprint(gcs, "b/u.csv") is not None
+    # a modification time (one second, HTTP) and a size do not show every change
+    http = _StubStore({"size": 10, "Last-Modified": "Wed, 25 Nov 2026 19:10:08 GMT"})
+    assert remote_fingerprint(http, "h/u.csv") is None
+    assert remote_fingerprint(_StubStore({"size": 10, "ETag": ""}), "h/u.csv") is None
+
+
+@pytest.fixture()
+def http_root(tmp_path: Path):  # noqa: ANN201 - yields (folder, base URL)
+    """A local HTTP server (the standard library's: Last-Modified, no ETag). fsspec's
+    http:// needs aiohttp: the test extra installs it."""
+    import functools
+    import threading
+    from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+
+    class Quiet(SimpleHTTPRequestHandler):
+        def log_message(self, format: str, *args: object) -> None:  # noqa: A002
+            pass
+
+    root = tmp_path / "www"
+    root.mkdir()
+    server = ThreadingHTTPServer(("127.0.0.1", 0),
+                                 functools.partial(Quiet, directory=str(root)))  # fmt: skip
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield root, f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_http_urls_globbed_analysed_and_cached_by_content(
+    fleet_dir: Path, tmp_path: Path, http_root: tuple[Path, str]
+) -> None:
+    """http(s):// through fsspec from a real server; a log replaced by one of the same
+    size within the same second (same Last-Modified) is analysed again, not taken
+    from the cache."""
+    import gzip
+
+    root, base = http_root
+    for site, src in (("siteA", "unit00"), ("siteB", "unit01")):
+        (root / site).mkdir()
+        (root / site / "unit.csv").write_bytes(gzip.decompress(
+            (fleet_dir / f"{src}.csv.gz").read_bytes()))  # fmt: skip
+    res = run_fleet([f"{base}/site*/unit.csv"], tmp_path / "o", n_workers=0, plot=False)
+    assert res.ok and sorted(set(res.table.unit)) == ["siteA/unit", "siteB/unit"]
+    gx = res.table[res.table.channel == "gyro_x"].set_index("unit")["N"]
+    assert gx["siteA/unit"] == pytest.approx(_expected_n(fleet_dir, "unit00"), rel=1e-12)
+    assert gx["siteB/unit"] == pytest.approx(_expected_n(fleet_dir, "unit01"), rel=1e-12)
+    # same bytes again: both from the cache
+    res2 = run_fleet([f"{base}/site*/unit.csv"], tmp_path / "o", n_workers=0, plot=False)
+    assert res2.n_cached == 2
+    # siteA's log rewritten with the same size: 100 gyro_x samples change their last digit
+    p = root / "siteA" / "unit.csv"
+    stamp = p.stat().st_mtime_ns
+    lines = p.read_text().splitlines(keepends=True)
+    for i in range(10, 1010, 10):
+        f = lines[i].split(",")
+        f[1] = f[1][:-1] + ("7" if f[1][-1] != "7" else "3")
+        lines[i] = ",".join(f)
+    p.write_text("".join(lines))
+    os.utime(p, ns=(stamp, stamp))  # the same Last-Modified too
+    res3 = run_fleet([f"{base}/site*/unit.csv"], tmp_path / "o", n_workers=0, plot=False)
+    assert res3.n_cached == 1
+    gx3 = res3.table[res3.table.channel == "gyro_x"].set_index("unit")["N"]
+    assert gx3["siteA/unit"] != gx["siteA/unit"] and gx3["siteB/unit"] == gx["siteB/unit"]
 
 
 def test_unknown_url_protocol_is_a_one_line_error(

@@ -71,6 +71,7 @@ from imubounds.stationary.fleet_stats import DEFAULT_OUTLIER_Z, STAT_TERMS
 
 __all__ = [
     "FORMAT",
+    "STRONG_VALIDATORS",
     "FleetResult",
     "FleetSettings",
     "FleetSpec",
@@ -88,6 +89,7 @@ __all__ = [
     "parse_spec",
     "plan_tasks",
     "plan_work",
+    "remote_fingerprint",
     "run_fleet",
     "unit_names",
     "warm_up",
@@ -263,24 +265,53 @@ def source_size(source: str) -> int:
         return 0
 
 
+#: Fields of an fsspec ``info`` (lower-cased) that change whenever the object's bytes do:
+#: strong validators (S3 ETag and VersionId, GCS md5Hash, crc32c and generation, Azure
+#: etag, an HTTP server's ETag). A modification time is not one: a log rewritten within
+#: the same second (HTTP's Last-Modified) with the same size would keep its key.
+STRONG_VALIDATORS = frozenset({"etag", "e_tag", "md5", "md5hash", "content_md5", "crc32c",
+                               "checksum", "versionid", "version_id", "generation"})  # fmt: skip
+
+
+def remote_fingerprint(fs: Any, path: str) -> str | None:
+    """The store's own fingerprint of a remote object: its strong validators
+    (:data:`STRONG_VALIDATORS`) with its size and fsspec ``ukey``; ``None`` when the
+    store gives none (an HTTP server that sends no ETag): then only the bytes can say
+    whether the object changed."""
+    info = fs.info(path)
+    marks = {str(k): str(v) for k, v in info.items()
+             if str(k).lower() in STRONG_VALIDATORS and v not in (None, "")}  # fmt: skip
+    if not marks:
+        return None
+    try:
+        marks["ukey"] = str(fs.ukey(path))
+    except (NotImplementedError, OSError, ValueError):
+        pass
+    marks["size"] = str(info.get("size"))
+    return json.dumps(marks, sort_keys=True)
+
+
 def content_key(source: str | Path, settings: FleetSettings) -> str:
     """SHA-256 (hex) of the log's content, the settings and the imubounds version.
 
     The content is the file's bytes for a local path or a ``file://`` / ``memory://``
-    URL; for other URLs it is the store's own fingerprint of the object (via fsspec's
-    ``ukey``: the ETag on S3, the MD5/CRC on GCS, ...) with its size, so that a
-    remote fleet is not downloaded twice. Raises OSError when the log cannot be read.
+    URL. For other URLs it is the store's own fingerprint of the object
+    (:func:`remote_fingerprint`: the ETag on S3, the MD5/CRC on GCS, ...), so that a
+    remote fleet is not downloaded twice; an object without one (an HTTP server that
+    sends no ETag) is read and its bytes hashed, since a modification time and a
+    size do not show every change. Raises OSError when the log cannot be read.
     """
     src = str(source)
     if is_url(src):
         h = hashlib.sha256()
         fs, path = _url_fs(src)
-        if src.startswith(("file://", "memory://")):
+        mark = None if src.startswith(("file://", "memory://")) else remote_fingerprint(fs, path)
+        if mark is None:
             with fs.open(path, "rb") as f:
                 while chunk := f.read(1 << 22):
                     h.update(chunk)
         else:
-            h.update(f"{src}\0{fs.ukey(path)}\0{fs.size(path)}".encode())
+            h.update(f"{src}\0{mark}".encode())
     else:
         with open(src, "rb") as f:  # into one reused buffer: half the time of read() chunks
             h = hashlib.file_digest(f, "sha256")
