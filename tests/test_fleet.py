@@ -513,7 +513,7 @@ def test_remote_fingerprint_takes_strong_validators_only() -> None:
     assert remote_fingerprint(_StubStore({"size": 10, "ETag": '"abd"'}), "b/u.csv") != s3
     gcs = _StubStore({"size": 10, "md5Hash": "q1==", "crc32c": "x", "updated": "t"})
     assert remote_fingerprint(gcs, "b/u.csv") is not None
-    # a modification time (one second, HTTP) and a size do not show every change
+    # a modification time (one-second steps) and a size do not show every change
     http = _StubStore({"size": 10, "Last-Modified": "Wed, 25 Nov 2026 19:10:08 GMT"})
     assert remote_fingerprint(http, "h/u.csv") is None
     assert remote_fingerprint(_StubStore({"size": 10, "ETag": ""}), "h/u.csv") is None
@@ -521,8 +521,9 @@ def test_remote_fingerprint_takes_strong_validators_only() -> None:
 
 @pytest.fixture()
 def http_root(tmp_path: Path):  # noqa: ANN201 - yields (folder, base URL)
-    """A local HTTP server (the standard library's: Last-Modified, no ETag). fsspec's
-    http:// needs aiohttp: the test extra installs it."""
+    """A local HTTP server that sends Last-Modified and an ETag made as nginx makes it
+    (modification second and size, not the content). fsspec's http:// needs aiohttp:
+    the test extra installs it."""
     import functools
     import threading
     from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
@@ -530,6 +531,13 @@ def http_root(tmp_path: Path):  # noqa: ANN201 - yields (folder, base URL)
     class Quiet(SimpleHTTPRequestHandler):
         def log_message(self, format: str, *args: object) -> None:  # noqa: A002
             pass
+
+        def end_headers(self) -> None:
+            f = Path(self.translate_path(self.path))
+            if f.is_file():
+                st = f.stat()
+                self.send_header("ETag", f'"{int(st.st_mtime):x}-{st.st_size:x}"')
+            super().end_headers()
 
     root = tmp_path / "www"
     root.mkdir()
@@ -548,8 +556,8 @@ def test_http_urls_globbed_analysed_and_cached_by_content(
     fleet_dir: Path, tmp_path: Path, http_root: tuple[Path, str]
 ) -> None:
     """http(s):// through fsspec from a real server; a log replaced by one of the same
-    size within the same second (same Last-Modified) is analysed again, not taken
-    from the cache."""
+    size within the same second (same Last-Modified and ETag) is analysed again, not
+    taken from the cache."""
     import gzip
 
     root, base = http_root
@@ -574,7 +582,7 @@ def test_http_urls_globbed_analysed_and_cached_by_content(
         f[1] = f[1][:-1] + ("7" if f[1][-1] != "7" else "3")
         lines[i] = ",".join(f)
     p.write_text("".join(lines))
-    os.utime(p, ns=(stamp, stamp))  # the same Last-Modified too
+    os.utime(p, ns=(stamp, stamp))  # the same Last-Modified and ETag too
     res3 = run_fleet([f"{base}/site*/unit.csv"], tmp_path / "o", n_workers=0, plot=False)
     assert res3.n_cached == 1
     gx3 = res3.table[res3.table.channel == "gyro_x"].set_index("unit")["N"]

@@ -268,16 +268,21 @@ def source_size(source: str) -> int:
 #: Fields of an fsspec ``info`` (lower-cased) that change whenever the object's bytes do:
 #: strong validators (S3 ETag and VersionId, GCS md5Hash, crc32c and generation, Azure
 #: etag, an HTTP server's ETag). A modification time is not one: a log rewritten within
-#: the same second (HTTP's Last-Modified) with the same size would keep its key.
+#: the same second with the same size would keep its key.
 STRONG_VALIDATORS = frozenset({"etag", "e_tag", "md5", "md5hash", "content_md5", "crc32c",
                                "checksum", "versionid", "version_id", "generation"})  # fmt: skip
+
+
+#: URLs whose bytes are always hashed for the cache key: local and in-memory files, and
+#: web servers, whose ETag is often the modification second and size (nginx), not the
+#: content.
+_HASHED_URLS = ("file://", "memory://", "http://", "https://")
 
 
 def remote_fingerprint(fs: Any, path: str) -> str | None:
     """The store's own fingerprint of a remote object: its strong validators
     (:data:`STRONG_VALIDATORS`) with its size and fsspec ``ukey``; ``None`` when the
-    store gives none (an HTTP server that sends no ETag): then only the bytes can say
-    whether the object changed."""
+    store gives none: then only the bytes can say whether the object changed."""
     info = fs.info(path)
     marks = {str(k): str(v) for k, v in info.items()
              if str(k).lower() in STRONG_VALIDATORS and v not in (None, "")}  # fmt: skip
@@ -294,18 +299,19 @@ def remote_fingerprint(fs: Any, path: str) -> str | None:
 def content_key(source: str | Path, settings: FleetSettings) -> str:
     """SHA-256 (hex) of the log's content, the settings and the imubounds version.
 
-    The content is the file's bytes for a local path or a ``file://`` / ``memory://``
-    URL. For other URLs it is the store's own fingerprint of the object
-    (:func:`remote_fingerprint`: the ETag on S3, the MD5/CRC on GCS, ...), so that a
-    remote fleet is not downloaded twice; an object without one (an HTTP server that
-    sends no ETag) is read and its bytes hashed, since a modification time and a
-    size do not show every change. Raises OSError when the log cannot be read.
+    The content is the file's bytes for a local path or a ``file://``, ``memory://``,
+    ``http://`` or ``https://`` URL (a web server's ETag is often only the
+    modification second and the size). For object stores it is the store's own
+    fingerprint of the object (:func:`remote_fingerprint`: the ETag on S3, the
+    MD5/CRC on GCS, ...), so that a remote fleet is not downloaded twice; an object
+    without one is read and its bytes hashed, since a modification time and a size
+    do not show every change. Raises OSError when the log cannot be read.
     """
     src = str(source)
     if is_url(src):
         h = hashlib.sha256()
         fs, path = _url_fs(src)
-        mark = None if src.startswith(("file://", "memory://")) else remote_fingerprint(fs, path)
+        mark = None if src.startswith(_HASHED_URLS) else remote_fingerprint(fs, path)
         if mark is None:
             with fs.open(path, "rb") as f:
                 while chunk := f.read(1 << 22):
