@@ -661,6 +661,98 @@ def test_noisier_unit_is_the_only_outlier_on_n(stats_fleet: tuple[Path, Path]) -
     assert summ["spec"]["units_failing"] == [f"u{NOISY_UNIT}"]
 
 
+def test_rerecorded_units_with_the_same_noise_do_not_drift(tmp_path: Path) -> None:
+    """Every unit recorded again (new noise, same spec) and unit r0 at 2x white noise:
+    only r0 drifts. Disjoint 1-sigma intervals alone would flag unchanged units about
+    16 % of the time (a seed change is enough)."""
+    from imubounds.stationary.noise_sim import NoiseSpec, simulate, write_csv
+
+    def record(i: int, factor: float, seed: int) -> None:
+        spec = NoiseSpec.from_mapping(
+            {"gyro": {"N": f"{GYRO_N * factor} deg/sqrt(h)", "B": "10 deg/h"},
+             "accel": {"N": f"{ACCEL_N * factor} m/s/sqrt(h)", "B": "0.05 mg"}}
+        )  # fmt: skip
+        write_csv(simulate(spec, RATE, 300.0, seed=seed), tmp_path / f"r{i}.csv.gz")
+
+    for i in range(4):
+        record(i, 1.0, 900 + i)
+    first = run_fleet([str(tmp_path / "r*.csv.gz")], tmp_path / "run1", n_workers=0, plot=False)
+    for i in range(4):
+        record(i, 2.0 if i == 0 else 1.0, 950 + i)
+    res = run_fleet([str(tmp_path / "r*.csv.gz")], tmp_path / "run2", n_workers=0, plot=False,
+                    compare=tmp_path / "run1")  # fmt: skip
+    d = res.drift
+    assert res.n_cached == 0 and first.n_cached == 0
+    assert res.summary()["drift"]["units_drifted"] == ["r0"]
+    moved = d[d.drifted]
+    assert set(moved.term) == {"N"} and set(moved.unit) == {"r0"} and len(moved) == 6
+    assert np.allclose(moved.ratio, 2.0, rtol=0.1) and (moved.z > 10).all()
+    same = d[(d.unit != "r0") & d.z.notna()]
+    assert len(same) >= 18 and (same.z.abs() < 3.5).all()
+    # the intervals alone (disjoint 1-sigma CIs) flag unchanged units here
+    assert set(d[d.beyond_ci].unit) > {"r0"}
+    # the table carries each unit's z and flag per term
+    assert {"N_drift_z", "N_drifted"} <= set(res.table.columns)
+
+
+def test_unresolved_terms_are_not_values() -> None:
+    """A term the log did not resolve: no 'pass' on a fit's 0, a pass only when its upper
+    bound is within the limit; left out of the fleet statistics."""
+    from imubounds.stationary.fleet import FleetSpec, check_spec
+    from imubounds.stationary.fleet_stats import fleet_statistics
+
+    lim = 10.0 * DEG / 3600.0  # 10 deg/h
+    rows = []
+    for u, (b, status, ub) in enumerate([
+        (3e-5, "resolved", 4e-5),       # resolved, below the limit: pass
+        (9e-5, "resolved", 1e-4),       # resolved, above: fail
+        (0.0, "upper_bound", 2e-5),     # not resolved, bound below the limit: pass
+        (0.0, "upper_bound", 2e-4),     # not resolved, bound above: undetermined
+        (1e-5, "upper_bound", 3e-4),    # kept by the fit but not resolved: undetermined
+    ]):  # fmt: skip
+        rows.append({"unit": f"u{u}", "channel": "gyro_x", "kind": "gyro", "status": "ok",
+                     "N": 1e-4, "N_lo": 0.9e-4, "N_hi": 1.1e-4, "N_status": "resolved",
+                     "B": b, "B_lo": 0.0 if status != "resolved" else 0.8 * b,
+                     "B_hi": 1.2 * b if b else 1e-6, "B_status": status, "B_ub": ub,
+                     "K": 0.0, "K_lo": 0.0, "K_hi": 1e-6, "K_status": "upper_bound",
+                     "K_ub": 1e-6})  # fmt: skip
+    table = pd.DataFrame(rows)
+    pf = check_spec(table, FleetSpec(limits={"gyro": {"B": lim}}))
+    got = dict(zip(pf.unit, pf.status, strict=True))
+    assert got == {"u0": "pass", "u1": "fail", "u2": "pass", "u3": "undetermined",
+                   "u4": "undetermined"}, got  # fmt: skip
+    assert list(pf.basis) == ["value", "value", "upper_bound", "upper_bound", "upper_bound"]
+    assert pf.value.iloc[2] == 2e-5  # the bound, not the fit's 0
+    stats = fleet_statistics(table).table.set_index("term")
+    assert stats.loc["B", "n"] == 2 and stats.loc["K", "n"] == 0 and stats.loc["N", "n"] == 5
+
+
+def test_settings_every_unit_would_fail_on_are_refused_first(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from imubounds.cli import main
+
+    with pytest.raises(OptionError, match="confidence"):
+        run_fleet([str(fleet_dir / "unit0*.csv.gz")], tmp_path / "o", FleetSettings(confidence=1.5),
+                  n_workers=0, plot=False)  # fmt: skip
+    assert not (tmp_path / "o" / "fleet.parquet").exists()
+    for args, needle in ((["--confidence", "1.5"], "--confidence"),
+                         (["--task-size", "banana"], "--task-size 'banana' is not a size"),
+                         (["--drift-z", "0"], "--drift-z")):  # fmt: skip
+        code = main(["fleet", str(fleet_dir / "unit0*.csv.gz"), "-o", str(tmp_path / "c"),
+                     "--workers", "0", "-q", *args])  # fmt: skip
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and needle in err and len(err.splitlines()) == 1, err
+
+
+def test_command_line_and_python_share_the_cache() -> None:
+    """Read options at their default do not change the cache key."""
+    s = FleetSettings()
+    assert FleetSettings(read={"on_gap": "refuse"}).to_json() == s.to_json()
+    assert content_key.__name__  # the key hashes to_json()
+    assert FleetSettings(read={"on_gap": "ignore"}).to_json() != s.to_json()
+
+
 def test_outlier_threshold_is_an_option(stats_fleet: tuple[Path, Path], tmp_path: Path) -> None:
     d, prev = stats_fleet
     # the noisy unit's gyro z is ~ln(3)/spread; a threshold above it flags nothing

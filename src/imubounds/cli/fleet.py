@@ -20,6 +20,7 @@ from imubounds.cli._common import (
     parse_taus,
     positive_float,
     positive_int,
+    probability,
 )
 
 #: Exit code when some units failed (the rest were analysed and written).
@@ -52,10 +53,16 @@ def register(sub: Any) -> None:
         help="local cluster workers (default 2); 0 runs the units in this process, no Dask",
     )  # fmt: skip
     p.add_argument("--threads-per-worker", type=positive_int, default=1, help="default 1")
-    p.add_argument("--spec", metavar="YAML", help="datasheet limits (max N, B, K per kind)")
+    p.add_argument(
+        "--spec", metavar="YAML",
+        help="datasheet limits (max Q, N, B, K, R per kind; format in docs/fleet.md)",
+    )  # fmt: skip
     p.add_argument("--tau", default="octave", help="tau grid (as for static)")
     p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping")
-    p.add_argument("--confidence", type=float, default=0.683)
+    p.add_argument(
+        "--confidence", type=probability, default=0.683,
+        help="confidence level of the terms' intervals (default 0.683, 1 sigma)",
+    )  # fmt: skip
     p.add_argument("--terms-from", choices=("fit", "slope"), default="fit")
     p.add_argument(
         "--max-memory", default="1GiB", metavar="SIZE",
@@ -78,6 +85,11 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--compare", metavar="PREVIOUS_DIR",
         help="output directory of a previous fleet run: drift of each unit's terms",
+    )  # fmt: skip
+    p.add_argument(
+        "--drift-z", type=positive_float, default=3.5, metavar="Z",
+        help="with --compare, flag a term whose change since the previous run exceeds Z "
+        "times the two runs' combined uncertainty (log scale; default 3.5)",
     )  # fmt: skip
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip report.html")
@@ -115,13 +127,15 @@ def run(args: argparse.Namespace) -> int:
         memory_limit=args.max_memory,
         read={k: v for k, v in read.items() if v is not None},
     )
-    parse_memory(args.max_memory)
+    parse_memory(args.max_memory, "--max-memory")
+    task_bytes = parse_memory(args.task_size, "--task-size")
     with rep.session() as progress:
         res = run_fleet(
             args.logs, args.out, settings, scheduler=args.scheduler, n_workers=args.workers,
             threads_per_worker=args.threads_per_worker, spec=args.spec,
-            target_task_bytes=parse_memory(args.task_size), plot=not args.no_plot,
+            target_task_bytes=task_bytes, plot=not args.no_plot,
             outlier_z=args.outlier_z, compare=args.compare, report=not args.no_report,
+            drift_z=args.drift_z,
             split_channels=args.split_channels,
             progress=progress, argv=getattr(args, "argv", None),
         )  # fmt: skip
@@ -132,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
     elif not args.quiet:
         print(
             f"{summ['n_units']} units: {summ['n_ok']} analysed ({summ['n_cached']} from cache), "
-            f"{summ['n_failed']} failed; {res.n_tasks} tasks on {res.scheduler}, "
+            f"{summ['n_failed']} failed; {res.n_tasks} task{'s' * (res.n_tasks != 1)} on "
+            f"{res.scheduler}, "
             f"{res.seconds:.1f} s"
         )
         for kind, terms in summ["terms_ieee"].items():
@@ -153,8 +168,8 @@ def run(args: argparse.Namespace) -> int:
             d = summ["drift"]
             print(
                 f"drift since {d['compared_with']}: {d['n_units_compared']} units compared, "
-                f"{len(d['units_beyond_ci'])} changed beyond their CIs"
-                + (f" ({', '.join(d['units_beyond_ci'])})" if d["units_beyond_ci"] else "")
+                f"{len(d['units_drifted'])} drifted (|z| > {d['threshold_z']:g})"
+                + (f": {', '.join(d['units_drifted'])}" if d["units_drifted"] else "")
                 + (f"; new: {', '.join(d['new_units'])}" if d["new_units"] else "")
                 + (f"; gone: {', '.join(d['missing_units'])}" if d["missing_units"] else "")
             )
@@ -162,7 +177,10 @@ def run(args: argparse.Namespace) -> int:
             sp = summ["spec"]
             print(
                 f"spec {sp['name']} ({sp['criterion']}): {sp['n_pass']} pass, {sp['n_fail']} fail"
-                + (f": {', '.join(sp['units_failing'])}" if sp["units_failing"] else "")
+                + (f" ({', '.join(sp['units_failing'])})" if sp["units_failing"] else "")
+                + (f", {sp['n_undetermined']} undetermined (a term not resolved, its upper "
+                   f"bound above the limit: {', '.join(sp['units_undetermined'])})"
+                   if sp["units_undetermined"] else "")
             )
     rep.info(f"wrote {', '.join(res.files.values())} to {args.out}")
     if res.failed:

@@ -645,14 +645,18 @@ def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
             f"<h3>Datasheet spec {_e(sp.get('name', ''))}</h3><p class='{cls}'>"
             f"{_num(sp.get('n_pass'))} pass, {_num(sp.get('n_fail'))} fail "
             f"(criterion {_e(sp.get('criterion', ''))})"
-            + (f": {_e(failing)}" if failing else "") + "</p>"
+            + (f": {_e(failing)}" if failing else "")
+            + (f"; undetermined (a term not resolved, its upper bound above the limit): "
+               f"{_e(', '.join(map(str, sp.get('units_undetermined') or [])))}"
+               if sp.get("units_undetermined") else "") + "</p>"
         )
     drift = summ.get("drift")
     if isinstance(drift, dict):
         parts.append(
             f"<h3>Drift since {_e(drift.get('compared_with', ''))}</h3><p>"
-            f"{_num(drift.get('n_units_compared'))} units compared; changed beyond both "
-            f"confidence intervals: {_e(', '.join(drift.get('units_beyond_ci') or []) or 'none')}"
+            f"{_num(drift.get('n_units_compared'))} units compared; drifted (|z| &gt; "
+            f"{_num(drift.get('threshold_z'))}, the change on the log scale over both runs' "
+            f"combined uncertainty): {_e(', '.join(drift.get('units_drifted') or []) or 'none')}"
             + (f"; new units: {_e(', '.join(drift['new_units']))}" if drift.get("new_units")
                else "")
             + (f"; units gone: {_e(', '.join(drift['missing_units']))}"
@@ -660,15 +664,16 @@ def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
         )  # fmt: skip
         rows = []
         for r in drift.get("rows") or []:
-            beyond = bool(r.get("beyond_ci"))
+            moved = bool(r.get("drifted"))
             rows.append([
                 _e(r.get("unit")), _e(r.get("channel")), _e(r.get("term")),
                 _num(r.get("previous_ieee")), _num(r.get("value_ieee")),
                 _num(r.get("diff_ieee")), _e(r.get("unit_ieee", "")), _num(r.get("ratio"), 3),
-                f"<span class='{'bad' if beyond else 'ok'}'>{'yes' if beyond else 'no'}</span>",
+                _num(r.get("z"), 2),
+                f"<span class='{'bad' if moved else 'ok'}'>{'yes' if moved else 'no'}</span>",
             ])  # fmt: skip
         parts.append(_table(["unit", "channel", "term", "previous", "now", "difference",
-                             "unit", "ratio", "beyond CIs"], rows))  # fmt: skip
+                             "unit", "ratio", "z", "drifted"], rows))  # fmt: skip
     parts.append("</section>")
     return "".join(parts), warnings
 

@@ -38,11 +38,11 @@ Spec format (YAML)::
     gyro:                              # per sensor kind: gyro and/or accel
       N: 2.0 deg/sqrt(h)               # max angle random walk
       B: 25 deg/h                      # max bias instability
-      K: 0.1 deg/s/sqrt(s)             # max rate random walk (optional)
+      K: 10 deg/h/sqrt(h)              # max rate random walk (optional)
     accel:
       N: 0.2 m/s/sqrt(h)
       B: 0.5 mg
-      K: 0.01 m/s^2/sqrt(s)
+      K: 0.05 m/s/h/sqrt(h)
 
 Quantities are parsed with :func:`imubounds.stationary.noise_sim.parse_quantity` (a bare
 number is SI). Margin = ``1 - value/limit`` (fraction of the limit unused;
@@ -67,9 +67,10 @@ import numpy as np
 from imubounds import __version__
 from imubounds.errors import ImuboundsError, InputError, OptionError
 from imubounds.io.validate import is_url
-from imubounds.stationary.fleet_stats import DEFAULT_OUTLIER_Z, STAT_TERMS
+from imubounds.stationary.fleet_stats import DEFAULT_DRIFT_Z, DEFAULT_OUTLIER_Z, STAT_TERMS
 
 __all__ = [
+    "CACHE_ROWS",
     "FORMAT",
     "STRONG_VALIDATORS",
     "FleetResult",
@@ -96,6 +97,9 @@ __all__ = [
 ]
 
 FORMAT = "imubounds.stationary.fleet/1"
+#: Version of a cached unit result's rows, in the cache key: a result cached before the
+#: rows gained a column (2: each term's status and upper bound) is not reused.
+CACHE_ROWS = 2
 REPORT_ADVICE = "move it away or use --no-report"
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
 Progress = Callable[[str, int, int], None]
@@ -121,11 +125,42 @@ class FleetSettings:
     read: Mapping[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
+        """The settings as JSON (also the cache key's part): read options at their default
+        (``on_gap="refuse"``) are left out, so that the command line and Python share it."""
+        from dataclasses import fields
+
+        from imubounds.io.assemble import ReadOptions
+
+        defaults = {f.name: f.default for f in fields(ReadOptions)}
         d = asdict(self)
-        d["read"] = {k: v for k, v in dict(self.read).items() if v is not None}
+        d["read"] = {k: v for k, v in dict(self.read).items()
+                     if v is not None and not (k in defaults and v == defaults[k])}  # fmt: skip
         if isinstance(self.taus, tuple):
             d["taus"] = list(self.taus)
         return d
+
+    def check(self) -> None:
+        """Refuse, before any unit is read, settings every unit would fail on.
+
+        Raises
+        ------
+        OptionError
+            A confidence outside (0, 1), an unknown estimator or ``terms_from``, an
+            unreadable memory setting.
+        """
+        from imubounds.stationary.allan import ESTIMATORS
+        from imubounds.stationary.stream import parse_memory
+
+        c = self.confidence
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0 < c < 1:
+            raise OptionError(f"confidence must be between 0 and 1 (exclusive), got {c!r}")
+        if self.estimator not in ESTIMATORS:
+            raise OptionError(
+                f"unknown estimator {self.estimator!r}; use one of {', '.join(ESTIMATORS)}"
+            )
+        if self.terms_from not in ("fit", "slope"):
+            raise OptionError(f"terms_from must be 'fit' or 'slope', got {self.terms_from!r}")
+        parse_memory(self.memory_limit, "memory_limit")
 
     def static_settings(self) -> Any:
         from imubounds.stationary.pipeline import StaticSettings
@@ -297,7 +332,8 @@ def remote_fingerprint(fs: Any, path: str) -> str | None:
 
 
 def content_key(source: str | Path, settings: FleetSettings) -> str:
-    """SHA-256 (hex) of the log's content, the settings and the imubounds version.
+    """SHA-256 (hex) of the log's content, the settings, the imubounds version and the
+    version of the cached rows (:data:`CACHE_ROWS`).
 
     The content is the file's bytes for a local path or a ``file://``, ``memory://``,
     ``http://`` or ``https://`` URL (a web server's ETag is often only the
@@ -323,6 +359,7 @@ def content_key(source: str | Path, settings: FleetSettings) -> str:
             h = hashlib.file_digest(f, "sha256")
     h.update(json.dumps(settings.to_json(), sort_keys=True, default=str).encode())
     h.update(__version__.encode())
+    h.update(f"rows/{CACHE_ROWS}".encode())
     return h.hexdigest()
 
 
@@ -361,9 +398,18 @@ def _terms_row(ch: Any, settings: FleetSettings) -> dict[str, Any]:
             row[f"{t}_{method}"] = v
             row[f"{t}_{method}_lo"] = float(lo)
             row[f"{t}_{method}_hi"] = float(hi)
+            row[f"{t}_{method}_status"] = str(terms.status.get(t, ""))
     for t in TERMS:
-        for suffix in ("", "_lo", "_hi"):
+        for suffix in ("", "_lo", "_hi", "_status"):
             row[f"{t}{suffix}"] = row[f"{t}_{settings.terms_from}{suffix}"]
+    for t in TERMS:  # the upper bound used downstream when the term is not resolved
+        sel = ch.selected.terms[t]
+        if sel.status == "upper_bound" and sel.value is not None:
+            row[f"{t}_ub"] = float(sel.value)
+        elif sel.status == "resolved" and sel.ci is not None:
+            row[f"{t}_ub"] = float(sel.ci[1])
+        else:
+            row[f"{t}_ub"] = math.nan
     row["sigma_c"] = ch.sigma_c
     row["bound"] = ch.bound
     row["level_95"] = ch.level_95
@@ -608,35 +654,57 @@ def load_spec(path: str | Path) -> FleetSpec:
 def check_spec(df: Any, spec: FleetSpec) -> Any:
     """Pass/fail table: one row per (unit, channel, term) with a limit.
 
-    Columns: unit, channel, kind, term, value, limit (SI), margin
-    (``1 - value/limit``), value_ieee, limit_ieee, unit_ieee, status
+    A resolved term is compared by its value (criterion ``value``) or the upper
+    end of its confidence interval (``ci_upper``): ``pass`` or ``fail``. A term
+    the log did not resolve has no value, only an upper bound (``{term}_ub``, the
+    curve's bound from its 99 % intervals as ``imubounds static`` uses it): it
+    passes when that bound is within the limit, else it is ``undetermined``
+    (never ``pass`` on a fit's 0, never ``fail`` on a bound).
+
+    Columns: unit, channel, kind, term, value (the quantity compared, SI), basis
+    (``value``, ``ci_upper`` or ``upper_bound``), term_status, limit (SI),
+    margin (``1 - value/limit``), value_ieee, limit_ieee, unit_ieee, status
     (``pass``/``fail``/``undetermined``).
     """
     import pandas as pd
 
     from imubounds.units import to_ieee
 
+    def num(x: Any) -> float:
+        try:
+            return float(x)
+        except (TypeError, ValueError):
+            return math.nan
+
     rows = []
     ok = df[df["status"] == "ok"]
     for rec in ok.to_dict("records"):
         kind = rec["kind"]
         for term, lim in spec.limits.get(kind, {}).items():
-            v = rec[f"{term}_hi"] if spec.criterion == "ci_upper" else rec[term]
-            v = float(v) if v is not None else math.nan
-            if math.isfinite(v):
-                margin = 1.0 - v / lim
-                status = "pass" if v <= lim else "fail"
-            else:
-                margin, status = math.nan, "undetermined"
+            # tables without per-term status (older runs): a positive value counts
+            tstat = str(rec.get(f"{term}_status") or
+                        ("resolved" if num(rec[term]) > 0 else "upper_bound"))  # fmt: skip
+            hi = num(rec.get(f"{term}_hi"))
+            if tstat == "resolved":
+                basis = "ci_upper" if spec.criterion == "ci_upper" else "value"
+                v = hi if basis == "ci_upper" else num(rec[term])
+                ok_v = math.isfinite(v)
+                status = ("pass" if v <= lim else "fail") if ok_v else "undetermined"
+            else:  # the selection's bound: the curve's 99 % one (older tables: the CI's end)
+                ub = num(rec.get(f"{term}_ub"))
+                basis, v = "upper_bound", ub if math.isfinite(ub) else hi
+                status = "pass" if math.isfinite(v) and v <= lim else "undetermined"
+            margin = 1.0 - v / lim if math.isfinite(v) else math.nan
             iv, iu = to_ieee(kind, term, v)  # type: ignore[arg-type]
             rows.append({
                 "unit": rec["unit"], "channel": rec["channel"], "kind": kind, "term": term,
-                "value": v, "limit": lim, "margin": margin, "value_ieee": iv,
+                "value": v, "basis": basis, "term_status": tstat, "limit": lim,
+                "margin": margin, "value_ieee": iv,
                 "limit_ieee": to_ieee(kind, term, lim)[0], "unit_ieee": iu,  # type: ignore[arg-type]
                 "status": status,
             })  # fmt: skip
-    cols = ["unit", "channel", "kind", "term", "value", "limit", "margin", "value_ieee",
-            "limit_ieee", "unit_ieee", "status"]  # fmt: skip
+    cols = ["unit", "channel", "kind", "term", "value", "basis", "term_status", "limit",
+            "margin", "value_ieee", "limit_ieee", "unit_ieee", "status"]  # fmt: skip
     return pd.DataFrame(rows, columns=cols)
 
 
@@ -662,6 +730,7 @@ class FleetResult:
     compared_with: str = ""
     new_units: list[str] = field(default_factory=list)
     missing_units: list[str] = field(default_factory=list)
+    drift_z: float = DEFAULT_DRIFT_Z
 
     @property
     def ok(self) -> bool:
@@ -680,6 +749,7 @@ class FleetResult:
 
     def summary(self) -> dict[str, Any]:
         """The content of ``fleet.json``: counts, failures, term statistics, pass/fail."""
+        from imubounds.stationary.fleet_stats import resolved_values
         from imubounds.units import to_ieee
 
         t = self.table
@@ -691,16 +761,18 @@ class FleetResult:
                 continue
             stats[kind] = {}
             for term in TERMS:
-                v = sub[term].to_numpy(dtype=np.float64)
-                v = v[np.isfinite(v)]
+                # resolved terms only (as the statistics): an unresolved one is no value
+                good = resolved_values(sub, term)
+                v = sub[term].to_numpy(dtype=np.float64)[good]
                 unit = to_ieee(kind, term, 1.0)[1]  # type: ignore[arg-type]
                 if v.size == 0:
-                    stats[kind][term] = {"n": 0, "unit_ieee": unit}
+                    stats[kind][term] = {"n": 0, "n_unresolved": int(good.size), "unit_ieee": unit}
                     continue
                 q = np.percentile(v, [0, 5, 50, 95, 100])
                 conv = to_ieee(kind, term, 1.0)[0]  # type: ignore[arg-type]
                 stats[kind][term] = {
                     "n": int(v.size),
+                    "n_unresolved": int(good.size - v.size),
                     "unit_ieee": unit,
                     "min": q[0] * conv, "p05": q[1] * conv, "median": q[2] * conv,
                     "p95": q[3] * conv, "max": q[4] * conv,
@@ -738,6 +810,10 @@ class FleetResult:
                 "n_units_compared": int(d["unit"].nunique()) if len(d) else 0,
                 "new_units": list(self.new_units),
                 "missing_units": list(self.missing_units),
+                "threshold_z": self.drift_z,
+                "z_definition": "ln(value / previous) / sqrt(u^2 + u_previous^2), u the 1-sigma "
+                                "uncertainty of ln(value) from its confidence interval",
+                "units_drifted": sorted(set(d[d["drifted"]]["unit"])) if len(d) else [],
                 "units_beyond_ci": sorted(set(d[d["beyond_ci"]]["unit"])) if len(d) else [],
                 "largest_ratio": largest,
                 "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
@@ -747,6 +823,8 @@ class FleetResult:
             pf = self.passfail
             failing = sorted(set(pf[pf["status"] == "fail"]["unit"]))
             checked = sorted(set(pf["unit"]))
+            # a unit with no failure but a term neither passed nor failed: undetermined
+            open_ = sorted(set(pf[pf["status"] == "undetermined"]["unit"]) - set(failing))
             worst = {}
             for (kind, term), g in pf.groupby(["kind", "term"]):
                 m = g["margin"].to_numpy(dtype=np.float64)
@@ -758,9 +836,11 @@ class FleetResult:
                 "criterion": self.spec.criterion,
                 "limits_si": self.spec.limits,
                 "n_checked": len(checked),
-                "n_pass": len([u for u in checked if u not in failing]),
+                "n_pass": len([u for u in checked if u not in failing and u not in open_]),
                 "n_fail": len(failing),
+                "n_undetermined": len(open_),
                 "units_failing": failing,
+                "units_undetermined": open_,
                 "worst_margin": worst,
             }
         return out
@@ -833,6 +913,7 @@ def run_fleet(
     min_split_bytes: int = 4 << 20,
     numba_threads: int | None = None,
     outlier_z: float = DEFAULT_OUTLIER_Z,
+    drift_z: float = DEFAULT_DRIFT_Z,
     compare: str | Path | None = None,
     plot: bool = True,
     report: bool = False,
@@ -877,6 +958,8 @@ def run_fleet(
         than cores only contend); numba's default in-process.
     outlier_z : float
         ``|z|`` above which a unit is flagged (:mod:`.fleet_stats`).
+    drift_z : float
+        ``|z|`` of a change since ``compare`` above which a unit's term has drifted.
     compare : path, optional
         Directory (or ``fleet.parquet``) of a previous fleet run: drift table.
     report : bool
@@ -893,15 +976,23 @@ def run_fleet(
     FleetResult
     """
     from imubounds.io.outputs import ensure_dir, write_json, write_with
-    from imubounds.stationary.fleet_stats import compare_fleets, fleet_statistics, read_previous
+    from imubounds.stationary.fleet_stats import (
+        compare_fleets,
+        fleet_statistics,
+        previous_confidence,
+        read_previous,
+    )
 
     t_start = time.perf_counter()
     settings = settings or FleetSettings()
+    settings.check()
     report_progress = progress or (lambda _s, _d, _t: None)
     if spec is not None and not isinstance(spec, FleetSpec):
         spec = load_spec(spec)
     if not (math.isfinite(outlier_z) and outlier_z > 0):
         raise OptionError(f"outlier threshold must be a positive number, got {outlier_z}")
+    if not (math.isfinite(drift_z) and drift_z > 0):
+        raise OptionError(f"drift threshold must be a positive number, got {drift_z}")
     if n_workers < 0:
         raise OptionError(f"number of workers must be >= 0, got {n_workers}")
     previous = read_previous(compare) if compare is not None else None
@@ -1066,15 +1157,20 @@ def run_fleet(
     drift = None
     new_units: list[str] = []
     missing_units: list[str] = []
-    if previous is not None:
-        drift, new_units, missing_units = compare_fleets(table, previous)
+    if previous is not None and compare is not None:
+        drift, new_units, missing_units = compare_fleets(
+            table, previous, confidence=settings.confidence,
+            previous_confidence=previous_confidence(compare), threshold=drift_z,
+        )  # fmt: skip
         for t in STAT_TERMS:
             sub = drift[drift["term"] == t].set_index(["unit", "channel"])
             rows_key = list(zip(table["unit"], table["channel"], strict=True))
             for col, src_col in ((f"{t}_prev", "previous"), (f"{t}_ratio", "ratio"),
-                                 (f"{t}_diff", "diff")):  # fmt: skip
+                                 (f"{t}_diff", "diff"), (f"{t}_drift_z", "z")):  # fmt: skip
                 m = sub[src_col].to_dict()
                 table[col] = [m.get(k, math.nan) for k in rows_key]
+            flags = sub["drifted"].to_dict()
+            table[f"{t}_drifted"] = [bool(flags.get(k, False)) for k in rows_key]
     curves = {r["unit"]: r.get("curves", {}) for r in ordered if r["status"] == "ok"}
     passfail = check_spec(table, spec) if isinstance(spec, FleetSpec) else None
     result = FleetResult(
@@ -1082,7 +1178,7 @@ def run_fleet(
         spec=spec if isinstance(spec, FleetSpec) else None, n_cached=counts["cached"],
         scheduler=sched_name or "(all cached)", n_tasks=n_tasks, stats=stats, drift=drift,
         compared_with=str(compare) if compare is not None else "", new_units=new_units,
-        missing_units=missing_units,
+        missing_units=missing_units, drift_z=float(drift_z),
     )  # fmt: skip
 
     files = {"table": "fleet.parquet", "summary": "fleet.json"}

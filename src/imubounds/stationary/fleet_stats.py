@@ -19,9 +19,20 @@ units of a fleet that were analysed:
   modified-z rule of Iglewicz and Hoaglin); z is not given with fewer than
   3 units;
 * with a previous fleet run, each unit's drift: ratio and difference of each
-  term to the previous value (SI and IEEE units), and whether the two
-  confidence intervals are disjoint (a change beyond the statistical
-  uncertainty of either characterisation).
+  term to the previous value (SI and IEEE units) and a z-score of the change
+  on the log scale against both characterisations' statistical uncertainty::
+
+      z = ln(v / w) / sqrt(u_v^2 + u_w^2)
+
+  with ``u`` the 1-sigma uncertainty of ``ln v`` from each run's confidence
+  interval; a change is flagged (``drifted``) when ``|z| > threshold`` (default
+  3.5). Whether the two confidence intervals are disjoint (``beyond_ci``) is
+  also given, but it is no test: two 1-sigma intervals of the same unchanged
+  unit are disjoint about 16 % of the time.
+
+Only terms the log resolved (status ``resolved`` in the fleet table) enter the
+statistics and the drift: an unresolved term's value is a fit's 0 or a share too
+small to read, and its interval is only an upper bound.
 
 Nothing here reads or writes files except :func:`read_previous`.
 """
@@ -39,17 +50,23 @@ import numpy as np
 from imubounds.errors import InputError, OptionError
 
 __all__ = [
+    "DEFAULT_DRIFT_Z",
     "DEFAULT_OUTLIER_Z",
     "MAD_SCALE",
     "STAT_TERMS",
     "FleetStatistics",
     "compare_fleets",
     "fleet_statistics",
+    "log_sigma",
+    "previous_confidence",
     "read_previous",
+    "resolved_values",
 ]
 
 STAT_TERMS: tuple[str, ...] = ("N", "B", "K")
 DEFAULT_OUTLIER_Z = 3.5
+#: |z| of a change since the previous run above which a unit's term has drifted.
+DEFAULT_DRIFT_Z = 3.5
 #: 1.4826 * MAD estimates the standard deviation of normal data.
 MAD_SCALE = 1.482602218505602
 MIN_UNITS_FOR_Z = 3
@@ -94,6 +111,29 @@ def _units(kind: str, term: str) -> tuple[str, float, str]:
 
     ieee, conv = IEEE_UNITS[kind][term]  # type: ignore[index]
     return SI_UNITS[kind][term], conv, ieee  # type: ignore[index]
+
+
+def resolved_values(df: Any, term: str) -> Any:
+    """Boolean mask of the rows whose ``term`` was resolved: status ``resolved`` (in a
+    table with ``{term}_status``; older tables: any) and a finite value > 0."""
+    v = df[term].to_numpy(dtype=np.float64)
+    ok = np.isfinite(v) & (v > 0)
+    col = f"{term}_status"
+    if col in df:
+        ok &= (df[col] == "resolved").to_numpy()
+    return ok
+
+
+def log_sigma(value: float, lo: float, hi: float, confidence: float) -> float:
+    """1-sigma uncertainty of ``ln value`` from its confidence interval ``(lo, hi)`` at
+    ``confidence`` (the half-width on the log scale; the upper side when ``lo`` is 0);
+    nan when the interval says nothing."""
+    z = _sigma_factor(confidence)
+    if not (math.isfinite(value) and value > 0 and math.isfinite(hi) and hi > value):
+        return math.nan
+    if math.isfinite(lo) and 0 < lo < value:
+        return 0.5 * math.log(hi / lo) / z
+    return math.log(hi / value) / z
 
 
 def _sigma_factor(confidence: float) -> float:
@@ -143,10 +183,11 @@ def fleet_statistics(
                 continue
             unit_si, conv, unit_ieee = _units(kind, t)
             v = sub[t].to_numpy(dtype=np.float64)
-            valid = np.isfinite(v) & (v > 0)
+            valid = resolved_values(sub, t)
             vv = v[valid]
             rec: dict[str, Any] = {"kind": kind, "channel": ch, "term": t, "n": int(vv.size),
-                                   "unit_si": unit_si, "unit_ieee": unit_ieee}  # fmt: skip
+                                   "unit_si": unit_si, "unit_ieee": unit_ieee,
+                                   "n_outliers": 0}  # fmt: skip
             if vv.size == 0:
                 rows.append(rec)
                 continue
@@ -228,46 +269,87 @@ def read_previous(path: str | Path) -> Any:
     return df
 
 
+def previous_confidence(path: str | Path) -> float | None:
+    """The confidence level of a previous fleet run's intervals, from the ``fleet.json``
+    beside its ``fleet.parquet`` (``None`` when it cannot be read)."""
+    import json
+
+    p = Path(path)
+    d = p if p.is_dir() else p.parent
+    try:
+        doc = json.loads((d / "fleet.json").read_text(encoding="utf-8"))
+        c = float(doc["settings"]["confidence"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return c if 0 < c < 1 else None
+
+
 def compare_fleets(
-    table: Any, previous: Any, terms: Sequence[str] = STAT_TERMS
+    table: Any,
+    previous: Any,
+    terms: Sequence[str] = STAT_TERMS,
+    *,
+    confidence: float = 0.683,
+    previous_confidence: float | None = None,
+    threshold: float = DEFAULT_DRIFT_Z,
 ) -> tuple[Any, list[str], list[str]]:
     """Drift of each unit's terms since a previous fleet run.
 
     Returns ``(drift, new_units, missing_units)``: ``drift`` has one row per
     unit, channel and term present (and analysed) in both runs: value,
     previous, ratio (value / previous), diff (value - previous) in SI and
-    IEEE units, and ``beyond_ci`` (the two confidence intervals are disjoint);
-    ``new_units`` are only in ``table``, ``missing_units`` only in ``previous``.
+    IEEE units, ``z`` (the change on the log scale over both runs' 1-sigma
+    uncertainty), ``drifted`` (``|z| > threshold``) and ``beyond_ci`` (the two
+    confidence intervals are disjoint: no test, see the module docstring).
+    Ratio, difference and z are nan unless the term was resolved in both runs.
+    ``confidence`` is that of ``table``'s intervals, ``previous_confidence``
+    that of ``previous`` (default the same). ``new_units`` are only in
+    ``table``, ``missing_units`` only in ``previous``.
     """
     import pandas as pd
+
+    if not (math.isfinite(threshold) and threshold > 0):
+        raise OptionError(f"drift threshold must be a positive number, got {threshold}")
+    pconf = confidence if previous_confidence is None else previous_confidence
 
     cur = table[table["status"] == "ok"]
     prev = previous[previous["status"] == "ok"]
     cur_units, prev_units = set(cur["unit"]), set(prev["unit"])
-    pidx = {(r["unit"], r["channel"]): r for r in prev.to_dict("records")}
+    res_cur = {t: resolved_values(cur, t) for t in terms if t in cur}
+    res_prev = {t: resolved_values(prev, t) for t in terms if t in prev}
+    pidx = {(r["unit"], r["channel"]): (j, r) for j, r in enumerate(prev.to_dict("records"))}
     rows = []
-    for r in cur.to_dict("records"):
-        q = pidx.get((r["unit"], r["channel"]))
-        if q is None:
+    for i, r in enumerate(cur.to_dict("records")):
+        hit = pidx.get((r["unit"], r["channel"]))
+        if hit is None:
             continue
+        j, q = hit
         for t in terms:
-            if t not in r or t not in q:
+            if t not in res_cur or t not in res_prev:
                 continue
             unit_si, conv, unit_ieee = _units(str(r["kind"]), t)
             v, w = float(r[t]), float(q[t])
             lo, hi = float(r.get(f"{t}_lo", math.nan)), float(r.get(f"{t}_hi", math.nan))
             plo, phi = float(q.get(f"{t}_lo", math.nan)), float(q.get(f"{t}_hi", math.nan))
-            beyond = bool(
+            both = bool(res_cur[t][i] and res_prev[t][j])
+            beyond = both and bool(
                 all(math.isfinite(x) for x in (lo, hi, plo, phi)) and (lo > phi or hi < plo)
             )
+            z = math.nan
+            if both:
+                u = math.hypot(log_sigma(v, lo, hi, confidence), log_sigma(w, plo, phi, pconf))
+                if math.isfinite(u) and u > 0:
+                    z = math.log(v / w) / u
+            ratio, diff = (v / w, v - w) if both else (math.nan, math.nan)
             rows.append({
                 "unit": r["unit"], "channel": r["channel"], "kind": r["kind"], "term": t,
-                "value": v, "previous": w, "ratio": v / w if w != 0 else math.nan,
-                "diff": v - w, "value_ieee": v * conv, "previous_ieee": w * conv,
-                "diff_ieee": (v - w) * conv, "unit_si": unit_si, "unit_ieee": unit_ieee,
-                "beyond_ci": beyond,
+                "value": v, "previous": w, "ratio": ratio, "diff": diff,
+                "value_ieee": v * conv, "previous_ieee": w * conv, "diff_ieee": diff * conv,
+                "unit_si": unit_si, "unit_ieee": unit_ieee, "z": z,
+                "drifted": bool(abs(z) > threshold), "beyond_ci": beyond,
             })  # fmt: skip
     cols = ["unit", "channel", "kind", "term", "value", "previous", "ratio", "diff", "value_ieee",
-            "previous_ieee", "diff_ieee", "unit_si", "unit_ieee", "beyond_ci"]  # fmt: skip
+            "previous_ieee", "diff_ieee", "unit_si", "unit_ieee", "z", "drifted",
+            "beyond_ci"]  # fmt: skip
     drift = pd.DataFrame(rows, columns=cols)
     return drift, sorted(cur_units - prev_units), sorted(prev_units - cur_units)

@@ -240,7 +240,10 @@ def parse_quantity(value: Any, kind: str, what: str, where: str = "") -> float:
         raise OptionError(f"{label}: {x} is not finite")
     if unit is None or str(unit).strip() == "":
         return x
-    factor, dims = parse_unit(str(unit))
+    try:
+        factor, dims = parse_unit(str(unit))
+    except OptionError as err:  # name the file and key the unit came from
+        raise OptionError(f"{label}: {err}") from None
     want = _dims_of(kind, what)
     if any(abs(a - b) > 1e-9 for a, b in zip(dims, want, strict=True)):
         raise OptionError(

@@ -108,8 +108,9 @@ _SIZE_UNITS = {
 }  # fmt: skip
 
 
-def parse_memory(text: str | int | float) -> int:
-    """Bytes from ``"1GiB"``, ``"512MB"``, ``"2e9"`` or a number.
+def parse_memory(text: str | int | float, option: str = "memory setting") -> int:
+    """Bytes from ``"1GiB"``, ``"512MB"``, ``"2e9"`` or a number; ``option`` names the
+    setting in messages (``"--task-size"``).
 
     Raises
     ------
@@ -121,12 +122,10 @@ def parse_memory(text: str | int | float) -> int:
     else:
         m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]*)\s*", str(text))
         if not m or m.group(2).lower() not in _SIZE_UNITS:
-            raise OptionError(
-                f"memory setting {text!r} is not a size; write e.g. 1GiB, 512MB or 2e9"
-            )
+            raise OptionError(f"{option} {text!r} is not a size; write e.g. 1GiB, 512MB or 2e9")
         value = float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()]
     if not math.isfinite(value) or value < 64 * 1024:
-        raise OptionError(f"memory setting {text!r} is too small; give at least 64KiB")
+        raise OptionError(f"{option} {text!r} is too small; give at least 64KiB")
     return int(value)
 
 
