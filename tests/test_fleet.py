@@ -180,6 +180,14 @@ def test_cached_units_are_not_sent_and_an_all_cached_fleet_starts_no_cluster(
     for u in ("unit00", "unit02"):
         assert (t3.loc[u, "N"] == t1.loc[u, "N"]).all()
     assert not np.allclose(t3.loc["unit01", "N"], t1.loc["unit01", "N"])
+    # one unit to analyse (here a broken log: failures are not cached, every rerun
+    # analyses it again) and no cluster given: this process, no local cluster started
+    shutil.copy(fleet_dir / "unit_corrupt.csv.gz", units / "unit00.csv.gz")
+    for _ in range(2):
+        fourth = run_fleet([str(units / "*.csv.gz")], out, n_workers=2, plot=False)
+        assert fourth.scheduler == "this process (one unit to analyse)"
+        assert fourth.n_cached == 2 and fourth.n_tasks == 1
+        assert [f["unit"] for f in fourth.failed] == ["unit00"]
 
 
 def test_same_numbers_as_the_static_command(fleet_dir: Path, tmp_path: Path) -> None:

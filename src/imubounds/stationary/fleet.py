@@ -1042,9 +1042,21 @@ def run_fleet(
         return i not in results
 
     serial = client is None and not scheduler and n_workers == 0
+    local = client is None and not scheduler  # a local cluster would be started here
     pipelined = not serial and not split_channels
-    if pipelined:  # hash up to the first unit to analyse: a fleet all cached starts no cluster
-        need = any(lookup(i) for i in range(len(sources)))
+    lone = False  # one unit to analyse: this process, not a local cluster
+    if pipelined:
+        # hash up to the first units to analyse: a fleet all cached starts no cluster, and
+        # a local cluster is started for two units or more only (one unit gains nothing
+        # from it and would wait seconds for the workers' start-up)
+        misses = 0
+        for i in range(len(sources)):
+            misses += lookup(i)
+            if misses >= (2 if local else 1):
+                break
+        need = misses > 0
+        lone = local and misses == 1 and all(i in keys for i in range(len(sources)))
+        serial = serial or lone
     else:
         need = any([lookup(i) for i in range(len(sources))])  # noqa: C419 - hash every unit
 
@@ -1057,7 +1069,8 @@ def run_fleet(
         with ExitStack() as stack:
             if serial:
                 workers = 1
-                sched_name = "serial (this process)"
+                sched_name = ("this process (one unit to analyse)" if lone
+                              else "serial (this process)")  # fmt: skip
             else:
                 client = client or stack.enter_context(
                     _open_client(scheduler, n_workers, threads_per_worker)
