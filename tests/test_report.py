@@ -226,3 +226,25 @@ def test_every_dynamic_directory_gets_a_section(run_dir: Path, tmp_path: Path) -
     assert "<section id='dynamic'>" in page
     assert "<section id='dynamic-dynamic_second'>" in page
     assert "Dynamic error margins — dynamic_second" in page
+
+
+def test_save_figure_lays_out_once_and_restores_the_engine(tmp_path: Path) -> None:
+    """PNG then SVG with the layout of the first save; the figure's engine comes back."""
+    from matplotlib.figure import Figure
+
+    from imubounds.report.static_plots import save_figure
+
+    fig = Figure(layout="constrained")
+    ax = fig.subplots()
+    ax.set_xscale("log")
+    ax.plot([1.0, 10.0, 100.0], [3.0, 2.0, 1.0])
+    ax.set_ylabel("Allan deviation (deg/h)")
+    engine = fig.get_layout_engine()
+    paths = save_figure(fig, tmp_path / "f")
+    assert [p.suffix for p in paths] == [".png", ".svg"]
+    assert all(p.stat().st_size > 1000 for p in paths)
+    assert "<svg" in (tmp_path / "f.svg").read_text()
+    assert fig.get_layout_engine() is engine
+    pos = ax.get_position().bounds
+    fig.savefig(tmp_path / "again.png", dpi=130)  # laid out anew by the engine
+    assert np.allclose(ax.get_position().bounds, pos)

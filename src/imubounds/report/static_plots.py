@@ -293,13 +293,29 @@ def plot_allan(curve: AllanResult, ax: Any = None, label: str | None = None) -> 
 def save_figure(
     fig: Figure, dest_stem: Path, formats: tuple[str, ...] = ("png", "svg")
 ) -> list[Path]:
-    """Save ``fig`` as ``dest_stem.png`` / ``.svg`` atomically."""
+    """Save ``fig`` as ``dest_stem.png`` / ``.svg`` atomically.
+
+    The layout (constrained or tight) is computed for the first format and kept for
+    the others: computing it again measures every tick label anew, about a
+    quarter of the time of each further save. The figure's layout engine is
+    restored afterwards.
+    """
     out = []
-    for fmt in formats:
-        dest = dest_stem.with_suffix(f".{fmt}")
+    engine = fig.get_layout_engine()
+    try:
+        for k, fmt in enumerate(formats):
+            dest = dest_stem.with_suffix(f".{fmt}")
 
-        def save(p: Path, fmt: str = fmt) -> None:
-            fig.savefig(p, format=fmt, dpi=130)
+            def save(p: Path, fmt: str = fmt) -> None:
+                fig.savefig(p, format=fmt, dpi=130)
 
-        out.append(write_with(dest, save))
+            out.append(write_with(dest, save))
+            if k == 0 and engine is not None:
+                fig.set_layout_engine("none")  # positions as laid out for the first save
+    finally:
+        if engine is not None and fig.get_layout_engine() is not engine:
+            try:
+                fig.set_layout_engine(engine)
+            except RuntimeError:  # an engine that cannot come back (colorbars): keep the positions
+                pass
     return out
