@@ -499,3 +499,13 @@ def test_round_trip_gauss_markov_beta(run_cli, tmp_path: Path) -> None:  # type:
     assert gm.beta == pytest.approx(0.01, rel=0.2)
     assert gm.sigma == pytest.approx(0.002, rel=0.2)
     assert gm.white_density == pytest.approx(0.01, rel=0.1)
+
+
+def test_cli_list_presets_needs_no_output(capsys: pytest.CaptureFixture[str]) -> None:
+    from imubounds.cli import main
+
+    assert main(["simulate-noise", "--list-presets"]) == 0
+    assert "xsens-mtx" in capsys.readouterr().out
+    assert main(["simulate-noise", "--preset", "xsens-mtx", "--duration", "10"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "-o/--out" in err and len(err.splitlines()) == 1

@@ -160,10 +160,10 @@ def run(args: argparse.Namespace) -> int:
                     )
         stats = summ.get("statistics") or {}
         if stats.get("outliers"):
-            print(f"outliers (|z| > {stats['threshold_z']:g}): "
-                  + "; ".join(f"{o['unit']} {o['channel']} {o['term']} z={o['z']:+.1f} "
-                              f"(x{o['ratio_to_median']:.3g} the median)"
-                              for o in stats["outliers"]))  # fmt: skip
+            print(f"outliers (|z| > {stats['threshold_z']:g}):")
+            for o in stats["outliers"]:
+                print(f"  {o['unit']} {o['channel']} {o['term']}: z={o['z']:+.1f} "
+                      f"(x{o['ratio_to_median']:.3g} the median)")  # fmt: skip
         if "drift" in summ:
             d = summ["drift"]
             print(

@@ -44,8 +44,8 @@ def register(sub: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
-        "-o", "--out", required=True, type=csv_name, metavar="CSV",
-        help="output CSV (.csv or .csv.gz)",
+        "-o", "--out", type=csv_name, metavar="CSV",
+        help="output CSV (.csv or .csv.gz); required unless --list-presets",
     )
     add_force_option(p)
     src = p.add_argument_group("where the noise figures come from (one of, then overrides)")
@@ -237,6 +237,8 @@ def run(args: argparse.Namespace) -> int:
                     figs = ", ".join(f"{k}={v}" for k, v in data[kind].items())
                     print(f"  {kind}: {figs}")
         return 0
+    if args.out is None:
+        raise OptionError("give the output CSV with -o/--out (.csv or .csv.gz)")
     # Inputs are checked before they are read (a named pipe would block), outputs
     # before the simulation (nothing is computed for a file that may not be written).
     _check_sources(args)

@@ -623,12 +623,13 @@ def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
                 _num(r.get("iqr_ieee")), _num(r.get("spread_ieee")), _e(r.get("unit_ieee", "")),
                 _num(r.get("n_outliers")),
             ])  # fmt: skip
-        parts.append(_table(["channel", "term", "units", "median", "p25", "p75", "IQR",
-                             "spread", "unit", "outliers"], rows))  # fmt: skip
+        parts.append(_table(["channel", "term", "units resolving it", "median", "p25", "p75",
+                             "IQR", "spread", "IEEE unit", "outliers"], rows))  # fmt: skip
         outl = stats.get("outliers") or []
         if outl:
             parts.append("<h3>Outliers</h3>" + _table(
-                ["unit", "channel", "term", "value", "fleet median", "unit", "× median", "z"],
+                ["unit", "channel", "term", "value", "fleet median", "IEEE unit", "× median",
+                 "z"],
                 [[_e(o.get("unit")), _e(o.get("channel")), _e(o.get("term")),
                   _num(o.get("value_ieee")), _num(o.get("median_ieee")),
                   _e(o.get("unit_ieee", "")), _num(o.get("ratio_to_median"), 3),
@@ -673,7 +674,7 @@ def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
                 f"<span class='{'bad' if moved else 'ok'}'>{'yes' if moved else 'no'}</span>",
             ])  # fmt: skip
         parts.append(_table(["unit", "channel", "term", "previous", "now", "difference",
-                             "unit", "ratio", "z", "drifted"], rows))  # fmt: skip
+                             "IEEE unit", "ratio", "z", "drifted"], rows))  # fmt: skip
     parts.append("</section>")
     return "".join(parts), warnings
 
