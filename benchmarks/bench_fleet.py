@@ -33,7 +33,9 @@ CSV.gz) under ``benchmarks/_data/fleet/`` (git-ignored), then times
 * **the machine's ceiling**: two independent plain processes (no Dask), set up
   as the fleet's workers (tuned malloc, one thread each, a core each, warmed),
   each analysing half of the units at the same time, alternately with one such
-  process analysing all of them. No scheduler can do better than these two
+  process analysing all of them and with the serial loop (paired: a shared
+  host's speed drifts over minutes, so only ratios of neighbouring runs are
+  compared across phases). No scheduler can do better than these two
   processes on this machine: their time, against the serial loop, is the
   highest speed-up the fleet could show here, and the Dask run is given as a
   share of it. On a virtual machine whose cores are shared (or SMT siblings on
@@ -131,9 +133,13 @@ def _independent_process(conn: Any, core: int | None) -> None:
         conn.send((time.perf_counter() - t0, time.process_time() - c0, ok))
 
 
-def _machine_ceiling(paths: list[str], settings: Any, repeat: int) -> dict[str, Any]:
+def _machine_ceiling(
+    paths: list[str], settings: Any, repeat: int, serial: Any = None
+) -> dict[str, Any]:
     """Two independent processes, each half of the units at once, alternately with one
-    process doing all units: the speed-up the machine itself gives this workload."""
+    process doing all units and (``serial``, a callable) the serial loop in this
+    process: the speed-up the machine itself gives this workload, paired run by run
+    (a shared host's speed drifts over minutes)."""
     import multiprocessing as mp
 
     from imubounds.stationary.fleet import unit_names
@@ -155,8 +161,12 @@ def _machine_ceiling(paths: list[str], settings: Any, repeat: int) -> dict[str, 
                 raise RuntimeError("an independent process did not start")
         items = [(p, n, None) for p, n in zip(paths, unit_names(paths), strict=True)]
         halves = [items[0::2], items[1::2]]
-        one, two, cpu_two = [], [], []
+        one, two, cpu_two, ser = [], [], [], []
         for _ in range(repeat):
+            if serial is not None:
+                t0 = time.perf_counter()
+                serial()
+                ser.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
             pipes[0].send(items)
             _, _, ok = pipes[0].recv()
@@ -174,7 +184,10 @@ def _machine_ceiling(paths: list[str], settings: Any, repeat: int) -> dict[str, 
             c.send(None)
         for pr in procs:
             pr.join(timeout=30)
-    return {"one_process_runs_s": one, "two_processes_runs_s": two,
+    paired = ({"serial_runs_s": ser,
+               "serial_over_two_paired": statistics.median(
+                   a / b for a, b in zip(ser, two, strict=True))} if ser else {})  # fmt: skip
+    return {**paired, "one_process_runs_s": one, "two_processes_runs_s": two,
             "one_process_s": statistics.median(one), "two_processes_s": statistics.median(two),
             "two_processes_cpu_s": statistics.median(cpu_two),
             "gain_two_vs_one": statistics.median(a / b for a, b in zip(one, two, strict=True)),
@@ -273,7 +286,10 @@ def main() -> None:
           f"{', '.join(f'{t:.2f}' for t in t_fleet_serial_runs)} s", flush=True)  # fmt: skip
 
     # ---- the machine's ceiling: two independent processes, no Dask
-    ceiling = _machine_ceiling(paths, settings, a.repeat)
+    ceiling = _machine_ceiling(paths, settings, a.repeat,
+                               serial=lambda: [analyse_unit(p, settings) for p in paths])
+    print(f"paired with the serial loop ({', '.join(f'{t:.2f}' for t in ceiling['serial_runs_s'])}"
+          f" s): serial / two processes {ceiling['serial_over_two_paired']:.2f}x", flush=True)
     print(f"independent processes (no Dask), one thread each: one process "
           f"{', '.join(f'{t:.2f}' for t in ceiling['one_process_runs_s'])} s; two at once "
           f"{', '.join(f'{t:.2f}' for t in ceiling['two_processes_runs_s'])} s; gain "
@@ -421,6 +437,7 @@ def main() -> None:
         "speedup_warm_vs_fleet_serial": t_fleet_serial / t_warm,
         "machine_ceiling": ceiling,
         "ceiling_vs_serial": t_serial / ceiling["two_processes_s"],
+        "ceiling_vs_serial_paired": ceiling["serial_over_two_paired"],
         "dask_share_of_ceiling": ceiling["two_processes_s"] / t_warm,
         "long_unit": long_case,
         "cli_loop_s_extrapolated": t_cli,
@@ -445,6 +462,10 @@ def main() -> None:
           f"{t_serial / t2p:.2f}x the serial loop (one process alone "
           f"{ceiling['one_process_s']:.2f} s, gain {ceiling['gain_two_vs_one']:.2f}x); "
           f"Dask {a.workers} workers warm {t_warm:.2f} s = {t2p / t_warm:.0%} of it")  # fmt: skip
+    print(f"paired (each against the serial loop run just before it): two bare processes "
+          f"{ceiling['serial_over_two_paired']:.2f}x, Dask {a.workers} workers "
+          f"{paired_ratio:.2f}x = {paired_ratio / ceiling['serial_over_two_paired']:.0%} of "
+          f"the paired ceiling")  # fmt: skip
     print(f"serial {t_serial:.2f} s; Dask {a.workers} workers warm {t_warm:.2f} s "
           f"({t_serial / t_warm:.2f}x), cold {t_cold:.1f} s ({t_serial / t_cold:.2f}x); "
           f"paired serial/Dask ratio, median of {len(pairs)}: {paired_ratio:.2f}x; "
