@@ -1054,8 +1054,9 @@ def run_fleet(
             misses += lookup(i)
             if misses >= (2 if local else 1):
                 break
+        else:  # every unit looked up: one left to analyse runs here
+            lone = local and misses == 1
         need = misses > 0
-        lone = local and misses == 1 and all(i in keys for i in range(len(sources)))
         serial = serial or lone
     else:
         need = any([lookup(i) for i in range(len(sources))])  # noqa: C419 - hash every unit
