@@ -222,7 +222,6 @@ def _same(serial: list[dict[str, Any]], res: Any) -> tuple[bool, float]:
 def main() -> None:
     import h5py  # noqa: F401  (import order, see tests/conftest.py)
 
-    from imubounds.stationary._fleet_dask import ensure_warm
     from imubounds.stationary.fleet import (
         FleetSettings,
         analyse_unit,
@@ -230,6 +229,7 @@ def main() -> None:
         run_fleet,
         warm_up,
     )
+    from imubounds.stationary.fleet._dask import ensure_warm
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--units", type=int, default=16)

@@ -1,8 +1,8 @@
-"""Dask side of :mod:`imubounds.stationary.fleet`: a worker plugin that warms each worker.
+"""Dask side of :mod:`imubounds.stationary.fleet.execute`: a worker plugin that warms each worker.
 
 Imported only when a fleet runs on Dask (``dask.distributed`` is the optional
 ``fleet`` extra). Every worker, including one that joins later (an adaptive
-dask-jobqueue cluster), runs :func:`imubounds.stationary.fleet.warm_up` once when
+dask-jobqueue cluster), runs :func:`imubounds.stationary.fleet.unit.warm_up` once when
 the plugin is registered or when it starts: imports, numba kernels loaded from
 the on-disk cache (or compiled), the reader path exercised on a small log.
 """
@@ -17,7 +17,7 @@ PLUGIN_NAME = "imubounds-fleet-warmup"
 
 
 class FleetWarmup(WorkerPlugin):
-    """Run :func:`~imubounds.stationary.fleet.warm_up` on each worker at set-up."""
+    """Run :func:`~imubounds.stationary.fleet.unit.warm_up` on each worker at set-up."""
 
     name = PLUGIN_NAME
 
@@ -26,7 +26,7 @@ class FleetWarmup(WorkerPlugin):
         self.seconds = 0.0
 
     def setup(self, worker: Any) -> None:
-        from imubounds.stationary.fleet import warm_up
+        from imubounds.stationary.fleet.unit import warm_up
 
         self.seconds = warm_up(self.settings)
 
