@@ -807,3 +807,66 @@ def test_drift_since_the_previous_run(stats_fleet: tuple[Path, Path], tmp_path: 
                  "box: quartiles", f"u{NOISY_UNIT}"):  # fmt: skip
         assert text in html, text
     assert html.count("data:image/png;base64") == 2
+
+
+# --------------------------------------------------------------------------
+# issue 25: matches that cannot be read, a scheduler option that is no address
+# --------------------------------------------------------------------------
+def test_a_dangling_link_or_a_fifo_among_the_matches_is_a_failed_unit(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Case 6: neither silently dropped ("2 units: 2 analysed") nor waited on (opening a
+    FIFO blocks until a writer comes): each is a failed unit naming the file and why."""
+    import threading
+
+    from imubounds.cli import main
+
+    units = tmp_path / "units"
+    units.mkdir()
+    for i in range(2):
+        shutil.copy(fleet_dir / f"unit0{i}.csv.gz", units / f"u{i}.csv.gz")
+    os.mkfifo(units / "pipe.csv.gz")
+    (units / "link.csv.gz").symlink_to(tmp_path / "gone" / "u9.csv.gz")
+    (units / "folder.csv.gz").mkdir()  # a folder is no log: not a unit
+    got: dict[str, int] = {}
+    run = threading.Thread(target=lambda: got.update(code=main(
+        ["fleet", str(units / "*.csv.gz"), "-o", str(tmp_path / "o"), "--workers", "0", "-q",
+         "--no-plot", "--no-report"])), daemon=True)  # fmt: skip
+    run.start()
+    run.join(120)
+    assert not run.is_alive(), "the fleet blocked on the FIFO"
+    err = capsys.readouterr().err
+    assert got["code"] == 1, err
+    assert "2 of 4 units failed" in err, err
+    assert f"link: {units / 'link.csv.gz'}: cannot read (a symbolic link to " in err, err
+    assert "which does not exist" in err and "a named pipe (FIFO)" in err, err
+    summ = json.loads((tmp_path / "o" / "fleet.json").read_text())
+    assert summ["n_units"] == 4 and summ["n_ok"] == 2, summ
+    assert sorted(f["unit"] for f in summ["failed"]) == ["link", "pipe"]
+
+
+@pytest.mark.parametrize("address", ["notaurl", "tcp://host", "127.0.0.1:port",
+                                     "http://127.0.0.1:8786", "tcp://:8786"])  # fmt: skip
+def test_a_scheduler_that_is_no_address_is_a_one_line_error(
+    fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], address: str
+) -> None:
+    """Case 19: not Dask's "missing port number" (exit 70) but exit 2 naming the option and
+    the form expected, before anything is read or written."""
+    from imubounds.cli import main
+
+    code = main(["fleet", str(fleet_dir / "unit00.csv.gz"), "-o", str(tmp_path / "o"), "-q",
+                 "--scheduler", address])  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"--scheduler {address!r}" in err and "tcp://host:port" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_scheduler_addresses_dask_takes_pass_the_check() -> None:
+    from imubounds.stationary.fleet.execute import check_scheduler_address
+
+    for address in ("tcp://127.0.0.1:8786", "127.0.0.1:8786", "tls://sched.example:8786",
+                    "tcp://[::1]:8786", "inproc://10.0.0.1/123/1"):  # fmt: skip
+        check_scheduler_address(address)  # no error
+    with pytest.raises(OptionError, match="tcp://host:port"):
+        check_scheduler_address("tcp://127.0.0.1:99999")

@@ -17,7 +17,7 @@ from typing import Any
 
 from imubounds import __version__
 from imubounds.stationary.fleet.settings import FleetSettings
-from imubounds.stationary.fleet.sources import is_url, url_fs
+from imubounds.stationary.fleet.sources import check_regular_file, is_url, url_fs
 
 __all__ = [
     "CACHE_ROWS",
@@ -72,7 +72,8 @@ def content_key(source: str | Path, settings: FleetSettings) -> str:
     fingerprint of the object (:func:`remote_fingerprint`: the ETag on S3, the
     MD5/CRC on GCS, ...), so that a remote fleet is not downloaded twice; an object
     without one is read and its bytes hashed, since a modification time and a size
-    do not show every change. Raises OSError when the log cannot be read.
+    do not show every change. Raises OSError or InputError when the log cannot be
+    read (:func:`~imubounds.stationary.fleet.sources.check_regular_file`).
     """
     src = str(source)
     if is_url(src):
@@ -86,6 +87,7 @@ def content_key(source: str | Path, settings: FleetSettings) -> str:
         else:
             h.update(f"{src}\0{mark}".encode())
     else:
+        check_regular_file(src)  # a FIFO would block the open
         with open(src, "rb") as f:  # into one reused buffer: half the time of read() chunks
             h = hashlib.file_digest(f, "sha256")
     h.update(json.dumps(settings.to_json(), sort_keys=True, default=str).encode())

@@ -24,6 +24,7 @@ __all__ = [
     "DaskExecutor",
     "Executor",
     "SerialExecutor",
+    "check_scheduler_address",
     "local_cluster",
     "open_client",
     "open_executor",
@@ -141,6 +142,36 @@ def open_executor(
         yield DaskExecutor(client, settings, numba_threads, n_workers)
 
 
+#: Schemes of a Dask scheduler's address (``tcp://host:port`` is the usual one).
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def check_scheduler_address(address: str) -> None:
+    """Refuse an address no Dask scheduler has, before any work (Dask itself says only
+    "missing port number"): ``[scheme://]host:port`` with a scheme of :data:`_SCHEMES`,
+    or ``inproc://...``.
+
+    Raises
+    ------
+    OptionError
+        Naming the option and the expected form.
+    """
+    scheme, sep, loc = address.partition("://")
+    if not sep:
+        scheme, loc = "tcp", address
+    if scheme == "inproc" and loc:
+        return
+    host, colon, port = loc.rpartition(":")
+    if (scheme in _SCHEMES and colon and host.strip("[]") and "/" not in loc
+            and port.isdigit() and 0 < int(port) < 65536):  # fmt: skip
+        return
+    raise OptionError(
+        f"--scheduler {address!r} is not a Dask scheduler address; give it as "
+        "tcp://host:port (as 'dask scheduler' prints it), or omit --scheduler for a local "
+        "cluster"
+    )
+
+
 def kernel_threads(workers: Sequence[Mapping[str, Any]]) -> int:
     """Threads for the Allan kernels in each task: the cores of this machine shared among
     the worker threads when every worker runs here (a local cluster), else 1."""
@@ -163,7 +194,7 @@ def open_client(scheduler: str | None, n_workers: int, threads_per_worker: int) 
     if scheduler:
         try:
             client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
+        except (OSError, TimeoutError, ValueError) as err:
             raise OptionError(
                 f"cannot connect to the Dask scheduler at {scheduler!r} ({err}); "
                 "check the address or omit --scheduler for a local cluster"

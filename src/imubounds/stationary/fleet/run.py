@@ -12,7 +12,7 @@ from typing import Any
 
 from imubounds.errors import InputError, OptionError
 from imubounds.stationary.fleet.cache import UnitCache, content_key
-from imubounds.stationary.fleet.execute import Task, open_executor
+from imubounds.stationary.fleet.execute import Task, check_scheduler_address, open_executor
 from imubounds.stationary.fleet.plan import plan_tasks, plan_work
 from imubounds.stationary.fleet.result import FleetResult, rows_frame
 from imubounds.stationary.fleet.settings import FleetSettings, Progress
@@ -61,8 +61,11 @@ class _Units:
             key: str | None = content_key(src, self.settings)
         except (OSError, InputError) as err:
             key = None
-            why = getattr(err, "strerror", None) or str(err)
-            self.results[i] = failed_result(src, self.names[i], f"{src}: cannot read ({why})")
+            if isinstance(err, InputError):  # names the source and what is wrong
+                error = str(err)
+            else:
+                error = f"{src}: cannot read ({err.strerror or err})"
+            self.results[i] = failed_result(src, self.names[i], error)
             self.counts["failed"] += 1
         self.keys[i] = key
         if key is not None:
@@ -178,9 +181,11 @@ def _analyse(
 
 
 def _check_options(
-    spec: FleetSpec | str | Path | None, outlier_z: float, drift_z: float, n_workers: int
-) -> FleetSpec | None:
-    """The spec read, and the thresholds and worker count checked, before any work."""
+    spec: FleetSpec | str | Path | None, outlier_z: float, drift_z: float, n_workers: int,
+    scheduler: str | None,
+) -> FleetSpec | None:  # fmt: skip
+    """The spec read, and the thresholds, worker count and scheduler address checked,
+    before any work."""
     if spec is not None and not isinstance(spec, FleetSpec):
         spec = load_spec(spec)
     if not (math.isfinite(outlier_z) and outlier_z > 0):
@@ -189,6 +194,8 @@ def _check_options(
         raise OptionError(f"drift threshold must be a positive number, got {drift_z}")
     if n_workers < 0:
         raise OptionError(f"number of workers must be >= 0, got {n_workers}")
+    if scheduler:
+        check_scheduler_address(scheduler)
     return spec
 
 
@@ -381,7 +388,7 @@ def run_fleet(
     t_start = time.perf_counter()
     settings = settings or FleetSettings()
     settings.check()
-    spec = _check_options(spec, outlier_z, drift_z, n_workers)
+    spec = _check_options(spec, outlier_z, drift_z, n_workers, None if client else scheduler)
     previous = read_previous(compare) if compare is not None else None
     sources = expand_globs([str(p) for p in patterns])
     names = unit_names(sources)

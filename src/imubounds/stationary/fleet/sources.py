@@ -3,7 +3,9 @@ sizes, and a local copy of a remote log for the readers."""
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
@@ -14,6 +16,7 @@ from imubounds.io.validate import is_url
 
 __all__ = [
     "UNIT_SUFFIXES",
+    "check_regular_file",
     "expand_globs",
     "is_url",
     "local_copy",
@@ -85,7 +88,9 @@ def expand_globs(patterns: Iterable[str | Path]) -> list[str]:
             hits = sorted(glob.glob(pat, recursive=True))
             if not hits and Path(pat).exists():
                 hits = [pat]
-            files = [h for h in hits if Path(h).is_file() and not Path(h).name.startswith(".")]
+            # every match but folders and hidden files: one that cannot be read (a dangling
+            # link, a FIFO) is a unit that fails with the reason, never left out unnoticed
+            files = [h for h in hits if not Path(h).is_dir() and not Path(h).name.startswith(".")]
             keys = [str(Path(h).resolve()) for h in files]
         if not files:
             empty.append(pat)
@@ -106,7 +111,8 @@ def _components(source: str) -> list[str]:
         proto = source.split("://", 1)[0]
         _, path = url_fs(source)
         return [f"{proto}:", *[c for c in path.split("/") if c]]
-    return list(Path(source).resolve().parts)
+    # as matched, not resolved: a link names its unit (a dangling one has no target)
+    return list(Path(os.path.abspath(source)).parts)
 
 
 def _strip_suffixes(name: str) -> str:
@@ -148,11 +154,40 @@ def source_size(source: str) -> int:
         return 0
 
 
+_NOT_REGULAR = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+                (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                (stat.S_ISDIR, "a folder"))  # fmt: skip
+
+
+def check_regular_file(path: str) -> None:
+    """Refuse a local match that is no regular file before it is opened (opening a FIFO
+    would wait for a writer forever).
+
+    Raises
+    ------
+    InputError
+        ``"PATH: cannot read (...)"``: a symbolic link whose target does not exist, a
+        FIFO, a socket, a device, a folder; or the file's ``stat`` failed.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as err:
+        if os.path.islink(path):
+            why = f"a symbolic link to {os.readlink(path)}, which does not exist"
+        else:
+            why = err.strerror or str(err)
+        raise InputError(f"{path}: cannot read ({why})") from err
+    for test, what in _NOT_REGULAR:
+        if test(mode):
+            raise InputError(f"{path}: cannot read ({what}, not a regular file)")
+
+
 @contextmanager
 def local_copy(source: str) -> Iterator[Path]:
     """A local path holding the log: the path itself, or a URL copied to a temporary file
     (with the URL's file name, so that the readers recognise the format)."""
     if not is_url(source):
+        check_regular_file(source)
         yield Path(source)
         return
     import shutil
