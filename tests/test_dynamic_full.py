@@ -25,12 +25,12 @@ from imubounds.dynamic.estimator.budget import (
     read_noise_json,
 )
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
-from imubounds.dynamic.estimator.smoother_reference import (
+from imubounds.errors import InputError, OptionError
+from imubounds.units import DEG
+from tests.smoother_reference import (
     preintegrate_reference,
     sweep_reference,
 )
-from imubounds.errors import InputError, OptionError
-from imubounds.units import DEG
 from tests.trips import make_trip, record
 
 SHORT = {"duration_s": 240.0, "distance_m": 2600.0, "corner_m": 80.0}

@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 from imubounds.dynamic.estimator import dynamic_margins
 from imubounds.dynamic.estimator.paper import config_for_drive, prepare_steps, run
 from imubounds.dynamic.estimator.paper_kernel import F_GPS_MISSING
-from imubounds.dynamic.estimator.paper_reference import run_reference
 from imubounds.errors import AnalysisError, InputError
 from imubounds.interval.qinter import qinter_1d
 from imubounds.io.drive import Drive, GnssStream, HeadingStream, ImuStream
 from imubounds.stationary import bounds
+from tests.paper_reference import run_reference
 from tests.trips import make_trip
 
 SHORT = {"duration_s": 200.0, "distance_m": 2000.0, "corner_m": 80.0, "imu_hz": 10.0}

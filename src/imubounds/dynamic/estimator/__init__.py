@@ -6,9 +6,9 @@
 * :mod:`.inputs` -- the IMU as integrable sample series, the aiding sensors as intervals;
 * :mod:`.windows` -- window-mean margins per averaging time and the verdicts;
 * :mod:`.smoother` -- the whole-trip interval smoother (numba) and its reference
-  :mod:`.smoother_reference`;
+  ``tests/smoother_reference.py``;
 * :mod:`.full` -- mode ``full`` put together;
-* :mod:`.paper`, :mod:`.paper_kernel`, :mod:`.paper_reference` -- mode ``paper``, the
+* :mod:`.paper`, :mod:`.paper_kernel` -- mode ``paper``, the
   paper's per-step estimator (not guaranteed).
 """
 

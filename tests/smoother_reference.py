@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 
-from imubounds.dynamic.estimator.paper_reference import Iv, icos, isin
 from imubounds.interval import scalar as R
 from imubounds.interval import scalar_contractors as K
+from tests.paper_reference import Iv, icos, isin
 
 E, N, VE, VN, PSI, UH, VH = range(7)
 ENTIRE = Iv(-math.inf, math.inf)
