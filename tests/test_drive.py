@@ -17,7 +17,6 @@ from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import InputError
 from imubounds.frames import axes_matrix, wrap_pi
 from imubounds.io import Drive, read_drive
-from imubounds.io.drive_legacy import read_drive_log, to_drive
 from imubounds.io.drive_readers import detect_layout, mount_check
 
 
@@ -162,22 +161,6 @@ def test_comma_mount_is_checked_against_the_truth(comma: Drive) -> None:
     assert res["best_score"] > res["score"] + 0.5, res
     # rotating back by the mapping found restores the phone axes
     np.testing.assert_allclose(axes_matrix(res["best_axes"]) @ m, np.eye(3), atol=0)
-
-
-def test_legacy_sim_reader_through_to_drive(sim_dir: Path) -> None:
-    d = read_drive(sim_dir)
-    assert d.layout == "generic" and d.truth is not None and d.imu is not None
-    assert d.imu.accel.shape[1] == 3 and d.imu.t.size >= 120
-    assert to_drive(d) is d  # a Drive passes through the transition helper
-    log = read_drive_log(str(sim_dir))
-    assert log.layout == "sim" and "estimator" in log.settings
-
-
-def test_legacy_reader_keeps_the_vn100_for_the_per_step_estimator(vn100_dir: Path) -> None:
-    log = read_drive_log(str(vn100_dir))
-    assert log.heading is not None  # the AHRS yaw, as before
-    assert any("mounted backwards" in w for w in log.warnings)
-    assert np.mean(log.accel[:, 1]) > 0.5
 
 
 def _copy_vn(vn100_dir: Path, tmp_path: Path) -> tuple[Path, Path]:

@@ -179,13 +179,6 @@ def register(sub: Any) -> None:
         type=probability,
         help="whole-trip risk of every stated bound, per stream (0.01)",
     )
-    g = p.add_argument_group("legacy (the per-step paper-mode estimator's tests)")
-    g.add_argument(
-        "--truth-model",
-        choices=("continuous", "paper", "full"),
-        help="continuous 3-D truth (default), or planar truth following the per-step "
-        "estimator's discrete model of that mode exactly (needs equal IMU/GNSS/compass rates)",
-    )
     g.add_argument(
         "--bounded",
         action="store_true",
@@ -223,7 +216,6 @@ _OPTIONS = {
     "dvl_sigma": "dvl_sigma_mps",
     "wheel_sigma": "wheel_sigma_mps",
     "alpha": "alpha",
-    "truth_model": "truth_model",
 }
 
 
@@ -236,12 +228,6 @@ def config_from_args(args: argparse.Namespace) -> Any:
         for opt, field in _OPTIONS.items()
         if getattr(args, opt, None) is not None
     }
-    if args.truth_model not in (None, "continuous"):
-        # a discrete truth needs every stream at the IMU rate: follow --rate unless given
-        r = kw.get("rate_hz", 1.0)
-        kw.setdefault("rate_hz", r)
-        for name in ("gps_rate_hz", "compass_rate_hz"):
-            kw.setdefault(name, r)
     if args.no_bias:
         kw["imu_bias"] = False
     if args.bounded:

@@ -30,10 +30,6 @@ validates every stream (:func:`imubounds.io.drive_validate.validate_drive`):
     CSV/Parquet logs of other tools through a column map (``columns``:
     layout column -> source column), or a wide table already using the
     layout's column names.
-``sim``
-    The simulator's old directory (``scenario.json``), through the legacy
-    model (:func:`imubounds.io.drive_legacy.to_drive`) until the simulator
-    writes the generic layout.
 
 What was verified against the data (the sign conventions):
 
@@ -97,7 +93,6 @@ from imubounds.io.drive_layout import (
 )
 from imubounds.io.drive_validate import check_input_path, validate_drive
 
-LAYOUTS = ("generic", "vn100", "comma2k19", "rosbag", "ulog", "nmea", "csv", "sim")
 _BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 _NMEA_SUFFIXES = (".nmea", ".nma", ".gps")
 _TABLE_SUFFIXES = (".csv", ".csv.gz", ".tsv", ".txt", ".parquet")
@@ -174,12 +169,8 @@ def detect_layout(paths: Sequence[str | Path]) -> tuple[str, dict[str, Any]]:
 
 
 def _detect_dir(d: Path) -> tuple[str, dict[str, Any]]:
-    from imubounds.io.drive_legacy import is_sim_dir
-
     if (d / "metadata.yaml").is_file():
         return "rosbag", {"path": d}
-    if is_sim_dir(d):
-        return "sim", {"dir": d}
     if (d / "processed_log").is_dir():
         return "comma2k19", {"dir": d}
     if is_layout(d):
@@ -825,14 +816,6 @@ def read_drive(
             drive.notes[:0] = [str(n) for n in info["notes"]]
         if info.get("converted_from"):
             drive.meta["converted_from"] = str(info["converted_from"])
-    elif layout == "sim":
-        from imubounds.io.drive_legacy import read_sim, to_drive
-
-        drive = to_drive(read_sim(files["dir"]))
-        s, _ = _settings(settings, f"{files['dir']} (simulator directory)")
-        drive.settings = s
-        if _override_axes(s, imu_axes):
-            apply_mount(drive)
     else:
         where = f"{ps[0]}" if len(ps) == 1 else ", ".join(map(str, ps))
         s, info = _settings(settings, f"settings of {where}")

@@ -16,7 +16,6 @@ bounds. :func:`write_scenario` writes it in the generic drive layout
   DVL and wheel speed;
 * :mod:`.record` -- the out-of-bound record and its definitions;
 * :mod:`.config` -- settings, named variants (:data:`VARIANTS`) and faults;
-* :mod:`.legacy` -- what the per-step paper-mode estimator still reads.
 
 Example::
 
@@ -39,7 +38,6 @@ from imubounds.dynamic.scenario.config import (
     parse_fault,
 )
 from imubounds.dynamic.scenario.core import CONVENTIONS, SimResult, simulate
-from imubounds.dynamic.scenario.legacy import model_error_bounds
 from imubounds.dynamic.scenario.record import Check, Record
 from imubounds.dynamic.scenario.write import OUTPUT_FILES, write_scenario
 
@@ -67,7 +65,6 @@ __all__ = [
     "VARIANTS",
     "closure_error",
     "make_trip",
-    "model_error_bounds",
     "parse_fault",
     "simulate",
     "write_scenario",

@@ -191,8 +191,7 @@ class ScenarioConfig:
     attitude_sigma_deg: float = 0.1
     # probability level of every stated bound (whole trip, per stream)
     alpha: float = 0.01
-    # legacy (the per-step paper-mode estimator's tests)
-    truth_model: str = "continuous"
+    # every error drawn inside its stated bound
     bounded: bool = False
     extra: dict[str, float] = field(default_factory=dict)
 
@@ -299,15 +298,6 @@ class ScenarioConfig:
                 raise OptionError(
                     f"--fault {f.label()}: starts after the end of the trip ({self.duration_s:g} s)"
                 )
-        if self.truth_model not in ("continuous", "paper", "full"):
-            raise OptionError("--truth-model must be continuous, paper or full")
-        if self.truth_model != "continuous":
-            if not (self.gps_rate_hz == self.rate_hz == self.compass_rate_hz):
-                raise OptionError(
-                    "a discrete truth model needs IMU, GPS and compass at the same rate"
-                )
-            if self.hill_amplitude_m or self.bank_deg or self.roll_gain_deg_per_mps2:
-                raise OptionError("a discrete truth model is planar: no hills, bank or roll")
         # every stream's epochs fall on the IMU sample grid
         used = {
             "gps_rate_hz": "gnss" in self.aiding,

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.scenario import legacy
 from imubounds.dynamic.scenario.aiding import AidingOutput, SampledTruth, simulate_aiding
 from imubounds.dynamic.scenario.config import ScenarioConfig
 from imubounds.dynamic.scenario.imu import CHANNELS, ImuErrors, imu_checks, simulate_errors
@@ -76,7 +75,6 @@ class SimResult:
     imu_errors: ImuErrors
     aiding: AidingOutput
     trajectory: Trajectory
-    estimator: dict[str, Any] = field(default_factory=dict)
 
     @property
     def clean(self) -> bool:
@@ -122,7 +120,6 @@ class SimResult:
             "streams": self.drive.streams(),
             "true_values": self.true_values(),
             "record": self.record.to_dict(),
-            "estimator": self.estimator,
             # legacy: the per-step estimator's tests read the outlier rows here
             "gps_outlier_rows": self.record.outliers.get("gnss", {}).get("indices", []),
         }
@@ -245,9 +242,6 @@ def simulate(cfg: ScenarioConfig | None = None) -> SimResult:
     n = int(round(cfg.duration_s * cfg.rate_hz)) + 1
     tru = traj.imu_truth(n, dt)
     mean = np.column_stack([tru["accel_mean"], tru["gyro_mean"]])
-    if cfg.truth_model != "continuous":
-        legacy.discrete_truth(tru, mean, cfg.truth_model, dt)
-        tru["accel_mean"], tru["gyro_mean"] = mean[:, :3], mean[:, 3:]
     aid = simulate_aiding(cfg, SampledTruth(tru, cfg.rate_hz), seeds)
     ep = aid.epoch_times()
     t = tru["t"]
@@ -285,13 +279,4 @@ def simulate(cfg: ScenarioConfig | None = None) -> SimResult:
         meta={"variant": cfg.variant, "seed": cfg.seed, "record_clean": record.clean},
     )
     drive.check()
-    res = SimResult(cfg, drive, record, tru, err, aid, traj)
-    if aid.gnss is not None:
-        res.estimator = legacy.estimator_block(
-            cfg,
-            tru,
-            mean,
-            aid.gnss.t.size,
-            0 if aid.heading is None else aid.heading.t.size,
-        )
-    return res
+    return SimResult(cfg, drive, record, tru, err, aid, traj)
