@@ -91,16 +91,6 @@ class IntervalArray:
         return cls._raw(np.full(shape, -np.inf), np.full(shape, np.inf))
 
     @classmethod
-    def from_midrad(cls, mid: ArrayLike, rad: ArrayLike) -> IntervalArray:
-        """``[mid - rad, mid + rad]`` rounded outward (``rad >= 0``)."""
-        m, r = np.broadcast_arrays(np.asarray(mid, float), np.asarray(rad, float))
-        if np.isnan(m).any() or np.isnan(r).any() or (r < 0).any():
-            raise OptionError("from_midrad needs finite mid and rad >= 0 (no NaN)")
-        lo, _ = v.v_sub(_flat(m), _flat(m), _flat(r), _flat(r))
-        _, hi = v.v_add(_flat(m), _flat(m), _flat(r), _flat(r))
-        return cls._raw(lo.reshape(m.shape), hi.reshape(m.shape))
-
-    @classmethod
     def coerce(cls, x: Any) -> IntervalArray:
         """An :class:`IntervalArray` as is; numbers/arrays as degenerate intervals."""
         if isinstance(x, IntervalArray):

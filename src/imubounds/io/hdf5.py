@@ -28,13 +28,6 @@ from .assemble import ReadOptions, assemble_logs
 from .columns import plan_columns
 from .table import _raw_from_arrays
 
-HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
-
-
-def sniff_hdf5(head: bytes) -> bool:
-    """True for the first bytes of an HDF5 file (superblock at offset 0)."""
-    return head.startswith(HDF5_MAGIC)
-
 
 def _attr_text(v: Any) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)

@@ -66,11 +66,6 @@ def sniff_bag(head: bytes) -> bool:
     return head.startswith((ROS1_MAGIC, MCAP_MAGIC, SQLITE_MAGIC))
 
 
-def sniff_bag_dir(path: Path) -> bool:
-    """True for a ROS 2 bag directory (``metadata.yaml`` beside ``.db3``/``.mcap`` files)."""
-    return (path / "metadata.yaml").is_file()
-
-
 def _bag_error(path: Path, err: BaseException) -> InputError:
     text = " ".join(str(err).split()) or type(err).__name__
     if len(text) > 160:

@@ -54,9 +54,7 @@ from scipy import optimize, signal
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 
-Criterion = Literal["aic", "bic", "hqic", "fpe"]
 CRITERIA: tuple[str, ...] = ("aic", "bic", "hqic", "fpe")
-MODEL_KINDS: tuple[str, ...] = ("gm", "ar")
 #: Minimum samples (after decimation) for any model fit.
 MIN_SAMPLES = 32
 #: Auto decimation: target effective rate (Hz) and minimum samples kept.

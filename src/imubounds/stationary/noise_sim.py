@@ -334,15 +334,6 @@ class AxisNoise:
     def flicker(self) -> tuple[GaussMarkovModel, ...]:
         return flicker_gm_terms(self.B, self.bias_tau_range_s)
 
-    def is_zero(self) -> bool:
-        return (
-            all(getattr(self, t) == 0 for t in TERMS)
-            and self.bias == 0
-            and self.bias_sigma == 0
-            and not self.gauss_markov
-            and self.ar is None
-        )
-
     def avar(self, tau: ArrayLike, rate_hz: float | None = None) -> NDArray[np.float64]:
         """Theoretical Allan variance at τ (s) of what :func:`simulate_axis` generates.
 

@@ -65,7 +65,6 @@ DEFAULT_ALPHA = 0.01
 #: Defaults used when no source gives a figure (listed as assumed in the output).
 DEFAULT_SCALE = 0.005
 DEFAULT_MISALIGNMENT_RAD = 0.5 * DEG
-_U = 2.0**-53
 
 
 def kind_of(channel: str) -> str:
@@ -531,8 +530,3 @@ class AlphaPlan:
                 if n > 0
             },
         }
-
-
-def safe_up(x: np.ndarray | float) -> Any:
-    """A value rounded up by a relative 4 u (to absorb the rounding of bound formulas)."""
-    return np.nextafter(np.asarray(x, dtype=float) * (1.0 + 4 * _U), np.inf)

@@ -133,7 +133,6 @@ class StepData:
     meas: np.ndarray  # (n, 3) measured a, b, r (step averages)
     half: np.ndarray  # (3,) bound half-widths per channel
     gps: np.ndarray  # (n, 4) box, NaN = none
-    gps_centre: np.ndarray  # (n, 2)
     heading: np.ndarray  # (n, 2) centre (model), half-width; NaN = none
     origin: tuple[float, float, float]
     deviation: CompassDeviation
@@ -335,7 +334,6 @@ def prepare_steps(drive: Any, cfg: EstimatorConfig) -> StepData:
         meas=meas,
         half=half,
         gps=gps,
-        gps_centre=cen[:, :2],
         heading=heading,
         origin=origin,
         deviation=dev,
