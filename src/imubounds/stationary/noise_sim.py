@@ -16,11 +16,8 @@ AR         an AR(p) model fitted by Burg (its own rate)  from its autocovariance
 bias       constant, plus an optional turn-on bias drawn from N(0, bias_sigma²)
 =========  ==========================================  ==============================
 
-The flicker approximation: correlation times log-spaced (2 per decade) from
-τ_lo/6 to 1.5·τ_hi, weights by non-negative least squares so that the sum
-of the GM Allan variances is flat to ~0.1 % over [τ_lo, τ_hi] and equal to
-(2 ln2/π)·B² there; outside the range the curve falls off (τ below: like a
-random walk, above: like white noise).
+The flicker approximation is :func:`imubounds.stationary.flicker.flicker_gm_terms`
+(shared with the dynamic error budget).
 
 Generation is seeded and reproducible: every channel, and every component
 within a channel, draws from its own stream spawned from one
@@ -42,18 +39,15 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import nnls
 
 from imubounds import presets as _presets
 from imubounds.errors import InputError, OptionError
 from imubounds.io.log import IMU_CHANNELS, ImuLog
-from imubounds.stationary.models import ArModel, GaussMarkovModel, gm_avar_continuous
+from imubounds.stationary.flicker import DEFAULT_BIAS_TAU_RANGE, flicker_gm_terms
+from imubounds.stationary.models import ArModel, GaussMarkovModel
 from imubounds.units import DEG, G0, SI_UNITS, sensor_kind, si_unit_of_signal
 
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
-B_FACTOR2 = 2.0 * math.log(2.0) / math.pi
-#: Default τ range (s) over which bias instability is flicker noise.
-DEFAULT_BIAS_TAU_RANGE: tuple[float, float] = (1.0, 1000.0)
 #: CSV column of each channel in the layout the readers recognise.
 CSV_COLUMNS: dict[str, str] = {
     "gyro_x": "gyro_x_rads",
@@ -255,40 +249,6 @@ def parse_quantity(value: Any, kind: str, what: str, where: str = "") -> float:
 
 # ----------------------------------------------------------------------------
 # spec
-
-
-def flicker_gm_terms(
-    B: float, tau_range_s: tuple[float, float] = DEFAULT_BIAS_TAU_RANGE, per_decade: int = 2
-) -> tuple[GaussMarkovModel, ...]:
-    """Gauss–Markov processes whose summed Allan variance is (2 ln2/π)·B²
-    over ``tau_range_s`` (flat to about 0.1 %).
-
-    Parameters
-    ----------
-    B:
-        Bias instability in signal units (rad/s or m/s²).
-    tau_range_s:
-        (τ_lo, τ_hi) in s where the Allan deviation is flat at 0.664·B.
-    per_decade:
-        Correlation times per decade.
-    """
-    lo, hi = float(tau_range_s[0]), float(tau_range_s[1])
-    if not (0 < lo < hi and math.isfinite(hi)):
-        raise OptionError(f"bias tau range must be 0 < lo < hi seconds, got {tau_range_s}")
-    if B <= 0:
-        return ()
-    a, b = lo / 6.0, hi * 1.5
-    k = int(math.ceil(math.log10(b / a) * per_decade)) + 1
-    tcs = np.logspace(math.log10(a), math.log10(b), k)
-    tau = np.logspace(math.log10(lo), math.log10(hi), 20 * k)
-    mat = np.stack([gm_avar_continuous(tau, 1.0, 1.0 / tc) for tc in tcs], axis=1)
-    w, _ = nnls(mat, np.ones(tau.size))
-    level = B_FACTOR2 * B * B
-    return tuple(
-        GaussMarkovModel(beta=1.0 / tc, sigma=math.sqrt(wi * level), method="flicker_approx")
-        for tc, wi in zip(tcs, w, strict=True)
-        if wi > 0
-    )
 
 
 @dataclass(frozen=True)

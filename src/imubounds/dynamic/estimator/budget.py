@@ -150,7 +150,7 @@ class ChannelNoise:
 def _gm_terms(B: float, tau_range: tuple[float, float]) -> list[tuple[float, float]]:
     if B <= 0:
         return []
-    from imubounds.stationary.noise_sim import flicker_gm_terms
+    from imubounds.stationary.flicker import flicker_gm_terms
 
     return [(g.sigma, g.beta) for g in flicker_gm_terms(B, tau_range)]
 
