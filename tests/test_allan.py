@@ -327,6 +327,17 @@ def test_avar_reference_ci_formula(shared_data) -> None:
     err = 1.0 / np.sqrt(2.0 * (1e6 / m - 1.0))
     np.testing.assert_allclose(ref.ci_lower, ref.adev * (1 - 2 * err), rtol=1e-8)
     np.testing.assert_allclose(ref.ci_upper, ref.adev * (1 + 2 * err), rtol=1e-8)
+    # our chi-squared interval at the same level (2 sigma) and those degrees of freedom
+    # is that normal approximation to first order: they differ by O(1/edf) only (a wrong
+    # level or edf would differ by O(1/sqrt(edf)))
+    edf = 1e6 / m - 1.0
+    lo, hi = confidence_interval(ref.adev.to_numpy(), edf, math.erf(2 / math.sqrt(2)))
+    big = edf >= 100
+    assert big.sum() >= 6 * 12, big.sum()  # 12 octaves of each of the six channels
+    for ours, theirs in ((lo, ref.ci_lower), (hi, ref.ci_upper)):
+        off = np.abs(ours[big] / theirs.to_numpy()[big] - 1.0)
+        assert np.all(off <= 3.0 / edf[big]), (off * edf[big]).max()
+    assert np.all(lo[big] < ref.adev.to_numpy()[big]) and np.all(ref.adev.to_numpy()[big] < hi[big])
 
 
 # ---------------------------------------------------------------------------

@@ -29,11 +29,22 @@ def layout_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_layout(drive, tmp_path_factory.mktemp("drive") / "trip")
 
 
-def _schema(doc: dict, modes: set[str]) -> None:
+#: Verdicts known on the simulated trip (layout_dir): every input lies within its stated
+#: bound, so mode full finds every channel consistent (a sound margin cannot exceed, and
+#: the aided windows are decidable); mode paper's per-step margins are tens of times its
+#: stationary level (1.96 N sqrt(T)): supersets of it, ``exceeds``.
+TRIP_VERDICTS = {"full": "consistent", "paper": "exceeds"}
+
+
+def _schema(doc: dict, modes: set[str], verdicts: dict[str, str] | None = None) -> None:
+    """The document's shape; with ``verdicts`` (mode -> expected verdict), every channel's
+    verdict in that mode."""
     assert doc["schema_version"] == "imubounds-dynamic/2"
     assert set(doc["modes"]) == modes
     for name, m in doc["modes"].items():
         assert {"margins", "verdict", "budget"} <= set(m)
+        if verdicts is not None:
+            assert set(m["verdict"].values()) == {verdicts[name]}, (name, m["verdict"])
         for ch in ("accel_x", "accel_y", "gyro_z"):
             assert m["verdict"][ch] in ("consistent", "exceeds", "undecided")
             for row in m["margins"][ch]:
@@ -53,7 +64,7 @@ def test_dynamic_on_a_drive_layout(main, layout_dir: Path, tmp_path: Path,  # ty
         assert n in names, n
     assert not [n for n in names if n.startswith(".")]  # no temporary leftovers
     doc = json.loads((out / "dynamic.json").read_text())
-    _schema(doc, {"full", "paper"})
+    _schema(doc, {"full", "paper"}, TRIP_VERDICTS)
     full = doc["modes"]["full"]
     for q in ("position", "heading", "u", "v", "bias_accel_x", "bias_gyro_z"):
         assert full["enclosure"][q] == 1.0, (q, full["enclosure"])
@@ -73,7 +84,7 @@ def test_dynamic_mode_full_only_and_json(main, layout_dir: Path, tmp_path: Path,
                  "--no-report", "--json", "-q", "--lateral-speed-bound", "0.2", "--alpha", "0.05"])
     assert code == 0
     doc = json.loads(capsys.readouterr().out)
-    _schema(doc, {"full"})
+    _schema(doc, {"full"}, TRIP_VERDICTS)
     assert not (out / "steps.csv").exists()
     assert doc["modes"]["full"]["alpha"]["alpha"] == 0.05
     assert doc["modes"]["full"]["vehicle"]["lateral_speed_bound_mps"] == 0.2

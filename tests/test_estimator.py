@@ -78,7 +78,11 @@ def test_paper_mode_block_says_not_guaranteed() -> None:
         assert row["tau_s"] == 1.0
         # the paper's 1.96 N sqrt(T) stays in its own unit (m/s or rad), labelled so
         assert row["stationary_unit"] == ("m/s" if ch.startswith("accel") else "rad")
-        assert d["verdict"][ch] in ("consistent", "exceeds", "undecided")
+        # known on this trip: the per-step margins are tens of times the paper's
+        # stationary level, so they are supersets of it (the paper's finding for
+        # accelerations): ``exceeds``
+        assert row["halfwidth_median"] > 10 * row["stationary"], (ch, row)
+        assert d["verdict"][ch] == "exceeds", (ch, d["verdict"])
         assert d["budget"][ch][0]["term"] == "white noise density N"
     assert set(d["enclosure"]) >= {"position", "heading", "u", "v"}
 
