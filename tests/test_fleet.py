@@ -316,6 +316,12 @@ def test_same_named_units_in_two_folders_stay_separate(fleet_dir: Path, tmp_path
     assert n["siteA/unit1"] == pytest.approx(0.5, rel=0.1)
     assert n["siteB/unit1"] == pytest.approx(1.5, rel=0.1), "unit03 is the 1.5 deg/sqrt(h) one"
     assert set(res.curves) == {"siteA/unit1", "siteB/unit1"}
+    # the result draws its figure (report/fleet_plots): two bundles, N B K per kind
+    import matplotlib.pyplot as plt
+
+    fig = res.plot()
+    assert len(fig.axes) == 2 + 2 * 3 and "Fleet of 2 units: 2 analysed" in fig._suptitle.get_text()
+    plt.close(fig)
 
 
 def test_cli_exits_1_with_a_failure_summary_even_when_quiet(
