@@ -223,7 +223,7 @@ def test_no_module_passes_1000_lines() -> None:
 
 def _ruff_complexity() -> dict[tuple[str, str], int]:
     proc = subprocess.run(
-        [sys.executable, "-m", "ruff", "check", "--select", "C901", "--config",
+        [sys.executable, "-m", "ruff", "check", "--isolated", "--select", "C901", "--config",
          f"lint.mccabe.max-complexity={MAX_COMPLEXITY}", "--output-format", "json",
          "--no-cache", "--exit-zero", str(SRC / PACKAGE)],
         capture_output=True, text=True, check=True, cwd=ROOT,
@@ -274,3 +274,16 @@ def test_no_library_module_imports_the_command_line(layer: str) -> None:
                  if b.startswith(cli) and not a.startswith(cli)
                  and a != f"{PACKAGE}.__main__")  # fmt: skip
     assert not bad, f"library modules importing the command line: {bad}"
+
+
+def test_ruff_enforces_the_same_complexity_limit() -> None:
+    """``ruff check`` (make lint/test) applies C901 at the same limit, and exempts exactly
+    the files of :data:`COMPLEX_FUNCTIONS`."""
+    import tomllib
+
+    lint = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["ruff"]
+    lint = lint["lint"]
+    assert "C901" in lint.get("select", []) + lint.get("extend-select", [])
+    assert lint["mccabe"]["max-complexity"] == MAX_COMPLEXITY
+    exempt = {f for f, codes in lint.get("per-file-ignores", {}).items() if "C901" in codes}
+    assert exempt == {f"src/{path}" for path, _ in COMPLEX_FUNCTIONS}, exempt
