@@ -849,8 +849,9 @@ def test_a_dangling_link_or_a_fifo_among_the_matches_is_a_failed_unit(
     err = capsys.readouterr().err
     assert got["code"] == 1, err
     assert "2 of 4 units failed" in err, err
-    assert f"link: {units / 'link.csv.gz'}: cannot read (a symbolic link to " in err, err
-    assert "which does not exist" in err and "a named pipe (FIFO)" in err, err
+    assert f"link: {units / 'link.csv.gz'}: cannot read: a symbolic link to " in err, err
+    assert "which does not exist" in err, err
+    assert f"pipe: {units / 'pipe.csv.gz'} is a named pipe (FIFO), not a regular file" in err
     summ = json.loads((tmp_path / "o" / "fleet.json").read_text())
     assert summ["n_units"] == 4 and summ["n_ok"] == 2, summ
     assert sorted(f["unit"] for f in summ["failed"]) == ["link", "pipe"]

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import os
 import re
-import stat
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from imubounds.errors import InputError
-from imubounds.io.validate import is_url
+from imubounds.io.validate import check_input_path, is_url
 
 __all__ = [
     "UNIT_SUFFIXES",
@@ -154,32 +153,23 @@ def source_size(source: str) -> int:
         return 0
 
 
-_NOT_REGULAR = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
-                (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                (stat.S_ISDIR, "a folder"))  # fmt: skip
-
-
 def check_regular_file(path: str) -> None:
     """Refuse a local match that is no regular file before it is opened (opening a FIFO
-    would wait for a writer forever).
+    would wait for a writer forever): :func:`imubounds.io.validate.check_input_path`, and
+    a symbolic link whose target does not exist named as such.
 
     Raises
     ------
     InputError
-        ``"PATH: cannot read (...)"``: a symbolic link whose target does not exist, a
-        FIFO, a socket, a device, a folder; or the file's ``stat`` failed.
+        Naming the file and what it is (a dangling link, a FIFO, a socket, a device, a
+        folder, unreadable).
     """
-    try:
-        mode = os.stat(path).st_mode
-    except OSError as err:
-        if os.path.islink(path):
-            why = f"a symbolic link to {os.readlink(path)}, which does not exist"
-        else:
-            why = err.strerror or str(err)
-        raise InputError(f"{path}: cannot read ({why})") from err
-    for test, what in _NOT_REGULAR:
-        if test(mode):
-            raise InputError(f"{path}: cannot read ({what}, not a regular file)")
+    if os.path.islink(path) and not os.path.exists(path):
+        raise InputError(
+            f"{path}: cannot read: a symbolic link to {os.readlink(path)}, which does not "
+            "exist; fix or remove the link"
+        )
+    check_input_path(path, what="unit log")
 
 
 @contextmanager
