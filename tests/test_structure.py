@@ -20,6 +20,7 @@ import re
 import subprocess
 import sys
 from collections.abc import Iterable
+from functools import lru_cache
 from pathlib import Path
 
 import pytest
@@ -126,9 +127,10 @@ def imports_of(name: str, path: Path, modules: Iterable[str]) -> list[tuple[str,
     return out
 
 
+@lru_cache(maxsize=4)
 def import_graph(src: Path = SRC, package: str = PACKAGE) -> dict[str, set[str]]:
     """Module -> the modules it imports (a result's lazy ``plot*`` import of the report
-    package left out)."""
+    package left out). Cached: the callers do not change it."""
     files = module_files(src, package)
     graph: dict[str, set[str]] = {}
     for name, path in files.items():
