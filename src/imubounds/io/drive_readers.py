@@ -91,6 +91,7 @@ from imubounds.io.drive_layout import (
     TABLE_COLUMNS,
     drive_from_tables,
     is_layout,
+    load_settings_yaml,
     parse_settings,
     read_layout,
     read_settings_with_info,
@@ -212,13 +213,7 @@ def _settings(
         s.assumed.insert(0, f"{where}: no drive.yaml: every setting is its documented default")
         return s, {}
     p = check_input_path(settings, "drive settings (drive.yaml)", directory=False)
-    import yaml
-
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        first = (str(err).splitlines() or [type(err).__name__])[0]
-        raise InputError(f"{p}: cannot read ({first})") from err
+    data = load_settings_yaml(p)
     info = {}
     if isinstance(data, dict):
         for k in ("converted_from", "notes"):

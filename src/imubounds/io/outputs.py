@@ -177,6 +177,12 @@ def listed_files(target: str | os.PathLike[str]) -> set[str]:
     return _written_by_imubounds(Path(target))
 
 
+def recorded_files(folder: str | os.PathLike[str]) -> set[str]:
+    """Names of the files an imubounds run recorded in ``folder`` as its own (its
+    ``run.json`` and the single-file record), whether or not they still exist."""
+    return _written_by_imubounds(Path(folder)) | set(_files_record(Path(folder)))
+
+
 def record_written_files(
     target: str | os.PathLike[str],
     argv: Sequence[str] | None,
@@ -505,6 +511,7 @@ class OutputSet:
         force: bool = False,
         inputs: Iterable[str | os.PathLike[str]] = (),
     ) -> None:
+        self._empty = not os.fspath(target).strip()  # Path("") would be "." silently
         self.target = Path(target)
         self.force = force
         self.inputs = [Path(p) for p in inputs if os.fspath(p)]
@@ -517,8 +524,8 @@ class OutputSet:
     # -- context --------------------------------------------------------------
     def __enter__(self) -> OutputSet:
         t = self.target
-        if not os.fspath(t):
-            raise OutputError("-o is empty; give an output directory")
+        if self._empty:
+            raise OutputError("-o is empty; give an output directory (use -o . for this one)")
         try:
             if t.exists() and not t.is_dir():
                 raise OutputError(
@@ -637,6 +644,35 @@ class OutputSet:
                 )
         return out
 
+    def _superseded(self, names: list[str]) -> list[str]:
+        """Files the previous complete run of the *same command* listed in ``run.json`` that
+        this set does not rewrite (a report and figures beside a later ``--no-plot`` run's
+        results): removed at the commit, so that the folder holds one run's results. Files
+        of another command, inputs of this run and files not listed are never removed."""
+        rec = _read_json(self.target / RUN_RECORD)
+        mine = (self._record or {}).get("command_name")
+        if not isinstance(rec, dict) or mine is None or rec.get("command_name") != mine:
+            return []
+        files = rec.get("files")
+        if not isinstance(files, list):
+            return []
+        out = []
+        for f in files:
+            name = str(f)
+            dest = self.target / name
+            if (
+                name in names
+                or name == RUN_RECORD
+                or Path(name).is_absolute()
+                or ".." in Path(name).parts
+                or not dest.is_file()
+                or dest.is_symlink()
+                or _is_input(dest, self.inputs)
+            ):
+                continue
+            out.append(name)
+        return sorted(out)
+
     def _commit(self) -> None:
         names = self._staged()
         if not names and self._record is None:
@@ -646,6 +682,7 @@ class OutputSet:
         if problems:
             raise OutputError(problems[0])
         old = sorted(_written_by_imubounds(self.target))
+        superseded = self._superseded(names_all)
         # Ctrl-C is held back for the few renames of the commit, so that the set is
         # either the old one or the new one, and the message can say which.
         try:
@@ -657,6 +694,8 @@ class OutputSet:
                     dest = self.target / name
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(self.staging / name, dest)
+                for name in superseded:  # the earlier run's report and figures
+                    (self.target / name).unlink(missing_ok=True)
                 if self._record is not None:
                     extra = dict(self._record)
                     argv = extra.pop("argv", None)
