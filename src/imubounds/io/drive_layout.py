@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -89,6 +90,10 @@ FILES = ("imu", "gnss", "velocity", "heading", "attitude", "truth")
 SETTINGS_FILE = "drive.yaml"
 #: where :func:`write_layout` writes a swing calibration held in memory
 CALIBRATION_FILE = "compass_cal.csv"
+#: where :func:`write_layout` copies the static noise.json that ``imu.noise_json`` names
+NOISE_FILE = "imu_noise.json"
+#: every file :func:`write_layout` may write besides the tables
+EXTRA_FILES = (CALIBRATION_FILE, NOISE_FILE)
 SUFFIXES = (".csv", ".csv.gz", ".parquet")
 FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "parquet": ".parquet"}
 
@@ -344,6 +349,7 @@ def parse_settings(
     if isinstance(s.heading.calibration, str):
         s.heading.calibration = _resolve(s.heading.calibration, "heading.calibration", where,
                                          base_dir)
+        _check_calibration(s.heading.calibration, where)
     if s.heading.deviation_deg is None:
         assumed.append("heading.deviation_deg: from the compass calibration's residual (default)")
     return s
@@ -360,12 +366,66 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
     return str(p.absolute())  # absolute: it must not be joined to the drive's folder again
 
 
+def _check_calibration(path: str, where: str) -> None:
+    """Every (measured_deg, reference_deg) pair of a swing calibration must be finite: a
+    NaN or empty cell is an error naming the row (the fit would drop it silently)."""
+    try:
+        data = pd.read_csv(path, comment="#", skipinitialspace=True)
+    except (OSError, ValueError, UnicodeDecodeError, pd.errors.ParserError):
+        return  # unreadable: the calibration reader says why, naming the file
+    data.columns = [str(c).strip() for c in data.columns]
+    for name in ("measured_deg", "reference_deg"):
+        if name not in data.columns:
+            continue
+        v = pd.to_numeric(data[name], errors="coerce").to_numpy(float)
+        bad = ~np.isfinite(v)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{where}: heading.calibration {path}: {name} is {str(data[name].iloc[i])!r} "
+                f"at data "
+                f"row {i + 1}; every calibration pair must be finite degrees (remove the row)"
+            )
+
+
+def check_noise_json(path: str | Path, where: str = "") -> None:
+    """A noise.json of ``imubounds static`` for the dynamic analysis: UTF-8 JSON with a
+    ``channels`` object that has figures for the accelerometers *and* the gyros (with one
+    kind only, the other would silently take the default IMU's figures)."""
+    import json
+
+    lead = f"{where}: " if where else ""
+    p = check_input_path(path, "noise.json", directory=False)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0][:120]
+        raise InputError(
+            f"{lead}{p}: cannot read as the noise.json of 'imubounds static' ({first})"
+        ) from err
+    chans = data.get("channels") if isinstance(data, dict) else None
+    if not isinstance(chans, dict) or not chans:
+        raise InputError(
+            f"{lead}{p}: no 'channels' object; give the noise.json of 'imubounds static'"
+        )
+    kinds = {str(c).split("_")[0] for c in chans}
+    missing = [k for k in ("accel", "gyro") if k not in kinds]
+    if missing:
+        raise InputError(
+            f"{lead}{p}: noise.json has no {missing[0]} channel (only "
+            f"{', '.join(sorted(map(str, chans)))}); the {missing[0]}s would take the default "
+            f"IMU's figures: characterise a log with {missing[0]} columns, or give every "
+            "figure with --imu-spec / drive.yaml imu"
+        )
+
+
 def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None) -> None:
     imu = s.imu
     if imu.noise_json is not None and imu.preset is not None:
         raise InputError(f"{where}: give imu.noise_json or imu.preset, not both")
     if imu.noise_json is not None:
         imu.noise_json = _resolve(imu.noise_json, "imu.noise_json", where, base_dir)
+        check_noise_json(imu.noise_json, f"{where}: imu.noise_json")
     if imu.preset is not None:
         from imubounds.presets import get_preset
 
@@ -374,6 +434,12 @@ def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None
         except OptionError as err:
             raise InputError(f"{where}: imu.preset: {err}") from None
     datasheet = ("accel_nd", "accel_bs", "gyro_nd", "gyro_bs")
+    given = [k for k in datasheet if getattr(imu, k) is not None]
+    if given and not any(getattr(imu, k) for k in given):
+        raise InputError(
+            f"{where}: imu.{', imu.'.join(given)} are all 0: no IMU is noiseless; give the "
+            "datasheet's figures or leave them out"
+        )
     if imu.noise_json is None and imu.preset is None and all(
         getattr(imu, k) is None for k in datasheet
     ):
@@ -472,7 +538,13 @@ def read_table(path: Path) -> pd.DataFrame:
             f"{path}: the compressed file ends early (cut off while it was written or "
             "copied); copy it again or decompress what is left"
         ) from err
-    except (OSError, ValueError, ImportError, zlib.error, pd.errors.ParserError) as err:
+    except pd.errors.ParserError as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise InputError(
+            f"{path}: cannot read as a table ({first}): a row has more fields than the "
+            "header; fix or remove that row"
+        ) from err
+    except (OSError, ValueError, ImportError, zlib.error) as err:
         first = (str(err).splitlines() or [type(err).__name__])[0]
         raise InputError(f"{path}: cannot read as a table ({first})") from err
     df.columns = [str(c).strip() for c in df.columns]
@@ -1010,6 +1082,14 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
             d / CALIBRATION_FILE, index=False, float_format="%.17g"
         )
         settings.heading.calibration = CALIBRATION_FILE
+    elif isinstance(cal, str):  # a file: copied beside, so that the layout is self-contained
+        shutil.copyfile(cal, d / CALIBRATION_FILE)
+        settings.heading.calibration = CALIBRATION_FILE
+    noise = settings.imu.noise_json
+    if noise is not None:
+        settings.imu = dataclasses.replace(settings.imu)
+        shutil.copyfile(noise, d / NOISE_FILE)
+        settings.imu.noise_json = NOISE_FILE
     a = drive.attitude
     if a is not None:
         put(

@@ -752,6 +752,27 @@ def _time_unit_hint(t: np.ndarray, lo: float, hi: float) -> str | None:
     return None
 
 
+def _check_truth(drive: Drive) -> None:
+    """Truth rows without a finite position (a short, ragged row): dropped and counted."""
+    tr = drive.truth
+    assert tr is not None
+    f = _file(drive, "truth")
+    keep = np.isfinite(tr.t) & np.isfinite(tr.east_m) & np.isfinite(tr.north_m)
+    nb = int((~keep).sum())
+    if nb == tr.t.size:
+        raise InputError(f"{f}: no truth row has a finite position (east/north or lat/lon)")
+    if nb:
+        i = int(np.flatnonzero(~keep)[0])
+        drive.warn("truth_nan", nb, f"{f}: {nb} row(s) with an empty or NaN position skipped "
+                   f"(first at data row {i + 1}; a short row?)")
+        tr.t, tr.east_m, tr.north_m = tr.t[keep], tr.east_m[keep], tr.north_m[keep]
+        for name in ("heading_rad", "u_mps", "v_mps"):
+            v = getattr(tr, name)
+            if v is not None:
+                setattr(tr, name, v[keep])
+        tr.extra = {k: v[keep] for k, v in tr.extra.items()}
+
+
 def _check_overlap(drive: Drive) -> None:
     imu = drive.time_range("imu")
     assert imu is not None
@@ -828,6 +849,8 @@ def validate_drive(drive: Drive, *, max_speed_mps: float | None = None) -> Drive
         _check_attitude(drive)
     if drive.mag is not None:
         _check_mag(drive)
+    if drive.truth is not None:
+        _check_truth(drive)
     _check_imu(drive)
     _check_overlap(drive)
     _check_track_turns(drive)

@@ -62,6 +62,11 @@ def dynamic_margins(
         )
     if isinstance(noise, _StaticResult):
         noise = noise.to_dict()
+    if noise is not None and not isinstance(noise, str | Path | dict):
+        raise OptionError(
+            "noise must be a noise.json path, its loaded dict or imubounds.characterize's "
+            f"StaticResult, got {type(noise).__name__} {noise!r:.40}"
+        )
     drive.check()
     with nearest():
         if mode == "full":
