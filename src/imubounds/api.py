@@ -72,6 +72,7 @@ def read_log(
     channels: Iterable[str] | None = None,
     topic: str | None = None,
     dataset: str | None = None,
+    unusual_rate: bool = False,
 ) -> ImuLog:
     """Read a static IMU log file into an :class:`~imubounds.io.log.ImuLog` in SI.
 
@@ -102,6 +103,9 @@ def read_log(
         ROS bag or ULog topic.
     dataset : str, optional
         HDF5 path of the IMU table.
+    unusual_rate : bool
+        Accept a sample rate outside 0.5 Hz..100 kHz (a time column in ms or us
+        labelled s is refused without it; ``--allow-unusual-rate``).
 
     Returns
     -------
@@ -130,6 +134,7 @@ def read_log(
         on_gap=on_gap,
         channels=channels,
         format_options=fmt,
+        unusual_rate=unusual_rate,
     )
 
 

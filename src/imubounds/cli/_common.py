@@ -353,6 +353,7 @@ def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
         "accel_unit": args.accel_unit,
         "time_unit": args.time_unit,
         "on_gap": args.on_gap,
+        "unusual_rate": bool(getattr(args, "allow_unusual_rate", False)),
     }
     if args.gap_tolerance is not None:
         kwargs["gap_tolerance"] = args.gap_tolerance
