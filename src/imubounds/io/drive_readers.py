@@ -445,6 +445,10 @@ def read_vn100(
     if "raw_vnymr" in imu.columns:
         ypr = [np.radians(_nmea_field(imu["raw_vnymr"], k)) for k in (1, 2, 3)]
         ok = np.isfinite(ypr[0]) & np.isfinite(ypr[1]) & np.isfinite(ypr[2])
+        lost = int((~ok).sum())
+        if lost:
+            drive.warn("attitude_nan", lost, f"{imu_path}: {lost} of {t.size} $VNYMR "
+                       "sentence(s) without a finite yaw, pitch and roll: no attitude there")
         if ok.any():
             drive.attitude = AttitudeStream(
                 t=t[ok], roll_rad=ypr[2][ok], pitch_rad=ypr[1][ok],
@@ -514,7 +518,20 @@ def _load(d: Path, rel: str) -> np.ndarray:
             a = np.load(fh, allow_pickle=False)
     except (OSError, ValueError, EOFError) as err:
         raise InputError(f"{p}: cannot load numpy array ({err})") from err
-    return np.asarray(a, dtype=float)
+    try:
+        out = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"{p}: not an array of numbers ({a.dtype})") from err
+    if rel.endswith("/t") and out.ndim == 1 and out.size > 1:
+        back = np.flatnonzero(np.diff(out) < 0)
+        if back.size:
+            k = int(back[0])
+            raise InputError(
+                f"{p}: the time stamps go backwards at row {k + 2} ({out[k]:.6f} then "
+                f"{out[k + 1]:.6f} s; {back.size} step(s) back): the signal is reversed or "
+                "unsorted; sort it by time"
+            )
+    return out
 
 
 #: lateral speed bound the comma2k19 reader states for its road cars (m/s)
