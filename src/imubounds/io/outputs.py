@@ -11,7 +11,11 @@ How imubounds recognises the files it wrote (and so may overwrite):
   the directory's ``run.json``, written last: a directory whose ``run.json``
   lists its files is complete, and the files it lists are imubounds' (and so
   are those of earlier runs it did not replace, listed apart as
-  ``earlier_files``: never part of the complete set). While a
+  ``earlier_files``: never part of the complete set). A later run of the *same*
+  command removes the files the earlier run listed and it did not rewrite (a
+  report and figures beside a ``--no-plot`` run's results), so that a folder
+  holds one run's results; files of another command stay, as ``earlier_files``.
+  While a
   set is being moved in, ``.imubounds-commit.json`` lists the old and the new
   set, so that a run killed in the middle of the move is still recognised
   (the directory has no ``run.json`` then: it does not look complete);
