@@ -395,7 +395,10 @@ def check_noise_json(path: str | Path, where: str = "") -> None:
     import json
 
     lead = f"{where}: " if where else ""
-    p = check_input_path(path, "noise.json", directory=False)
+    try:
+        p = check_input_path(path, "noise.json", directory=False)
+    except InputError as err:
+        raise InputError(f"{lead}noise.json: {err}") from None
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as err:
