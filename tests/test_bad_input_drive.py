@@ -498,8 +498,10 @@ def test_12_18_simulate_noise_refuses_empty_blocks_and_binary_files(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     (tmp_path / "spec.yaml").write_text("gyro: {}\naccel:\n  N: 0.001\n")
+    (tmp_path / "null.yaml").write_text("gyro:\n  N: null\n  B: null\n")
     (tmp_path / "noise.json").write_bytes(bytes(range(256)) * 8)
     for option, name, needle in (("--spec", "spec.yaml", "the gyro block is empty"),
+                                 ("--spec", "null.yaml", "gyro_x.N: None is not a number"),
                                  ("--from-noise", "noise.json", "not a text file")):
         out = tmp_path / f"{name}.csv"
         code, err = _run(["simulate-noise", option, str(tmp_path / name), "--rate", "100",
@@ -603,3 +605,39 @@ def test_property_no_traceback_and_nothing_written_on_refusal(
         else:
             assert (out / "mine.txt").read_text() == "the user's file"
             assert (out / "drive.yaml").is_file()
+
+
+# ----------------------------------------------------------------------------- real formats
+def test_12_comma2k19_gyro_with_reversed_time_is_refused(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = tmp_path / "comma"
+    shutil.copytree(shared_data / "dynamic" / "comma2k19_example1", d)
+    p = d / "processed_log" / "IMU" / "gyro" / "t"
+    with open(p, "rb") as fh:
+        t = np.load(fh)
+    with open(p, "wb") as fh:
+        np.save(fh, t[::-1].copy())
+    before = _snapshot(d)
+    code, err = _run(["convert", str(d), "-o", str(tmp_path / "out"), "-q"], capsys)
+    assert code == 2 and _snapshot(d) == before
+    line = _one_error(err)
+    assert "gyro/t" in line and "go backwards" in line and "sort it by time" in line
+
+
+def test_12_vn100_nan_yaw_and_frozen_fixes_are_counted(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    src = shared_data / "dynamic" / "vn100_bu353_circle"
+    imu, gps = tmp_path / "circle_data_0_imu.csv", tmp_path / "circle_data_0_gps.csv"
+    df = pd.read_csv(src / "circle_data_0_imu.csv")
+    df["raw_vnymr"] = df["raw_vnymr"].str.replace(
+        r"^\$VNYMR,[+-][0-9.]+,", "$VNYMR,nan,", regex=True)
+    df.to_csv(imu, index=False)
+    g = pd.read_csv(src / "circle_data_0_gps.csv")
+    g["latitude"], g["longitude"] = g["latitude"].iloc[0], g["longitude"].iloc[0]
+    g.to_csv(gps, index=False)
+    drive = read_drive([imu, gps])
+    assert drive.counts["attitude_nan"] == df.shape[0] and drive.attitude is None
+    assert drive.counts["gnss_one_spot"] == g.shape[0] - drive.counts.get("gnss_no_fix", 0)
+    assert any("one spot" in w and gps.name in w for w in drive.warnings)

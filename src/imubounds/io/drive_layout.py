@@ -211,6 +211,11 @@ def _check_value(key: str, value: Any, default: Any, where: str) -> Any:
     :data:`_RANGES` where given). A new numeric key needs only its dataclass field (and a
     range row); anything else is an :class:`InputError` naming the key."""
     if value is None:
+        if default is not None:  # a setting that cannot be "not stated"
+            raise InputError(
+                f"{where}: {key} has no value (null); give one, or leave the key out for its "
+                f"default {default!r}"
+            )
         return None
     if key in _CHOICES:
         if not isinstance(value, str):
