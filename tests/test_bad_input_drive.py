@@ -402,6 +402,12 @@ def test_09_20_api_errors_are_imubounds_errors(sim: Path) -> None:
     with pytest.raises(ib.OptionError, match="noise must be a noise.json path.*got int 42"):
         ib.dynamic_margins(drive, noise=42)  # type: ignore[arg-type]
     assert ib.allan(x, 100.0).dev.size > 0  # the same signal, fine, still works
+    with pytest.raises(ib.InputError, match="read_drive takes a path"):
+        read_drive(42)  # type: ignore[arg-type]
+    with pytest.raises(ib.InputError, match="read_log takes a file path"):
+        ib.read_log(42)  # type: ignore[arg-type]
+    with pytest.raises(ib.OptionError, match="seed must be a whole number"):
+        ib.simulate_trip(seed="x")  # type: ignore[arg-type]
 
 
 # ----------------------------------------------------------------------------- static

@@ -122,6 +122,8 @@ def read_log(
     """
     from imubounds.io.registry import read_imu
 
+    if not isinstance(path, str | PathLike):
+        raise InputError(f"read_log takes a file path (str or Path), got {type(path).__name__}")
     fmt = {k: v for k, v in (("topic", topic), ("dataset", dataset)) if v is not None}
     return read_imu(
         Path(path),
@@ -481,6 +483,12 @@ def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> Si
         ``.drive`` (a :class:`~imubounds.io.drive.Drive` with ``truth``) for
         :func:`imubounds.dynamic_margins`, and ``.record`` (inputs outside their bounds).
     """
+    import numpy as np
+
     from imubounds.dynamic.scenario import make_trip
 
-    return make_trip(variant, seed=seed, **overrides)
+    if not isinstance(variant, str):
+        raise OptionError(f"variant must be a scenario name (text), got {variant!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise OptionError(f"seed must be a whole number >= 0, got {seed!r}")
+    return make_trip(variant, seed=int(seed), **overrides)

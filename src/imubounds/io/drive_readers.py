@@ -58,6 +58,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -823,7 +824,17 @@ def read_drive(
     validate:
         Run :func:`~imubounds.io.drive_validate.validate_drive` (default).
     """
-    ps: list[str | Path] = [paths] if isinstance(paths, str | Path) else list(paths)
+    if isinstance(paths, str | os.PathLike):
+        ps: list[str | Path] = [paths]
+    elif isinstance(paths, list | tuple) and paths and all(
+        isinstance(p, str | os.PathLike) for p in paths
+    ):
+        ps = list(paths)
+    else:
+        raise InputError(
+            "read_drive takes a path (str or Path) or a list of paths, got "
+            f"{type(paths).__name__} {paths!r:.40}"
+        )
     layout, files = detect_layout(ps)
     if layout == "generic":
         d = files["dir"]
