@@ -230,6 +230,8 @@ BAD = [
     Bad("08-boolean-gyro", _bool_gyro, ("imu.parquet", "gyro_x_rads", "booleans")),
     Bad("12-nan-compass-calibration", _nan_calibration,
         ("heading.calibration", "measured_deg", "finite")),
+    Bad("12-nan-compass-cal-option", _nan_calibration, ("--compass-cal", "measured_deg"),
+        command="dynamic", extra=("--compass-cal", "{d}/compass_cal.csv")),
     Bad("12-long-truth-row", _long_truth_row, ("truth.csv", "more fields than the header")),
     Bad("12-reversed-imu-time", _reversed_imu, ("imu time_s is not strictly increasing",)),
     Bad("12-all-zero-imu-spec", _zero_spec, ("drive.yaml", "imu.accel_nd", "all 0")),

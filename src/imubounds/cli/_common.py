@@ -139,6 +139,19 @@ def noise_json(text: str) -> str:
     return text
 
 
+def compass_calibration(text: str) -> str:
+    """``--compass-cal``: a swing-calibration CSV whose pairs are all finite (checked when
+    parsed; :func:`imubounds.io.drive_layout.check_calibration`)."""
+    from imubounds.errors import InputError
+    from imubounds.io.drive_layout import check_calibration
+
+    try:
+        check_calibration(text)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
+
+
 def _unit_type(kind: str, examples: str) -> Callable[[str], str]:
     def parse(text: str) -> str:
         from imubounds.io.columns import normalise_unit

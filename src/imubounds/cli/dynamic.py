@@ -17,6 +17,7 @@ from typing import Any
 
 from imubounds.cli._common import (
     add_force_option,
+    compass_calibration,
     declination,
     imu_spec,
     noise_json,
@@ -104,7 +105,7 @@ def register(sub: Any) -> None:
                    help="compass deviation bound after correction")
     f.add_argument("--declination", type=declination, metavar="DEG",
                    help="magnetic declination, east positive")
-    f.add_argument("--compass-cal", metavar="FILE",
+    f.add_argument("--compass-cal", type=compass_calibration, metavar="FILE",
                    help="swing calibration CSV (measured_deg,reference_deg) for the compass "
                    "deviation (default: drive.yaml heading.calibration)")
     f.add_argument("--compass-fit", choices=("auto", "ellipse", "swing", "gnss-course", "none"),

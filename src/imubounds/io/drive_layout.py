@@ -374,6 +374,7 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
 def _check_calibration(path: str, where: str) -> None:
     """Every (measured_deg, reference_deg) pair of a swing calibration must be finite: a
     NaN or empty cell is an error naming the row (the fit would drop it silently)."""
+    check_input_path(path, "compass calibration file", directory=False)
     try:
         data = pd.read_csv(path, comment="#", skipinitialspace=True)
     except (OSError, ValueError, UnicodeDecodeError, pd.errors.ParserError):
@@ -391,6 +392,12 @@ def _check_calibration(path: str, where: str) -> None:
                 f"at data "
                 f"row {i + 1}; every calibration pair must be finite degrees (remove the row)"
             )
+
+
+def check_calibration(path: str | Path) -> None:
+    """A swing-calibration CSV given on its own (``--compass-cal``): a special file is
+    refused unopened, a NaN or empty pair is an error naming the row."""
+    _check_calibration(str(path), "compass calibration")
 
 
 def check_noise_json(path: str | Path, where: str = "") -> None:
