@@ -403,6 +403,8 @@ def test_09_20_api_errors_are_imubounds_errors(sim: Path) -> None:
     drive = read_drive(sim)
     with pytest.raises(ib.OptionError, match="noise must be a noise.json path.*got int 42"):
         ib.dynamic_margins(drive, noise=42)  # type: ignore[arg-type]
+    with pytest.raises(ib.OptionError, match="imu_spec must be a preset name"):
+        ib.dynamic_margins(drive, imu_spec="")
     assert ib.allan(x, 100.0).dev.size > 0  # the same signal, fine, still works
     with pytest.raises(ib.InputError, match="read_drive takes a path"):
         read_drive(42)  # type: ignore[arg-type]
