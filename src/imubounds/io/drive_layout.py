@@ -509,7 +509,7 @@ def _find(d: Path, stem: str) -> Path | None:
 
 
 #: Suffixes of files that look like data tables (a stray one is reported as ignored).
-_TABLE_LIKE = (".csv", ".csv.gz", ".parquet", ".tsv", ".txt", ".gz", ".npy", ".bin")
+_TABLE_LIKE = (".csv", ".csv.gz", ".parquet", ".tsv", ".gz", ".npy")
 
 
 def ignored_files(d: Path, settings: DriveSettings) -> list[str]:
