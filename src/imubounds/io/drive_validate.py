@@ -195,12 +195,13 @@ def _check_imu_rate(f: str, t: np.ndarray, med: float) -> None:
     )
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) indices of the runs of True in ``mask``."""
+def _runs(mask: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
+    """(first, last) indices of the runs of True in ``mask`` at least ``min_len`` long."""
     m = np.concatenate(([False], mask, [False])).astype(np.int8)
     d = np.diff(m)
     starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
-    return list(zip(starts.tolist(), ends.tolist(), strict=True))
+    long = ends - starts + 1 >= min_len
+    return list(zip(starts[long].tolist(), ends[long].tolist(), strict=True))
 
 
 def _check_gyro_spikes(drive: Drive, f: str) -> None:
@@ -244,7 +245,7 @@ def _check_stuck(drive: Drive, f: str) -> None:
             continue
         same = np.diff(col) == 0
         best = None
-        for a, b in _runs(same):
+        for a, b in _runs(same, min_len=99):
             n = b - a + 2  # samples in the run
             span = float(t[b + 1] - t[a])
             if n >= 100 and span >= 5.0 and (best is None or span > best[2]):
