@@ -304,9 +304,13 @@ def _check_gyro_units(drive: Drive, f: str) -> None:
             f"columns (read as {unit}) are in rad/s; name them gyro_*_rads"
         )
     if -1.5 < slope < -0.6:
+        also = (
+            " (or the GNSS file has latitude and longitude swapped, or a sign lost)"
+            if ref[2].startswith("GNSS") else ""
+        )
         raise InputError(
             f"{f}: gyro_z turns against the {ref[2]} (rate ratio {slope:.2f}): the body z axis "
-            "points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit)"
+            f"points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit){also}"
         )
     drive.meta["gyro_heading_rate_ratio"] = slope
 
