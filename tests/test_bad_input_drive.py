@@ -221,6 +221,8 @@ class Bad:
 
 BAD = [
     Bad("01-lat-lon-swapped", _swap, ("gnss.csv", "swapped")),
+    Bad("01-lat-lon-swapped-no-heading", lambda d: (_swap(d), (d / "heading.csv").unlink()),
+        ("gnss.csv", "swapped", "no heading to say which")),
     Bad("02-negative-drift", _drift, ("drive.yaml", "imu.gyro_bias_drift_dps", ">= 0")),
     Bad("02-negative-window", _window, ("drive.yaml", "imu.bias_drift_window_s", "> 0")),
     Bad("02-sample-time-middle", _middle, ("imu.sample_time", "'middle'", "end, centre, start")),

@@ -462,39 +462,66 @@ def _check_gnss_one_spot(drive: Drive, f: str) -> None:
         )
 
 
+def _track_fit(
+    imu_t: np.ndarray, rate: np.ndarray, t: np.ndarray, e: np.ndarray, n: np.ndarray
+) -> tuple[float | None, float, float]:
+    """Slope, R^2 and total turn of the gyro's clockwise rate against the course of a
+    track: the course over baselines of about 5 s (between 1 Hz fixes it is noisy, tens of
+    degrees), turns compared over 5 s steps."""
+    stride = max(1, round(5.0 / float(np.median(np.diff(t)))))
+    e, n, t = e[::stride], n[::stride], t[::stride]
+    de, dn, dt = np.diff(e), np.diff(n), np.diff(t)
+    keep = np.hypot(de, dn) / dt >= 3.0
+    if keep.sum() < 5:
+        return None, 0.0, 0.0
+    tm = (0.5 * (t[1:] + t[:-1]))[keep]
+    course = np.unwrap(np.arctan2(de, dn)[keep])
+    return _rate_slope(imu_t, rate, tm, course, min_step=5.0)
+
+
 def _check_track_turns(drive: Drive) -> None:
-    """The track of the fixes turns against the gyro (checked against a heading or yaw
-    first): latitude and longitude are swapped, or one has the wrong sign."""
+    """The track of the fixes turns against the gyro, or only fits it with latitude and
+    longitude exchanged: the coordinates are swapped (or a sign lost). With a heading or
+    yaw stream the gyro was checked against it first, so the fixes are the odd one out;
+    without one, a gyro whose z axis points down looks the same and both are named."""
     g, imu = drive.gnss, drive.imu
     if g is None or imu is None or not np.isfinite(imu.gyro[:, 2]).all():
         return
-    if drive.heading is None and (drive.attitude is None or drive.attitude.yaw_rad is None):
-        return  # no independent heading: the mount check already compared the course
+    checked = drive.heading is not None or (
+        drive.attitude is not None and drive.attitude.yaw_rad is not None
+    )
     ok = g.usable()
     if ok.sum() < 10:
         return
     lat, lon, t = g.lat_deg[ok], g.lon_deg[ok], g.t[ok]
     if np.max(np.abs(lat)) > 90 or np.max(np.abs(lon)) > 180:
         return
-    # the course between consecutive 1 Hz fixes is noisy (tens of degrees): take the
-    # course over baselines of about 5 s, and compare turns over 5 s steps
-    stride = max(1, round(5.0 / float(np.median(np.diff(t)))))
+    rate = -imu.gyro[:, 2]
     e, n = _local_en(lat, lon)
-    e, n, t = e[::stride], n[::stride], t[::stride]
-    de, dn, dt = np.diff(e), np.diff(n), np.diff(t)
-    keep = np.hypot(de, dn) / dt >= 3.0
-    if keep.sum() < 5:
+    slope, r2, turned = _track_fit(imu.t, rate, t, e, n)
+    if slope is None or turned < math.radians(90.0):
         return
-    tm = (0.5 * (t[1:] + t[:-1]))[keep]
-    course = np.unwrap(np.arctan2(de, dn)[keep])
-    slope, r2, turned = _rate_slope(imu.t, -imu.gyro[:, 2], tm, course, min_step=5.0)
-    if slope is None or turned < math.radians(90.0) or r2 < 0.1:
-        return
-    if slope < -0.3:
+    if 0.6 < slope < 1.5 and r2 > 0.5:
+        return  # the track turns with the gyro
+    f = _file(drive, "gnss")
+    swapped_ok = False
+    if np.max(np.abs(lon)) <= 90:
+        es, ns = _local_en(lon, lat)  # the other reading: lon_deg is the latitude
+        s2, r2s, _ = _track_fit(imu.t, rate, t, es, ns)
+        swapped_ok = s2 is not None and 0.6 < s2 < 1.5 and r2s > 0.5
+    mirrored = slope < -0.3 and r2 > 0.1
+    if checked and (swapped_ok or mirrored):
+        fits = ", and fits them with lat_deg and lon_deg exchanged" if swapped_ok else ""
         raise InputError(
-            f"{_file(drive, 'gnss')}: the track of the fixes turns against the gyro and the "
-            f"heading (rate ratio {slope:.2f}): lat_deg and lon_deg are swapped, or one has the "
-            "wrong sign; fix the columns"
+            f"{f}: the track of the fixes turns against the gyro and the heading (rate ratio "
+            f"{slope:.2f}{fits}): lat_deg and lon_deg are swapped, or one has the wrong sign; "
+            "fix the columns"
+        )
+    if swapped_ok or slope < -0.5:
+        raise InputError(
+            f"{f}: the track of the fixes turns against the gyro (rate ratio {slope:.2f}) and "
+            "there is no heading to say which is wrong: lat_deg and lon_deg are swapped (or a "
+            "sign lost), or the IMU's z axis points down (fix imu_axes)"
         )
 
 
