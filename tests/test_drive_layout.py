@@ -204,7 +204,7 @@ def test_every_mount_reads_to_the_same_body_imu(tmp_path: Path) -> None:
 
 
 def test_noise_json_is_relative_to_the_yaml_and_presets_are_checked(tmp_path: Path) -> None:
-    (tmp_path / "noise.json").write_text("{}")
+    (tmp_path / "noise.json").write_text('{"channels": {"accel_x": {}, "gyro_z": {}}}')
     s = parse_settings({"imu": {"noise_json": "noise.json"}}, "x/drive.yaml", base_dir=tmp_path)
     assert s.imu.noise_json == str(tmp_path / "noise.json")
     with pytest.raises(InputError, match="imu.preset: unknown IMU preset 'nope'"):

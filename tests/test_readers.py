@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imubounds.errors import InputError
+from imubounds.errors import InputError, UnitsError
 from imubounds.io import (
     ReadOptions,
     bundled_static_log,
@@ -214,7 +214,9 @@ def test_time_unit_inferred_and_override(tmp_path: Path) -> None:
     log = read_imu(p)
     assert log.rate_hz == pytest.approx(200.0)
     assert any("ns was assumed" in w for w in log.warnings)
-    log = read_imu(p, time_unit="us")
+    with pytest.raises(UnitsError, match="0.2 Hz, a rate no IMU log has.*--allow-unusual-rate"):
+        read_imu(p, time_unit="us")  # a rate no IMU log has: confirmed explicitly only
+    log = read_imu(p, time_unit="us", unusual_rate=True)
     assert log.rate_hz == pytest.approx(0.2)
 
 

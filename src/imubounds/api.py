@@ -72,6 +72,7 @@ def read_log(
     channels: Iterable[str] | None = None,
     topic: str | None = None,
     dataset: str | None = None,
+    unusual_rate: bool = False,
 ) -> ImuLog:
     """Read a static IMU log file into an :class:`~imubounds.io.log.ImuLog` in SI.
 
@@ -102,6 +103,9 @@ def read_log(
         ROS bag or ULog topic.
     dataset : str, optional
         HDF5 path of the IMU table.
+    unusual_rate : bool
+        Accept a sample rate outside 0.5 Hz..100 kHz (a time column in ms or us
+        labelled s is refused without it; ``--allow-unusual-rate``).
 
     Returns
     -------
@@ -118,6 +122,8 @@ def read_log(
     """
     from imubounds.io.registry import read_imu
 
+    if not isinstance(path, str | PathLike):
+        raise InputError(f"read_log takes a file path (str or Path), got {type(path).__name__}")
     fmt = {k: v for k, v in (("topic", topic), ("dataset", dataset)) if v is not None}
     return read_imu(
         Path(path),
@@ -130,6 +136,7 @@ def read_log(
         on_gap=on_gap,
         channels=channels,
         format_options=fmt,
+        unusual_rate=unusual_rate,
     )
 
 
@@ -476,6 +483,12 @@ def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> Si
         ``.drive`` (a :class:`~imubounds.io.drive.Drive` with ``truth``) for
         :func:`imubounds.dynamic_margins`, and ``.record`` (inputs outside their bounds).
     """
+    import numpy as np
+
     from imubounds.dynamic.scenario import make_trip
 
-    return make_trip(variant, seed=seed, **overrides)
+    if not isinstance(variant, str):
+        raise OptionError(f"variant must be a scenario name (text), got {variant!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise OptionError(f"seed must be a whole number >= 0, got {seed!r}")
+    return make_trip(variant, seed=int(seed), **overrides)

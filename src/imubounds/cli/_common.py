@@ -87,6 +87,71 @@ def gap_factor(text: str) -> float:
     return x
 
 
+def declination(text: str) -> float:
+    """A magnetic declination in degrees, east positive, within +-180 (drive.yaml's range)."""
+    x = _number(text)
+    if not -180.0 <= x <= 180.0:
+        raise argparse.ArgumentTypeError(f"must be within -180..180 deg, got {text}")
+    return x
+
+
+def imu_spec(text: str) -> str:
+    """``--imu-spec``: a preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``,
+    checked when parsed (not empty; datasheet figures not all zero)."""
+    t = text.strip()
+    if not t:
+        raise argparse.ArgumentTypeError("is empty; give a preset name (mtx, vn100) or figures")
+    try:
+        if "=" in t:
+            from imubounds.dynamic.estimator.budget import parse_datasheet
+
+            vals = parse_datasheet(t)
+            if not any(vals.values()):
+                raise argparse.ArgumentTypeError(
+                    "every figure is 0: no IMU is noiseless; give the datasheet's figures"
+                )
+            zero = [k for k in ("accel_nd", "gyro_nd") if vals[k] == 0]
+            if zero:
+                raise argparse.ArgumentTypeError(
+                    f"{', '.join(zero)} = 0: no IMU is noiseless; give the datasheet's noise "
+                    "density"
+                )
+        else:
+            from imubounds.presets import get_preset
+
+            get_preset(t)
+    except OptionError as err:
+        raise argparse.ArgumentTypeError(str(err).replace("--imu-spec ", "")) from None
+    return t
+
+
+def noise_json(text: str) -> str:
+    """``--static``: a noise.json of ``imubounds static`` (checked when parsed: text, JSON,
+    figures for the accelerometers and the gyros; :func:`imubounds.io.drive_layout.
+    check_noise_json`)."""
+    from imubounds.errors import InputError
+    from imubounds.io.drive_layout import check_noise_json
+
+    try:
+        check_noise_json(text)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
+
+
+def compass_calibration(text: str) -> str:
+    """``--compass-cal``: a swing-calibration CSV whose pairs are all finite (checked when
+    parsed; :func:`imubounds.io.drive_layout.check_calibration`)."""
+    from imubounds.errors import InputError
+    from imubounds.io.drive_layout import check_calibration
+
+    try:
+        check_calibration(text)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
+
+
 def _unit_type(kind: str, examples: str) -> Callable[[str], str]:
     def parse(text: str) -> str:
         from imubounds.io.columns import normalise_unit
@@ -301,6 +366,7 @@ def read_log_from_args(path: str, args: argparse.Namespace) -> Any:
         "accel_unit": args.accel_unit,
         "time_unit": args.time_unit,
         "on_gap": args.on_gap,
+        "unusual_rate": bool(getattr(args, "allow_unusual_rate", False)),
     }
     if args.gap_tolerance is not None:
         kwargs["gap_tolerance"] = args.gap_tolerance

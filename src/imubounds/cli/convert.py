@@ -43,7 +43,14 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.io.drive_layout import FILES, FORMATS, SETTINGS_FILE, write_layout
+    from imubounds.io.drive_layout import (
+        CALIBRATION_FILE,
+        FILES,
+        FORMATS,
+        NOISE_FILE,
+        SETTINGS_FILE,
+        write_layout,
+    )
     from imubounds.io.drive_readers import read_drive
     from imubounds.io.outputs import OutputSet
 
@@ -54,7 +61,9 @@ def run(args: argparse.Namespace) -> int:
     inputs = [*args.input, *([args.settings] if args.settings else [])]
     suffix = FORMATS[args.format]
     with OutputSet(args.out, force=args.force, inputs=inputs) as out:
-        out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE])
+        extra = [CALIBRATION_FILE] if drive.settings.heading.calibration is not None else []
+        extra += [NOISE_FILE] if drive.settings.imu.noise_json is not None else []
+        out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE, *extra])
         write_layout(drive, out.staging, fmt=args.format)
         out.record(getattr(args, "argv", None), command_name="convert")
     if not args.quiet:

@@ -17,7 +17,10 @@ from typing import Any
 
 from imubounds.cli._common import (
     add_force_option,
-    finite_float,
+    compass_calibration,
+    declination,
+    imu_spec,
+    noise_json,
     nonneg_float,
     positive_float,
     positive_int,
@@ -51,10 +54,12 @@ def register(sub: Any) -> None:
     )
     src = p.add_mutually_exclusive_group()
     src.add_argument(
-        "--static", metavar="NOISE_JSON", help="IMU noise terms from 'imubounds static'"
+        "--static", type=noise_json, metavar="NOISE_JSON",
+        help="IMU noise terms from 'imubounds static'"
     )
     src.add_argument(
         "--imu-spec",
+        type=imu_spec,
         metavar="SPEC",
         help="a preset (mtx, vn100) or 'accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..' "
         "(m/s^2/sqrt(Hz), m/s^2, deg/s/sqrt(Hz), deg/s); default drive.yaml, else mtx",
@@ -98,9 +103,9 @@ def register(sub: Any) -> None:
                    help="1-sigma compass noise")
     f.add_argument("--heading-deviation", type=nonneg_float, metavar="DEG",
                    help="compass deviation bound after correction")
-    f.add_argument("--declination", type=finite_float, metavar="DEG",
+    f.add_argument("--declination", type=declination, metavar="DEG",
                    help="magnetic declination, east positive")
-    f.add_argument("--compass-cal", metavar="FILE",
+    f.add_argument("--compass-cal", type=compass_calibration, metavar="FILE",
                    help="swing calibration CSV (measured_deg,reference_deg) for the compass "
                    "deviation (default: drive.yaml heading.calibration)")
     f.add_argument("--compass-fit", choices=("auto", "ellipse", "swing", "gnss-course", "none"),

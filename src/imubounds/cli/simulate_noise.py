@@ -222,6 +222,41 @@ def build_spec(args: argparse.Namespace) -> Any:
     return spec
 
 
+def _check_text(path: str, option: str) -> None:
+    """A spec or noise.json must be UTF-8 text: a binary file is an error naming it."""
+    from imubounds.errors import InputError
+
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 20)
+        head.decode("utf-8")
+        ok = b"\0" not in head
+    except UnicodeDecodeError as err:
+        ok = err.start >= len(head) - 4  # a character cut by the 1 MiB read is fine
+    except OSError as err:
+        raise InputError(f"{path} ({option}): cannot read ({err.strerror or err})") from err
+    if not ok:
+        raise InputError(
+            f"{path} ({option}): not a text file (binary, or not UTF-8); give the noise.json "
+            "of 'imubounds static' or a YAML/JSON noise spec"
+        )
+
+
+def _check_figures(spec: Any) -> None:
+    """Every channel of the spec must have a noise figure: an empty block (``gyro: {}``)
+    would simulate exact zeros."""
+    empty = [c for c, ax in spec.channels.items()
+             if not any(getattr(ax, k, 0) for k in ("Q", "N", "B", "K", "R", "bias_sigma",
+                                                    "gauss_markov", "ar"))]
+    if empty:
+        kinds = sorted({c.split("_")[0] for c in empty})
+        raise OptionError(
+            f"{spec.name}: {', '.join(empty)} ha{'s' if len(empty) == 1 else 've'} no noise "
+            f"figure (the {' and '.join(kinds)} block is empty or all zero): give at least one "
+            "of Q, N, B, K, R, or leave the block out"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     from imubounds.cli._common import Reporter
     from imubounds.io.outputs import check_output_file, output_file, write_json
@@ -255,7 +290,11 @@ def run(args: argparse.Namespace) -> int:
             args.save_spec, force=args.force, inputs=inputs, option="--save-spec",
             others=[args.out],
         )
+    for option, path in (("--from-noise", args.from_noise), ("--spec", args.spec)):
+        if path is not None:
+            _check_text(path, option)
     spec = build_spec(args)
+    _check_figures(spec)
     if args.duration is not None and args.samples is not None:
         raise OptionError("give --duration or --samples, not both")
     duration = sim.parse_duration(args.duration) if args.duration is not None else None

@@ -118,6 +118,12 @@ def register(sub: Any) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages on stderr")
     add_outofcore_options(p)
     add_log_options(p)
+    p.add_argument(
+        "--allow-unusual-rate",
+        action="store_true",
+        help="accept a sample rate outside 0.5 Hz..100 kHz (refused by default: a time "
+        "column in ms or us labelled s gives such a rate)",
+    )
     p.set_defaults(func=run)
 
 
@@ -154,6 +160,7 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
         "time_unit": args.time_unit,
         "on_gap": args.on_gap,
         "gap_tolerance": args.gap_tolerance,
+        "unusual_rate": args.allow_unusual_rate,
     }
 
 

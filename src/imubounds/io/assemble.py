@@ -74,6 +74,10 @@ class ReadOptions:
         ``"refuse"`` (raise), ``"split"`` (segments) or ``"ignore"`` (warn).
     channels:
         Restrict to these canonical channels.
+    unusual_rate:
+        Accept a sample rate outside :data:`~imubounds.io.validate.PLAUSIBLE_RATE_HZ`
+        (0.5 Hz to 100 kHz; ``--allow-unusual-rate``). Without it such a rate (a time
+        column in ms or us labelled s) is an error.
     """
 
     rate_hz: float | None = None
@@ -85,6 +89,7 @@ class ReadOptions:
     on_gap: OnGap = "refuse"
     channels: tuple[str, ...] | None = None
     extra: dict[str, object] = field(default_factory=dict)
+    unusual_rate: bool = False
 
     def validated(self) -> ReadOptions:
         """Check every option; returns a copy with units normalised.
@@ -98,6 +103,12 @@ class ReadOptions:
             r = float(self.rate_hz)
             if not np.isfinite(r) or r <= 0:
                 raise OptionError(f"--rate must be a positive number of Hz, got {self.rate_hz!r}")
+            lo, hi = PLAUSIBLE_RATE_HZ
+            if not lo <= r <= hi and not self.unusual_rate:
+                raise OptionError(
+                    f"--rate {r:g} Hz is a rate no IMU log has ({lo:g} Hz to {hi:g} Hz); if it "
+                    "is right, confirm it with --allow-unusual-rate (unusual_rate=True)"
+                )
         check_on_gap(self.on_gap)
         if self.gap_tolerance is not None:
             g = float(self.gap_tolerance)
@@ -151,6 +162,7 @@ class ReadOptions:
             on_gap=self.on_gap,
             channels=channels,
             extra=dict(self.extra),
+            unusual_rate=bool(self.unusual_rate),
         )
 
 
@@ -315,7 +327,7 @@ def assemble_logs(
         warnings.append(f"time column {time.source!r}: Kalibr layout, time stamps taken as ns")
     unit = resolve_time_unit(
         med_native, source=source, column=time.source, stated=stated,
-        override=opts.time_unit, warnings=warnings,
+        override=opts.time_unit, warnings=warnings, unusual_rate=opts.unusual_rate,
     )
     factor = TIME_UNITS[unit]
     if tv.dtype.kind == "i":

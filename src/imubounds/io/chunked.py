@@ -346,7 +346,8 @@ def _time_info(
         raise InputError(f"{source}: time stamps do not increase; check the time column")
     med = float(np.median(pos))
     unit = resolve_time_unit(med, source=source, column=column, stated=stated,
-                             override=opts.time_unit, warnings=warnings)
+                             override=opts.time_unit, warnings=warnings,
+                             unusual_rate=opts.unusual_rate)
     factor = TIME_UNITS[unit]
     med_dt, gap_factor = gap_threshold(pos.astype(np.float64) * factor, opts.gap_tolerance)
     rate = rate_from_step(med_dt, opts.rate_hz, source=source, column=column)
@@ -373,6 +374,7 @@ def open_chunked(
     time_unit: str | None = None,
     on_gap: str = "refuse",
     gap_tolerance: float | None = None,
+    unusual_rate: bool = False,
 ) -> ChunkedLog:
     """Open a (possibly huge) IMU log for chunked reading.
 
@@ -387,6 +389,7 @@ def open_chunked(
     opts = ReadOptions(
         rate_hz=rate_hz, columns=columns, gyro_unit=gyro_unit, accel_unit=accel_unit,
         time_unit=time_unit, gap_tolerance=gap_tolerance, on_gap=on_gap,  # type: ignore[arg-type]
+        unusual_rate=unusual_rate,
     ).validated()
     p = check_input_path(path)
     if p.stat().st_size == 0:

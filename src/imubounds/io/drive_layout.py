@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -89,6 +90,10 @@ FILES = ("imu", "gnss", "velocity", "heading", "attitude", "truth")
 SETTINGS_FILE = "drive.yaml"
 #: where :func:`write_layout` writes a swing calibration held in memory
 CALIBRATION_FILE = "compass_cal.csv"
+#: where :func:`write_layout` copies the static noise.json that ``imu.noise_json`` names
+NOISE_FILE = "imu_noise.json"
+#: every file :func:`write_layout` may write besides the tables
+EXTRA_FILES = (CALIBRATION_FILE, NOISE_FILE)
 SUFFIXES = (".csv", ".csv.gz", ".parquet")
 FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "parquet": ".parquet"}
 
@@ -187,37 +192,67 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "imu.gyro_turn_on_dps": (0.0, True, None),
     "imu.scale_factor": (0.0, True, 1.0),
     "imu.misalignment_deg": (0.0, True, 90.0),
+    "imu.accel_bias_drift_mps2": (0.0, True, None),
+    "imu.gyro_bias_drift_dps": (0.0, True, None),
+    "imu.bias_drift_window_s": (0.0, False, None),
 }
+_CHOICES["imu.sample_time"] = ("end", "centre", "start")
+#: Settings that are texts: file names (resolved against drive.yaml's folder) and names.
 _PATH_KEYS = ("imu.noise_json", "heading.calibration")
+_TEXT_KEYS = ("imu.preset",)
 _INFO_KEYS = ("converted_from", "notes")
+#: drive.yaml larger than this is refused unread (a settings file is a few hundred bytes).
+SETTINGS_MAX_BYTES = 1 << 20
 
 
 def _check_value(key: str, value: Any, default: Any, where: str) -> Any:
+    """One ``drive.yaml`` value, typed by the key table: a choice of :data:`_CHOICES`, a
+    text of :data:`_PATH_KEYS`/:data:`_TEXT_KEYS`, else a finite number (range of
+    :data:`_RANGES` where given). A new numeric key needs only its dataclass field (and a
+    range row); anything else is an :class:`InputError` naming the key."""
     if value is None:
+        if default is not None:  # a setting that cannot be "not stated"
+            raise InputError(
+                f"{where}: {key} has no value (null); give one, or leave the key out for its "
+                f"default {default!r}"
+            )
         return None
     if key in _CHOICES:
-        text = str(value).strip().lower()
+        if not isinstance(value, str):
+            raise InputError(
+                f"{where}: {key} is {value!r}; use one of {', '.join(_CHOICES[key])}"
+            )
+        text = value.strip().lower()
+        if key == "imu.sample_time" and text == "center":
+            text = "centre"
         if text not in _CHOICES[key]:
             raise InputError(
                 f"{where}: {key} is {value!r}; use one of {', '.join(_CHOICES[key])}"
             )
         return text
-    if key in _PATH_KEYS or key == "imu.preset":
+    if key in _PATH_KEYS or key in _TEXT_KEYS:
+        if isinstance(value, np.ndarray) and key == "heading.calibration":
+            return value  # swing pairs held in memory (a simulated drive)
         if not isinstance(value, str) or not value.strip():
-            raise InputError(f"{where}: {key} must be a text (a file name or preset name)")
+            raise InputError(
+                f"{where}: {key} must be a text (a file name or preset name), got {value!r}"
+            )
         return value.strip()
-    if isinstance(default, float) or key in _RANGES:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise InputError(f"{where}: {key} must be a number, got {value!r}")
-        x = float(value)
-        lo, inclusive, hi = _RANGES.get(key, (-math.inf, True, None))
-        if not math.isfinite(x) or x < lo or (x == lo and not inclusive):
-            rel = ">=" if inclusive else ">"
-            raise InputError(f"{where}: {key} must be a finite number {rel} {lo:g}, got {value!r}")
-        if hi is not None and x > hi:
-            raise InputError(f"{where}: {key} must be at most {hi:g}, got {value!r}")
-        return x
-    return value
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        kind = "a text" if isinstance(value, str) else type(value).__name__
+        raise InputError(
+            f"{where}: {key} must be a number, got {value!r} ({kind}); write it without "
+            "quotes, in the unit of its name"
+        )
+    x = float(value)
+    lo, inclusive, hi = _RANGES.get(key, (-math.inf, True, None))
+    if not math.isfinite(x) or x < lo or (x == lo and not inclusive):
+        rel = ">=" if inclusive else ">"
+        what = f" {rel} {lo:g}" if math.isfinite(lo) else ""
+        raise InputError(f"{where}: {key} must be a finite number{what}, got {value!r}")
+    if hi is not None and x > hi:
+        raise InputError(f"{where}: {key} must be at most {hi:g}, got {value!r}")
+    return x
 
 
 def _section(
@@ -251,8 +286,14 @@ def _section(
 def _axes(value: Any, key: str, where: str) -> tuple[str, str, str]:
     if isinstance(value, str):
         value = [v for v in value.replace(",", " ").split() if v]
-    if not isinstance(value, list | tuple):
-        raise InputError(f"{where}: {key} must be a list like [x, -z, y], got {value!r}")
+    if (
+        not isinstance(value, list | tuple)
+        or len(value) != 3
+        or not all(isinstance(a, str) for a in value)
+    ):
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise InputError(f"{where}: {key} must be a list like [x, -z, y], got {shown}")
     try:
         axes_matrix([str(a) for a in value])
     except InputError as err:
@@ -297,18 +338,23 @@ def parse_settings(
         kw["mag_axes"] = _axes(data["mag_axes"], "mag_axes", where)
     lever = data.get("lever_arm_m")
     if lever is not None:
-        try:
-            lv = tuple(float(x) for x in lever)
-        except (TypeError, ValueError):
-            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m") from None
-        if len(lv) != 3 or not all(math.isfinite(x) for x in lv):
-            raise InputError(f"{where}: lever_arm_m must be [x, y, z] in m (finite numbers)")
-        kw["lever_arm_m"] = lv
+        if (
+            not isinstance(lever, list | tuple)
+            or len(lever) != 3
+            or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in lever)
+            or not all(math.isfinite(float(x)) for x in lever)
+        ):
+            raise InputError(
+                f"{where}: lever_arm_m must be a list of three finite numbers [x, y, z] in m, "
+                f"got {lever!r}"
+            )
+        kw["lever_arm_m"] = tuple(float(x) for x in lever)
     s = DriveSettings(**kw, assumed=assumed, defaulted=defaulted)
     _resolve_imu_noise(s, where, base_dir)
     if isinstance(s.heading.calibration, str):
         s.heading.calibration = _resolve(s.heading.calibration, "heading.calibration", where,
                                          base_dir)
+        _check_calibration(s.heading.calibration, where)
     if s.heading.deviation_deg is None:
         assumed.append("heading.deviation_deg: from the compass calibration's residual (default)")
     return s
@@ -325,12 +371,76 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
     return str(p.absolute())  # absolute: it must not be joined to the drive's folder again
 
 
+def _check_calibration(path: str, where: str) -> None:
+    """Every (measured_deg, reference_deg) pair of a swing calibration must be finite: a
+    NaN or empty cell is an error naming the row (the fit would drop it silently)."""
+    check_input_path(path, "compass calibration file", directory=False)
+    try:
+        data = pd.read_csv(path, comment="#", skipinitialspace=True)
+    except (OSError, ValueError, UnicodeDecodeError, pd.errors.ParserError):
+        return  # unreadable: the calibration reader says why, naming the file
+    data.columns = [str(c).strip() for c in data.columns]
+    for name in ("measured_deg", "reference_deg"):
+        if name not in data.columns:
+            continue
+        v = pd.to_numeric(data[name], errors="coerce").to_numpy(float)
+        bad = ~np.isfinite(v)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{where}: heading.calibration {path}: {name} is {str(data[name].iloc[i])!r} "
+                f"at data "
+                f"row {i + 1}; every calibration pair must be finite degrees (remove the row)"
+            )
+
+
+def check_calibration(path: str | Path) -> None:
+    """A swing-calibration CSV given on its own (``--compass-cal``): a special file is
+    refused unopened, a NaN or empty pair is an error naming the row."""
+    _check_calibration(str(path), "compass calibration")
+
+
+def check_noise_json(path: str | Path, where: str = "") -> None:
+    """A noise.json of ``imubounds static`` for the dynamic analysis: UTF-8 JSON with a
+    ``channels`` object that has figures for the accelerometers *and* the gyros (with one
+    kind only, the other would silently take the default IMU's figures)."""
+    import json
+
+    lead = f"{where}: " if where else ""
+    try:
+        p = check_input_path(path, "noise.json", directory=False)
+    except InputError as err:
+        raise InputError(f"{lead}noise.json: {err}") from None
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0][:120]
+        raise InputError(
+            f"{lead}{p}: cannot read as the noise.json of 'imubounds static' ({first})"
+        ) from err
+    chans = data.get("channels") if isinstance(data, dict) else None
+    if not isinstance(chans, dict) or not chans:
+        raise InputError(
+            f"{lead}{p}: no 'channels' object; give the noise.json of 'imubounds static'"
+        )
+    kinds = {str(c).split("_")[0] for c in chans}
+    missing = [k for k in ("accel", "gyro") if k not in kinds]
+    if missing:
+        raise InputError(
+            f"{lead}{p}: noise.json has no {missing[0]} channel (only "
+            f"{', '.join(sorted(map(str, chans)))}); the {missing[0]}s would take the default "
+            f"IMU's figures: characterise a log with {missing[0]} columns, or give every "
+            "figure with --imu-spec / drive.yaml imu"
+        )
+
+
 def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None) -> None:
     imu = s.imu
     if imu.noise_json is not None and imu.preset is not None:
         raise InputError(f"{where}: give imu.noise_json or imu.preset, not both")
     if imu.noise_json is not None:
         imu.noise_json = _resolve(imu.noise_json, "imu.noise_json", where, base_dir)
+        check_noise_json(imu.noise_json, f"{where}: imu.noise_json")
     if imu.preset is not None:
         from imubounds.presets import get_preset
 
@@ -339,6 +449,12 @@ def _resolve_imu_noise(s: DriveSettings, where: str, base_dir: str | Path | None
         except OptionError as err:
             raise InputError(f"{where}: imu.preset: {err}") from None
     datasheet = ("accel_nd", "accel_bs", "gyro_nd", "gyro_bs")
+    given = [k for k in datasheet if getattr(imu, k) is not None]
+    if given and not any(getattr(imu, k) for k in given):
+        raise InputError(
+            f"{where}: imu.{', imu.'.join(given)} are all 0: no IMU is noiseless; give the "
+            "datasheet's figures or leave them out"
+        )
     if imu.noise_json is None and imu.preset is None and all(
         getattr(imu, k) is None for k in datasheet
     ):
@@ -380,18 +496,70 @@ def settings_to_dict(s: DriveSettings, *, keep_defaults: bool = False) -> dict[s
 
 
 def _find(d: Path, stem: str) -> Path | None:
+    """The table of stream ``stem`` in ``d``; two files for one stream are refused."""
+    import os
+
+    found = [f"{stem}{s}" for s in SUFFIXES if os.path.lexists(d / f"{stem}{s}")]
+    if len(found) > 1:
+        raise InputError(
+            f"{d}: {' and '.join(found)} are two files for the {stem} stream; keep one "
+            "(move or delete the other)"
+        )
     return existing_file(d, stem, SUFFIXES)
+
+
+#: Suffixes of files that look like data tables (a stray one is reported as ignored).
+_TABLE_LIKE = (".csv", ".csv.gz", ".parquet", ".tsv", ".gz", ".npy")
+
+
+def ignored_files(d: Path, settings: DriveSettings) -> list[str]:
+    """Data files in the layout folder ``d`` that no stream reads (``gps.csv``): not a
+    layout table, not named by ``drive.yaml`` and not an output an imubounds run
+    recorded there (``run.json``)."""
+    from imubounds.io.outputs import recorded_files
+
+    used = {SETTINGS_FILE, "scenario.json", "run.json"}
+    for name in FILES:
+        used |= {f"{name}{s}" for s in SUFFIXES}
+    for ref in (settings.imu.noise_json, settings.heading.calibration):
+        if isinstance(ref, str):
+            used.add(Path(ref).name)
+    used |= recorded_files(d)
+    out = []
+    try:
+        entries = sorted(p.name for p in d.iterdir() if p.is_file())
+    except OSError:
+        return []
+    for name in entries:
+        if name in used or name.startswith("."):
+            continue
+        if name.lower().endswith(_TABLE_LIKE):
+            out.append(name)
+    return out
 
 
 def read_table(path: Path) -> pd.DataFrame:
     """One layout table (CSV, CSV.gz or Parquet) with a ``time_s`` column and >= 1 row."""
+    import zlib
+
     check_input_path(path, "drive table", directory=False)
     try:
         if path.name.endswith(".parquet"):
             df = pd.read_parquet(path)
         else:
             df = pd.read_csv(path, comment="#", skipinitialspace=True)
-    except (OSError, ValueError, ImportError, pd.errors.ParserError) as err:
+    except EOFError as err:
+        raise InputError(
+            f"{path}: the compressed file ends early (cut off while it was written or "
+            "copied); copy it again or decompress what is left"
+        ) from err
+    except pd.errors.ParserError as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise InputError(
+            f"{path}: cannot read as a table ({first}): a row has more fields than the "
+            "header; fix or remove that row"
+        ) from err
+    except (OSError, ValueError, ImportError, zlib.error) as err:
         first = (str(err).splitlines() or [type(err).__name__])[0]
         raise InputError(f"{path}: cannot read as a table ({first})") from err
     df.columns = [str(c).strip() for c in df.columns]
@@ -416,8 +584,30 @@ def _col(df: pd.DataFrame, name: str, where: str, required: bool = False) -> np.
             )
         return None
     raw = df[name]
-    if pd.api.types.is_numeric_dtype(raw.dtype):  # parsed as numbers (or booleans) already
+    dtype = raw.dtype
+    if pd.api.types.is_bool_dtype(dtype) and name != "fix":
+        raise InputError(
+            f"{where}: column {name} holds booleans (true/false), not numbers; write the "
+            "values in the unit of the column name"
+        )
+    if pd.api.types.is_datetime64_any_dtype(dtype):
+        raise InputError(
+            f"{where}: column {name} holds dates and times ({dtype}), not seconds; write "
+            "seconds on the drive's one clock (e.g. (t - t0) / 1 s, as in every table)"
+        )
+    if pd.api.types.is_timedelta64_dtype(dtype):
+        return np.asarray(raw.dt.total_seconds().to_numpy(float))  # durations: in s
+    if pd.api.types.is_complex_dtype(dtype):
+        raise InputError(f"{where}: column {name} holds complex numbers; write real values")
+    if pd.api.types.is_numeric_dtype(dtype):  # parsed as numbers already
         return raw.to_numpy(float)
+    is_bool = raw.map(lambda x: isinstance(x, bool | np.bool_))
+    if is_bool.any():
+        i = int(np.flatnonzero(is_bool.to_numpy())[0])
+        raise InputError(
+            f"{where}: column {name}, data row {i + 1}: {raw.iloc[i]!r} is a boolean, not a "
+            "number"
+        )
     v = pd.to_numeric(raw, errors="coerce")
     bad = v.isna() & raw.notna() & (raw.astype(str).str.strip().str.lower() != "nan")
     if bad.any():
@@ -746,6 +936,15 @@ def read_layout(directory: str | Path, settings: DriveSettings | None = None) ->
             "accel_{x,y,z}_<unit>) and at least one of gnss.csv, velocity.csv, heading.csv"
         )
     drive = drive_from_tables(tables, settings, source=str(d), layout="generic")
+    stray = ignored_files(d, settings)
+    if stray:
+        drive.warn(
+            "layout_ignored_files",
+            len(stray),
+            f"{d}: {len(stray)} file(s) match no stream of the drive layout and are ignored: "
+            f"{', '.join(stray[:5])}{' ...' if len(stray) > 5 else ''} (the tables are "
+            f"{', '.join(FILES)}; rename a table to its stream's name)",
+        )
     if info.get("notes"):
         drive.notes[:0] = [str(n) for n in info["notes"]]
     if info.get("converted_from"):
@@ -761,13 +960,7 @@ def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
         s.assumed.insert(0, f"{p} is absent: every setting is its documented default")
         return s, {}
     check_input_path(p, "drive settings", directory=False)
-    import yaml
-
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        first = (str(err).splitlines() or [type(err).__name__])[0]
-        raise InputError(f"{p}: cannot read ({first})") from err
+    data = load_settings_yaml(p)
     info: dict[str, Any] = {}
     if isinstance(data, dict):
         for k in _INFO_KEYS:
@@ -776,6 +969,39 @@ def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
         if "notes" in info and not isinstance(info["notes"], list):
             raise InputError(f"{p}: notes must be a list of texts")
     return parse_settings(data, str(p), base_dir=d), info
+
+
+def load_settings_yaml(p: Path) -> Any:
+    """The contents of a ``drive.yaml`` (plain YAML: mappings, lists, numbers, texts).
+
+    YAML aliases (``*name``) are refused before they are expanded (an alias bomb
+    would otherwise take minutes and all memory), and so is a file larger than
+    :data:`SETTINGS_MAX_BYTES`; anything unreadable is an :class:`InputError`."""
+    import yaml
+
+    class _NoAliasLoader(yaml.SafeLoader):
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            if self.check_event(yaml.events.AliasEvent):
+                event = self.peek_event()
+                mark = event.start_mark
+                raise InputError(
+                    f"{p}, line {mark.line + 1}: YAML alias *{event.anchor} is not allowed in "
+                    "drive settings; write the value out"
+                )
+            return super().compose_node(parent, index)
+
+    try:
+        size = p.stat().st_size
+        if size > SETTINGS_MAX_BYTES:
+            raise InputError(
+                f"{p}: {size} bytes is far too large for drive settings (at most "
+                f"{SETTINGS_MAX_BYTES} bytes); check the file"
+            )
+        text = p.read_text(encoding="utf-8")
+        return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506 (a SafeLoader)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, RecursionError) as err:
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise InputError(f"{p}: cannot read as YAML ({first})") from err
 
 
 def read_settings(d: Path) -> DriveSettings:
@@ -871,6 +1097,14 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
             d / CALIBRATION_FILE, index=False, float_format="%.17g"
         )
         settings.heading.calibration = CALIBRATION_FILE
+    elif isinstance(cal, str):  # a file: copied beside, so that the layout is self-contained
+        shutil.copyfile(cal, d / CALIBRATION_FILE)
+        settings.heading.calibration = CALIBRATION_FILE
+    noise = settings.imu.noise_json
+    if noise is not None:
+        settings.imu = dataclasses.replace(settings.imu)
+        shutil.copyfile(noise, d / NOISE_FILE)
+        settings.imu.noise_json = NOISE_FILE
     a = drive.attitude
     if a is not None:
         put(

@@ -54,6 +54,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -87,6 +88,7 @@ from imubounds.io.drive_layout import (
     TABLE_COLUMNS,
     drive_from_tables,
     is_layout,
+    load_settings_yaml,
     parse_settings,
     read_layout,
     read_settings_with_info,
@@ -203,13 +205,7 @@ def _settings(
         s.assumed.insert(0, f"{where}: no drive.yaml: every setting is its documented default")
         return s, {}
     p = check_input_path(settings, "drive settings (drive.yaml)", directory=False)
-    import yaml
-
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        first = (str(err).splitlines() or [type(err).__name__])[0]
-        raise InputError(f"{p}: cannot read ({first})") from err
+    data = load_settings_yaml(p)
     info = {}
     if isinstance(data, dict):
         for k in ("converted_from", "notes"):
@@ -441,6 +437,10 @@ def read_vn100(
     if "raw_vnymr" in imu.columns:
         ypr = [np.radians(_nmea_field(imu["raw_vnymr"], k)) for k in (1, 2, 3)]
         ok = np.isfinite(ypr[0]) & np.isfinite(ypr[1]) & np.isfinite(ypr[2])
+        lost = int((~ok).sum())
+        if lost:
+            drive.warn("attitude_nan", lost, f"{imu_path}: {lost} of {t.size} $VNYMR "
+                       "sentence(s) without a finite yaw, pitch and roll: no attitude there")
         if ok.any():
             drive.attitude = AttitudeStream(
                 t=t[ok], roll_rad=ypr[2][ok], pitch_rad=ypr[1][ok],
@@ -510,7 +510,20 @@ def _load(d: Path, rel: str) -> np.ndarray:
             a = np.load(fh, allow_pickle=False)
     except (OSError, ValueError, EOFError) as err:
         raise InputError(f"{p}: cannot load numpy array ({err})") from err
-    return np.asarray(a, dtype=float)
+    try:
+        out = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"{p}: not an array of numbers ({a.dtype})") from err
+    if rel.endswith("/t") and out.ndim == 1 and out.size > 1:
+        back = np.flatnonzero(np.diff(out) < 0)
+        if back.size:
+            k = int(back[0])
+            raise InputError(
+                f"{p}: the time stamps go backwards at row {k + 2} ({out[k]:.6f} then "
+                f"{out[k + 1]:.6f} s; {back.size} step(s) back): the signal is reversed or "
+                "unsorted; sort it by time"
+            )
+    return out
 
 
 #: lateral speed bound the comma2k19 reader states for its road cars (m/s)
@@ -802,7 +815,17 @@ def read_drive(
     validate:
         Run :func:`~imubounds.io.drive_validate.validate_drive` (default).
     """
-    ps: list[str | Path] = [paths] if isinstance(paths, str | Path) else list(paths)
+    if isinstance(paths, str | os.PathLike):
+        ps: list[str | Path] = [paths]
+    elif isinstance(paths, list | tuple) and paths and all(
+        isinstance(p, str | os.PathLike) for p in paths
+    ):
+        ps = list(paths)
+    else:
+        raise InputError(
+            "read_drive takes a path (str or Path) or a list of paths, got "
+            f"{type(paths).__name__} {paths!r:.40}"
+        )
     layout, files = detect_layout(ps)
     if layout == "generic":
         d = files["dir"]

@@ -158,6 +158,7 @@ def _check_imu(drive: Drive) -> None:
             )
     dt = np.diff(t)
     med = float(np.median(dt))
+    _check_imu_rate(f, t, med)
     gaps = np.flatnonzero(dt > 5.0 * med)
     if gaps.size:
         k = int(gaps[np.argmax(dt[gaps])])
@@ -167,8 +168,104 @@ def _check_imu(drive: Drive) -> None:
             f"{f}: {gaps.size} gap(s) in the IMU time stamps longer than 5 sample periods "
             f"(largest {dt[k]:.3f} s after t={t[k]:.3f} s)",
         )
+    _check_gyro_spikes(drive, f)
     _check_gyro_units(drive, f)
     _check_accel_units(drive, f)
+    _check_stuck(drive, f)
+
+
+#: IMU rates (Hz) a drive log can have; outside, time_s is in another unit than s.
+IMU_RATE_RANGE_HZ = (0.5, 1.0e5)
+_TIME_SCALES = (("ms", 1e3), ("us", 1e6), ("ns", 1e9))
+
+
+def _check_imu_rate(f: str, t: np.ndarray, med: float) -> None:
+    lo, hi = IMU_RATE_RANGE_HZ
+    if not med > 0:
+        return
+    rate = 1.0 / med
+    if lo <= rate <= hi:
+        return
+    fits = next((u for u, k in _TIME_SCALES if lo <= rate * k <= hi), None)
+    hint = (f"time_s looks like {fits} ({rate * dict(_TIME_SCALES)[fits]:.4g} Hz then); "
+            f"convert it to seconds" if fits else "check time_s (seconds on one clock)")
+    raise InputError(
+        f"{f}: the IMU's median time step {med:.4g} s means {rate:.4g} Hz, a rate no IMU log "
+        f"has ({lo:g}..{hi:g} Hz): {hint}"
+    )
+
+
+def _runs(mask: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
+    """(first, last) indices of the runs of True in ``mask`` at least ``min_len`` long."""
+    m = np.concatenate(([False], mask, [False])).astype(np.int8)
+    d = np.diff(m)
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
+    long = ends - starts + 1 >= min_len
+    return list(zip(starts[long].tolist(), ends[long].tolist(), strict=True))
+
+
+def _check_gyro_spikes(drive: Drive, f: str) -> None:
+    """A few samples beyond any MEMS range (a 1e300 sample) while the rest is plausible:
+    a counted warning per axis naming the epochs (the units check handles whole logs)."""
+    imu = drive.imu
+    assert imu is not None
+    t = imu.t
+    for j, ax in enumerate("xyz"):
+        col = imu.gyro[:, j]
+        if not np.isfinite(col).all():
+            continue
+        big = np.abs(col) > GYRO_FULL_SCALE_RADS
+        nb = int(big.sum())
+        if nb == 0 or nb > max(1, col.size // 1000):
+            continue  # none, or too many for spikes: the unit check speaks
+        idx = np.flatnonzero(big)
+        peak = float(np.max(np.abs(col[idx])))
+        drive.warn(
+            "gyro_spikes",
+            nb,
+            f"{f}: gyro_{ax} (body axes) has {nb} sample(s) beyond the 2000 deg/s range of "
+            f"any MEMS gyro (up to {math.degrees(peak):.3g} deg/s) between t={t[idx[0]]:.3f} and "
+            f"t={t[idx[-1]]:.3f} s: corrupt samples; repair or remove them (every margin "
+            "and bound that spans them is inflated)",
+        )
+
+
+def _check_stuck(drive: Drive, f: str) -> None:
+    """A gyro axis that repeats one value for a long run (>= 5 s and 100 samples): counted
+    warning naming the axis, the value and the span (and how far the heading turned)."""
+    imu = drive.imu
+    assert imu is not None
+    t = imu.t
+    if t.size < 100:
+        return
+    ref = _unwrapped_reference_heading(drive)
+    for j, ax in enumerate("xyz"):
+        col = imu.gyro[:, j]
+        if not np.isfinite(col).all():
+            continue
+        same = np.diff(col) == 0
+        best = None
+        for a, b in _runs(same, min_len=99):
+            n = b - a + 2  # samples in the run
+            span = float(t[b + 1] - t[a])
+            if n >= 100 and span >= 5.0 and (best is None or span > best[2]):
+                best = (a, b + 1, span)
+        if best is None:
+            continue
+        a, b, span = best
+        turn = ""
+        if ref is not None:
+            psi = np.interp([t[a], t[b]], ref[0], ref[1])
+            turned = abs(math.degrees(float(psi[1] - psi[0])))
+            if turned >= 1.0:
+                turn = f" while the {ref[2]} turns {turned:.0f} deg"
+        drive.warn(
+            "gyro_stuck",
+            b - a + 1,
+            f"{f}: gyro_{ax} (body axes) repeats {math.degrees(float(col[a])):.6g} deg/s for "
+            f"{b - a + 1} samples from t={t[a]:.3f} to t={t[b]:.3f} s{turn}: the channel is "
+            "stuck or dropped out there; check the sensor",
+        )
 
 
 def _check_gyro_units(drive: Drive, f: str) -> None:
@@ -207,15 +304,20 @@ def _check_gyro_units(drive: Drive, f: str) -> None:
             f"columns (read as {unit}) are in rad/s; name them gyro_*_rads"
         )
     if -1.5 < slope < -0.6:
+        also = (
+            " (or the GNSS file has latitude and longitude swapped, or a sign lost)"
+            if ref[2].startswith("GNSS") else ""
+        )
         raise InputError(
             f"{f}: gyro_z turns against the {ref[2]} (rate ratio {slope:.2f}): the body z axis "
-            "points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit)"
+            f"points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit){also}"
         )
     drive.meta["gyro_heading_rate_ratio"] = slope
 
 
 def _rate_slope(
-    t_imu: np.ndarray, rate: np.ndarray, t_ref: np.ndarray, psi_ref: np.ndarray
+    t_imu: np.ndarray, rate: np.ndarray, t_ref: np.ndarray, psi_ref: np.ndarray,
+    min_step: float = 0.5,
 ) -> tuple[float | None, float, float]:
     """Slope (through the origin) of the IMU's clockwise rate against a reference heading's
     rate over intervals of at least 0.5 s, the fit's R^2, and the total turn (rad) of the
@@ -223,7 +325,7 @@ def _rate_slope(
     lo, hi = max(t_imu[0], t_ref[0]), min(t_imu[-1], t_ref[-1])
     if hi - lo < 5.0:
         return None, 0.0, 0.0
-    step = max(0.5, float(np.median(np.diff(t_ref))))
+    step = max(min_step, float(np.median(np.diff(t_ref))))
     grid = np.arange(lo, hi, step)
     if grid.size < 6:
         return None, 0.0, 0.0
@@ -338,6 +440,89 @@ def _check_gnss(drive: Drive, max_speed: float) -> None:
             setattr(g, name, v)
     _check_gnss_speed(drive, f, max_speed)
     _check_gnss_consistency(drive, f)
+    _check_gnss_one_spot(drive, f)
+
+
+def _check_gnss_one_spot(drive: Drive, f: str) -> None:
+    """Every usable fix at exactly one position: a frozen receiver (counted warning)."""
+    g = drive.gnss
+    assert g is not None
+    ok = g.usable()
+    n = int(ok.sum())
+    if n < 3:
+        return
+    lat, lon = g.lat_deg[ok], g.lon_deg[ok]
+    if np.ptp(lat) == 0 and np.ptp(lon) == 0:
+        drive.warn(
+            "gnss_one_spot",
+            n,
+            f"{f}: all {n} fixes sit on one spot ({lat[0]:.7f}, {lon[0]:.7f}) over "
+            f"{g.t[ok][-1] - g.t[ok][0]:.1f} s: the receiver repeated one fix; if the vehicle "
+            "moved, these positions are wrong (remove gnss or its position columns)",
+        )
+
+
+def _track_fit(
+    imu_t: np.ndarray, rate: np.ndarray, t: np.ndarray, e: np.ndarray, n: np.ndarray
+) -> tuple[float | None, float, float]:
+    """Slope, R^2 and total turn of the gyro's clockwise rate against the course of a
+    track: the course over baselines of about 5 s (between 1 Hz fixes it is noisy, tens of
+    degrees), turns compared over 5 s steps."""
+    stride = max(1, round(5.0 / float(np.median(np.diff(t)))))
+    e, n, t = e[::stride], n[::stride], t[::stride]
+    de, dn, dt = np.diff(e), np.diff(n), np.diff(t)
+    keep = np.hypot(de, dn) / dt >= 3.0
+    if keep.sum() < 5:
+        return None, 0.0, 0.0
+    tm = (0.5 * (t[1:] + t[:-1]))[keep]
+    course = np.unwrap(np.arctan2(de, dn)[keep])
+    return _rate_slope(imu_t, rate, tm, course, min_step=5.0)
+
+
+def _check_track_turns(drive: Drive) -> None:
+    """The track of the fixes turns against the gyro, or only fits it with latitude and
+    longitude exchanged: the coordinates are swapped (or a sign lost). With a heading or
+    yaw stream the gyro was checked against it first, so the fixes are the odd one out;
+    without one, a gyro whose z axis points down looks the same and both are named."""
+    g, imu = drive.gnss, drive.imu
+    if g is None or imu is None or not np.isfinite(imu.gyro[:, 2]).all():
+        return
+    checked = drive.heading is not None or (
+        drive.attitude is not None and drive.attitude.yaw_rad is not None
+    )
+    ok = g.usable()
+    if ok.sum() < 10:
+        return
+    lat, lon, t = g.lat_deg[ok], g.lon_deg[ok], g.t[ok]
+    if np.max(np.abs(lat)) > 90 or np.max(np.abs(lon)) > 180:
+        return
+    rate = -imu.gyro[:, 2]
+    e, n = _local_en(lat, lon)
+    slope, r2, turned = _track_fit(imu.t, rate, t, e, n)
+    if slope is None or turned < math.radians(90.0):
+        return
+    if 0.6 < slope < 1.5 and r2 > 0.5:
+        return  # the track turns with the gyro
+    f = _file(drive, "gnss")
+    swapped_ok = False
+    if np.max(np.abs(lon)) <= 90:
+        es, ns = _local_en(lon, lat)  # the other reading: lon_deg is the latitude
+        s2, r2s, _ = _track_fit(imu.t, rate, t, es, ns)
+        swapped_ok = s2 is not None and 0.6 < s2 < 1.5 and r2s > 0.5
+    mirrored = slope < -0.3 and r2 > 0.1
+    if checked and (swapped_ok or mirrored):
+        fits = ", and fits them with lat_deg and lon_deg exchanged" if swapped_ok else ""
+        raise InputError(
+            f"{f}: the track of the fixes turns against the gyro and the heading (rate ratio "
+            f"{slope:.2f}{fits}): lat_deg and lon_deg are swapped, or one has the wrong sign; "
+            "fix the columns"
+        )
+    if swapped_ok or slope < -0.5:
+        raise InputError(
+            f"{f}: the track of the fixes turns against the gyro (rate ratio {slope:.2f}) and "
+            "there is no heading to say which is wrong: lat_deg and lon_deg are swapped (or a "
+            "sign lost), or the IMU's z axis points down (fix imu_axes)"
+        )
 
 
 def _check_gnss_speed(drive: Drive, f: str, max_speed: float) -> None:
@@ -538,6 +723,18 @@ def _check_attitude(drive: Drive) -> None:
         drive.warn("attitude_nan", nb, f"{f}: {nb} row(s) with NaN roll or pitch skipped")
         a.t, a.roll_rad, a.pitch_rad = a.t[keep], a.roll_rad[keep], a.pitch_rad[keep]
         a.yaw_rad = None if a.yaw_rad is None else a.yaw_rad[keep]
+    if a.yaw_rad is not None and not np.isfinite(a.yaw_rad).all():
+        bad = ~np.isfinite(a.yaw_rad)
+        nb = int(bad.sum())
+        if nb == a.t.size:
+            drive.warn("attitude_yaw_nan", nb, f"{f}: yaw has no finite value in {nb} row(s): "
+                       "the attitude's yaw is not used (roll and pitch are)")
+            a.yaw_rad = None
+        else:
+            drive.warn("attitude_yaw_nan", nb, f"{f}: {nb} row(s) with NaN yaw skipped")
+            keep = ~bad
+            a.t, a.roll_rad, a.pitch_rad = a.t[keep], a.roll_rad[keep], a.pitch_rad[keep]
+            a.yaw_rad = a.yaw_rad[keep]
     if np.any(np.abs(a.pitch_rad) > math.pi / 2 + 1e-9):
         i = int(np.flatnonzero(np.abs(a.pitch_rad) > math.pi / 2)[0])
         raise InputError(
@@ -567,15 +764,75 @@ def _check_mag(drive: Drive) -> None:
         raise InputError(f"{f}: the magnetometer reads zero in every row")
 
 
+def _time_unit_hint(t: np.ndarray, lo: float, hi: float) -> str | None:
+    """``"ms"`` (``"us"``, ``"ns"``) when an aiding stream's steps are far too long for a
+    sensor (over 5 s) and its span or its times are that factor times the IMU's: its
+    time_s is in that unit, not s."""
+    if t.size < 2:
+        return None
+    a, b = float(t[0]), float(t[-1])
+    step = float(np.median(np.diff(t)))
+    span, ref = b - a, hi - lo
+    if not step > 5.0:
+        return None
+    for unit, k in _TIME_SCALES:
+        if ref > 0 and 0.3 * k <= span / ref <= 3.0 * k:
+            return unit
+        mid, rmid = 0.5 * (a + b), 0.5 * (lo + hi)
+        if rmid > 0 and mid > 0 and 0.3 * k <= mid / rmid <= 3.0 * k and abs(rmid) > ref:
+            return unit
+    return None
+
+
+def _check_truth(drive: Drive) -> None:
+    """Truth rows without a finite position (a short, ragged row): dropped and counted."""
+    tr = drive.truth
+    assert tr is not None
+    f = _file(drive, "truth")
+    keep = np.isfinite(tr.t) & np.isfinite(tr.east_m) & np.isfinite(tr.north_m)
+    nb = int((~keep).sum())
+    if nb == tr.t.size:
+        raise InputError(f"{f}: no truth row has a finite position (east/north or lat/lon)")
+    if nb:
+        i = int(np.flatnonzero(~keep)[0])
+        drive.warn("truth_nan", nb, f"{f}: {nb} row(s) with an empty or NaN position skipped "
+                   f"(first at data row {i + 1}; a short row?)")
+        tr.t, tr.east_m, tr.north_m = tr.t[keep], tr.east_m[keep], tr.north_m[keep]
+        for name in ("heading_rad", "u_mps", "v_mps"):
+            v = getattr(tr, name)
+            if v is not None:
+                setattr(tr, name, v[keep])
+        tr.extra = {k: v[keep] for k, v in tr.extra.items()}
+
+
 def _check_overlap(drive: Drive) -> None:
     imu = drive.time_range("imu")
     assert imu is not None
     lo, hi = imu
+    epochs: dict[str, int] = {}
     for name in ("gnss", "velocity", "heading", "mag", "attitude"):
         r = drive.time_range(name)
         if r is None:
             continue
         a, b = r
+        st = getattr(drive, name)
+        unit = _time_unit_hint(st.t, lo, hi)
+        if unit is not None:
+            raise UnitsError(
+                f"{_file(drive, name)}: the {name} times ({a:.6g}..{b:.6g}) are about "
+                f"{dict(_TIME_SCALES)[unit]:.0e}x the IMU's ({lo:.6g}..{hi:.6g} s): time_s is "
+                f"in {unit}, not s; convert it to seconds"
+            )
+        inside = (st.t >= lo) & (st.t <= hi)
+        epochs[name] = int(inside.sum())
+        out = int(st.t.size - epochs[name])
+        if name == "gnss" and out and epochs[name]:
+            drive.warn(
+                "gnss_outside_imu",
+                out,
+                f"{_file(drive, name)}: {out} of {st.t.size} fix(es) lie outside the IMU's time "
+                f"range {lo:.3f}..{hi:.3f} s and are not used",
+            )
         if b < lo or a > hi:
             raise InputError(
                 f"{_file(drive, name)}: the {name} stream ({a:.3f}..{b:.3f} s) does not overlap "
@@ -587,6 +844,15 @@ def _check_overlap(drive: Drive) -> None:
             drive.notes.append(
                 f"the {name} stream covers {100 * covered:.0f} % of the IMU's time range"
             )
+    aiding = {k: v for k, v in epochs.items() if k != "attitude"}
+    if aiding and max(aiding.values()) < 2:
+        n = drive.imu.t.size if drive.imu is not None else 0
+        raise InputError(
+            f"{_file(drive, 'imu')}: the IMU covers only {lo:.3f}..{hi:.3f} s ({n} samples), "
+            f"which holds fewer than two epochs of any aiding stream "
+            f"({', '.join(f'{k}: {v}' for k, v in aiding.items())}): the IMU log is too short "
+            "or cut off; give the whole IMU log"
+        )
 
 
 def validate_drive(drive: Drive, *, max_speed_mps: float | None = None) -> Drive:
@@ -615,8 +881,11 @@ def validate_drive(drive: Drive, *, max_speed_mps: float | None = None) -> Drive
         _check_attitude(drive)
     if drive.mag is not None:
         _check_mag(drive)
+    if drive.truth is not None:
+        _check_truth(drive)
     _check_imu(drive)
     _check_overlap(drive)
+    _check_track_turns(drive)
     if drive.settings.lever_arm_m is not None and any(drive.settings.lever_arm_m):
         note = (
             f"lever arm {list(drive.settings.lever_arm_m)} m (GNSS antenna from the IMU) is "

@@ -11,7 +11,11 @@ How imubounds recognises the files it wrote (and so may overwrite):
   the directory's ``run.json``, written last: a directory whose ``run.json``
   lists its files is complete, and the files it lists are imubounds' (and so
   are those of earlier runs it did not replace, listed apart as
-  ``earlier_files``: never part of the complete set). While a
+  ``earlier_files``: never part of the complete set). A later run of the *same*
+  command removes the files the earlier run listed and it did not rewrite (a
+  report and figures beside a ``--no-plot`` run's results), so that a folder
+  holds one run's results; files of another command stay, as ``earlier_files``.
+  While a
   set is being moved in, ``.imubounds-commit.json`` lists the old and the new
   set, so that a run killed in the middle of the move is still recognised
   (the directory has no ``run.json`` then: it does not look complete);
@@ -175,6 +179,12 @@ def listed_files(target: str | os.PathLike[str]) -> set[str]:
     """Relative names of the files the last imubounds run in ``target`` listed as its own
     (its ``run.json``, and an interrupted commit's record)."""
     return _written_by_imubounds(Path(target))
+
+
+def recorded_files(folder: str | os.PathLike[str]) -> set[str]:
+    """Names of the files an imubounds run recorded in ``folder`` as its own (its
+    ``run.json`` and the single-file record), whether or not they still exist."""
+    return _written_by_imubounds(Path(folder)) | set(_files_record(Path(folder)))
 
 
 def record_written_files(
@@ -505,6 +515,7 @@ class OutputSet:
         force: bool = False,
         inputs: Iterable[str | os.PathLike[str]] = (),
     ) -> None:
+        self._empty = not os.fspath(target).strip()  # Path("") would be "." silently
         self.target = Path(target)
         self.force = force
         self.inputs = [Path(p) for p in inputs if os.fspath(p)]
@@ -517,8 +528,8 @@ class OutputSet:
     # -- context --------------------------------------------------------------
     def __enter__(self) -> OutputSet:
         t = self.target
-        if not os.fspath(t):
-            raise OutputError("-o is empty; give an output directory")
+        if self._empty:
+            raise OutputError("-o is empty; give an output directory (use -o . for this one)")
         try:
             if t.exists() and not t.is_dir():
                 raise OutputError(
@@ -637,6 +648,35 @@ class OutputSet:
                 )
         return out
 
+    def _superseded(self, names: list[str]) -> list[str]:
+        """Files the previous complete run of the *same command* listed in ``run.json`` that
+        this set does not rewrite (a report and figures beside a later ``--no-plot`` run's
+        results): removed at the commit, so that the folder holds one run's results. Files
+        of another command, inputs of this run and files not listed are never removed."""
+        rec = _read_json(self.target / RUN_RECORD)
+        mine = (self._record or {}).get("command_name")
+        if not isinstance(rec, dict) or mine is None or rec.get("command_name") != mine:
+            return []
+        files = rec.get("files")
+        if not isinstance(files, list):
+            return []
+        out = []
+        for f in files:
+            name = str(f)
+            dest = self.target / name
+            if (
+                name in names
+                or name == RUN_RECORD
+                or Path(name).is_absolute()
+                or ".." in Path(name).parts
+                or not dest.is_file()
+                or dest.is_symlink()
+                or _is_input(dest, self.inputs)
+            ):
+                continue
+            out.append(name)
+        return sorted(out)
+
     def _commit(self) -> None:
         names = self._staged()
         if not names and self._record is None:
@@ -646,6 +686,7 @@ class OutputSet:
         if problems:
             raise OutputError(problems[0])
         old = sorted(_written_by_imubounds(self.target))
+        superseded = self._superseded(names_all)
         # Ctrl-C is held back for the few renames of the commit, so that the set is
         # either the old one or the new one, and the message can say which.
         try:
@@ -657,6 +698,8 @@ class OutputSet:
                     dest = self.target / name
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(self.staging / name, dest)
+                for name in superseded:  # the earlier run's report and figures
+                    (self.target / name).unlink(missing_ok=True)
                 if self._record is not None:
                     extra = dict(self._record)
                     argv = extra.pop("argv", None)

@@ -236,6 +236,7 @@ def read_imu_segments(
     on_gap: OnGap = "split",
     channels: Iterable[str] | None = None,
     format_options: Mapping[str, object] | None = None,
+    unusual_rate: bool = False,
 ) -> list[ImuLog]:
     """Read an IMU log and return its contiguous segments (split at gaps).
 
@@ -252,6 +253,7 @@ def read_imu_segments(
         on_gap=on_gap,
         channels=None if channels is None else tuple(channels),
         extra=dict(format_options or {}),
+        unusual_rate=bool(unusual_rate),
     ).validated()
     entry = find_reader(path)
     p = Path(path)
@@ -272,6 +274,7 @@ def read_imu(
     on_gap: OnGap = "refuse",
     channels: Iterable[str] | None = None,
     format_options: Mapping[str, object] | None = None,
+    unusual_rate: bool = False,
 ) -> ImuLog:
     """Read an IMU log file into an :class:`ImuLog` in SI units.
 
@@ -312,6 +315,10 @@ def read_imu(
         ``sensor_combined``/``vehicle_imu``), ``dataset`` (HDF5 path of the
         table), ``on_bad_checksum`` (NMEA: ``error``/``skip``). Unused keys
         are ignored.
+    unusual_rate:
+        Accept a sample rate outside 0.5 Hz..100 kHz (``--allow-unusual-rate``);
+        without it such a rate (a time column in ms or us labelled s, ``rate_hz=1e-9``)
+        is an error.
 
     Returns
     -------
@@ -336,6 +343,7 @@ def read_imu(
         on_gap=on_gap,
         channels=channels,
         format_options=format_options,
+        unusual_rate=unusual_rate,
     )
     if len(segments) == 1:
         return segments[0]

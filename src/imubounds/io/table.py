@@ -631,6 +631,7 @@ def read_frame(
     on_gap: OnGap = "refuse",
     channels: Iterable[str] | None = None,
     source: str = "<DataFrame>",
+    unusual_rate: bool = False,
 ) -> ImuLog:
     """An :class:`ImuLog` from a :class:`pandas.DataFrame` or a mapping of columns,
     with the recognition, unit conversion and checks of a file read.
@@ -661,6 +662,7 @@ def read_frame(
         gap_tolerance=gap_tolerance,
         on_gap=on_gap,
         channels=None if channels is None else tuple(channels),
+        unusual_rate=bool(unusual_rate),
     ).validated()
     if isinstance(data, pd.DataFrame):
         df = data

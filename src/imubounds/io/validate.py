@@ -98,6 +98,11 @@ RESTART_STEPS = 100
 #: Largest plausible gyro reading, rad/s: 40 rad/s is about 2300 deg/s, above the
 #: +-2000 deg/s full scale of common MEMS gyros.
 GYRO_MAX_RADS = 40.0
+#: At rest, a gyro's median |value| (its bias, plus the Earth's rate) beyond 20 deg/s, or
+#: a sample-to-sample noise (1-sigma) beyond 5.7 deg/s, fits no MEMS gyro read in rad/s
+#: but fits deg/s values read as rad/s (57x): the unit-warning thresholds, rad/s.
+GYRO_REST_MAX_RADS = 0.35
+GYRO_NOISE_MAX_RADS = 0.1
 #: A median accelerometer magnitude outside [0.5 g, 2 g] does not fit any IMU on Earth.
 ACCEL_NORM_RANGE_G = (0.5, 2.0)
 #: A one-sample spike: a jump of more than this many robust standard deviations of
@@ -406,6 +411,7 @@ def resolve_time_unit(
     stated: str | None = None,
     override: str | None = None,
     warnings: list[str] | None = None,
+    unusual_rate: bool = False,
 ) -> str:
     """The unit of a time column (a key of :data:`imubounds.units.TIME_UNITS`).
 
@@ -416,8 +422,10 @@ def resolve_time_unit(
     Raises
     ------
     UnitsError
-        The given or stated unit makes the rate impossible for an IMU
-        (outside :data:`IMPOSSIBLE_RATE_HZ`); the message says which unit fits.
+        The given or stated unit makes the rate one no IMU log has (outside
+        :data:`PLAUSIBLE_RATE_HZ`, e.g. a time column in ms labelled s), unless
+        ``unusual_rate`` (``--allow-unusual-rate``) confirms it; outside
+        :data:`IMPOSSIBLE_RATE_HZ` always. The message says which unit fits.
     """
     notes = warnings if warnings is not None else []
     step = float(median_step)
@@ -447,6 +455,19 @@ def resolve_time_unit(
                 f"{source}: {whose} its median step {_fmt(step)} {given} means "
                 f"{_fmt(r)} Hz, impossible for an IMU; {hint}"
             )
+        plo, phi = PLAUSIBLE_RATE_HZ
+        if not plo <= r <= phi and not unusual_rate:
+            alt = fitting()
+            hint = (
+                f"the stamps look like {alt} ({_fmt(rate(alt))} Hz): pass --time-unit {alt}"
+                if alt is not None and alt != given
+                else "check the time column"
+            )
+            raise UnitsError(
+                f"{source}: {whose} its median step {_fmt(step)} {given} means "
+                f"{_fmt(r)} Hz, a rate no IMU log has ({_fmt(plo)} Hz to {_fmt(phi)} Hz); "
+                f"{hint}, or confirm the rate with --allow-unusual-rate"
+            )
         if r < PLAUSIBLE_RATE_HZ[0]:
             alt = fitting()
             notes.append(
@@ -455,6 +476,12 @@ def resolve_time_unit(
             )
         return given
     unit = fitting() or "s"
+    if fitting() is None and not unusual_rate:
+        raise UnitsError(
+            f"{source}: time column {column!r} states no unit and its median step "
+            f"{_fmt(step)} gives a rate no IMU log has in s, ms, us or ns; state the unit "
+            "(--time-unit) or confirm the rate with --allow-unusual-rate"
+        )
     if unit != "s":
         notes.append(
             f"time column {column!r} states no unit; its spacing ({_fmt(step)}) only makes "
@@ -565,7 +592,9 @@ def unit_warnings(
             unit = units.get(c, "rad/s")
             how = "assumed" if c in assumed else "stated"
             advice = (
-                "the values look like deg/s (use --gyro-unit deg/s)"
+                "no unit explains values this large: the channel is corrupt or scaled wrongly"
+                if peak > 1e8  # beyond deg/h named rad/s
+                else "the values look like deg/s (use --gyro-unit deg/s)"
                 if GYRO_UNITS.get(unit) == 1.0
                 else "check the unit (--gyro-unit)"
             )
@@ -573,9 +602,26 @@ def unit_warnings(
                 f"{source}: {c} reaches {peak:.3g} rad/s ({peak / DEG:.3g} deg/s) read as "
                 f"{unit} ({how}), beyond the +-2000 deg/s range of MEMS gyros: {advice}"
             )
+        elif GYRO_UNITS.get(units.get(c, "rad/s")) == 1.0 and v.size >= 16:
+            # deg/s read as rad/s at rest: a bias or a sample-to-sample noise 57x too large
+            level = float(np.median(np.abs(v)))
+            noise = _robust_step_sigma(np.asarray(v, dtype=np.float64))
+            if level > GYRO_REST_MAX_RADS or noise > GYRO_NOISE_MAX_RADS:
+                how = "assumed" if c in assumed else "stated"
+                what = (
+                    f"a median of {level:.3g} rad/s ({level / DEG:.3g} deg/s)"
+                    if level > GYRO_REST_MAX_RADS
+                    else f"a sample-to-sample noise of {noise:.3g} rad/s ({noise / DEG:.3g} deg/s)"
+                )
+                out.append(
+                    f"{source}: {c} read as rad/s ({how}) has {what}, beyond any MEMS gyro at "
+                    "rest: the values look like deg/s (name the column "
+                    f"{c}_dps or use --gyro-unit deg/s); the noise terms would be 57x too large"
+                )
     acc = [f"accel_{a}" for a in "xyz"]
     if all(c in si and si[c].size for c in acc):
-        norm = np.sqrt(sum(np.asarray(si[c], dtype=np.float64) ** 2 for c in acc))
+        x, y, z = (np.asarray(si[c], dtype=np.float64) for c in acc)
+        norm = np.hypot(np.hypot(x, y), z)  # no overflow for huge values
         med_g = float(np.median(norm)) / G0
         lo, hi = ACCEL_NORM_RANGE_G
         if med_g > 0 and not lo <= med_g <= hi:

@@ -748,7 +748,21 @@ _NORM_FACTOR = {
 }
 
 
+#: Largest |sample| the estimators square without overflow (the sums of squares of
+#: 1e150 stay below the float64 maximum 1.8e308 for any log length).
+SIGNAL_MAX_ABS = 1e150
+#: Smallest largest-|sample| whose squares do not underflow to zero (denormals below).
+SIGNAL_MIN_ABS = 1e-150
+
+
 def _check_signal(y: Any, name: str) -> np.ndarray:
+    if np.iscomplexobj(y) or (
+        isinstance(y, np.ndarray | list | tuple) and np.iscomplexobj(np.asarray(y))
+    ):
+        raise InputError(
+            f"{name}: samples are complex numbers; pass the real signal (e.g. x.real) "
+            "explicitly"
+        )
     try:
         arr = np.asarray(y, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -761,7 +775,33 @@ def _check_signal(y: Any, name: str) -> np.ndarray:
             f"{name}: sample {bad} is {arr[bad]} (NaN/inf); remove or interpolate"
             " non-finite samples first"
         )
+    check_magnitude(arr, name)
     return arr
+
+
+def check_magnitude(arr: np.ndarray, name: str) -> None:
+    """The numeric edges of a channel, named: every sample equal (no noise to measure),
+    samples so large that their squares overflow, or so small that they underflow."""
+    if arr.size == 0:
+        return
+    top = float(np.max(np.abs(arr)))
+    if top > SIGNAL_MAX_ABS:
+        raise InputError(
+            f"{name}: samples reach {top:.3g}, beyond {SIGNAL_MAX_ABS:.0e} where their squares "
+            "overflow double precision: the channel is corrupt or scaled wrongly; check its "
+            "unit and scale"
+        )
+    if arr.size > 1 and float(np.ptp(arr)) == 0.0:
+        raise InputError(
+            f"{name}: every one of the {arr.size} samples is {arr[0]:g}: the channel is constant "
+            "(stuck or not recorded), there is no noise to measure; check the channel"
+        )
+    if top < SIGNAL_MIN_ABS:
+        raise InputError(
+            f"{name}: every sample is below {SIGNAL_MIN_ABS:.0e} in magnitude (largest "
+            f"{top:.3g}), where their squares underflow to zero: the channel is scaled "
+            "wrongly; check its unit and scale"
+        )
 
 
 def _parse_noise(noise: str | int, estimator: str) -> int | None:

@@ -16,7 +16,7 @@ from typing import Any, Literal
 import numpy as np
 
 from imubounds import __version__
-from imubounds.errors import AnalysisError, OptionError
+from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
 from imubounds.stationary.allan import AllanResult, allan_channels
@@ -414,6 +414,10 @@ def analyse_static(
     spikes: dict[str, SpikeReport] = {}
     plain: Mapping[str, AllanResult] = {}
     if curves is None:
+        from imubounds.stationary.allan import check_magnitude
+
+        for name in imu_names:  # numeric edges named before any estimator meets them
+            check_magnitude(np.asarray(log.channels[name]), f"{log.source}: {name}")
         for name in imu_names:
             spikes[name] = detect_spikes(
                 np.asarray(log.channels[name]),
@@ -430,6 +434,18 @@ def analyse_static(
         )  # fmt: skip
         if settings.robust:
             plain = allan_channels(data, log.rate_hz, confidence=settings.confidence, **kw)  # type: ignore[arg-type]
+    for name in imu_names:  # a curve read out of core: its numeric edges, named
+        dev = np.asarray(curves[name].dev, dtype=float)
+        if dev.size and not np.isfinite(dev).all():
+            raise InputError(
+                f"{log.source}: {name}: the Allan deviation overflows (samples too large to "
+                "square in double precision): the channel is corrupt or scaled wrongly"
+            )
+        if dev.size and not np.any(dev > 0):
+            raise InputError(
+                f"{log.source}: {name}: the Allan deviation is 0 at every tau: the channel is "
+                "constant (stuck or not recorded) or too small to square; check the channel"
+            )
     t_avg = settings.averaging_time_s or log.duration_s
     run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}

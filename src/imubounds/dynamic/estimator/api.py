@@ -62,6 +62,17 @@ def dynamic_margins(
         )
     if isinstance(noise, _StaticResult):
         noise = noise.to_dict()
+    spec = options.get("imu_spec")
+    if spec is not None and (not isinstance(spec, str) or not spec.strip()):
+        raise OptionError(
+            f"imu_spec must be a preset name or 'accel_nd=..,accel_bs=..,gyro_nd=..,"
+            f"gyro_bs=..', got {spec!r}"
+        )
+    if noise is not None and not isinstance(noise, str | Path | dict):
+        raise OptionError(
+            "noise must be a noise.json path, its loaded dict or imubounds.characterize's "
+            f"StaticResult, got {type(noise).__name__} {noise!r:.40}"
+        )
     drive.check()
     with nearest():
         if mode == "full":
