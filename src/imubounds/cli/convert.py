@@ -38,7 +38,7 @@ def register(sub: Any) -> None:
         help="table format of the output (csv)",
     )
     add_drive_options(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
 
 
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         out.record(getattr(args, "argv", None), command_name="convert")
     if not args.quiet:
         for line in summary(drive, args.out):
-            print(line, file=sys.stderr)
+            print(line)
     return 0
 
 

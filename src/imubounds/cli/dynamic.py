@@ -134,7 +134,7 @@ def register(sub: Any) -> None:
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
     p.add_argument("--json", action="store_true", help="print dynamic.json on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
 
 
@@ -217,11 +217,14 @@ def run(args: argparse.Namespace) -> int:
 
     inputs = [*args.log, *(x for x in (args.static,) if x)]
     with OutputSet(args.out, force=args.force, inputs=inputs) as outset:
-        outset.check(["dynamic.json", "margins.csv", "states.csv", "steps.csv", "report.html"])
+        outset.check(["dynamic.json", "motion.json", "margins.csv", "states.csv", "steps.csv",
+                      "report.html"])
         messages = _run(args, outset)
     if not args.quiet:
+        # the summary on stdout (as static's); notes on stderr
         for m in messages:
-            print(m, file=sys.stderr)
+            note = m.startswith("imubounds: note:")
+            print(m, file=sys.stderr if note or args.json else sys.stdout)
     return 0
 
 
@@ -265,6 +268,10 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         doc["input"]["origin_lat_lon_alt"] = list(full.full.ctx.aiding.origin)
     out = outset.staging
     write_json(out / "dynamic.json", doc)
+    if full is not None and getattr(full, "full", None) is not None:
+        from imubounds.motion import motion_figures
+
+        write_json(out / "motion.json", motion_figures(full, noise=args.static))
     if full is not None:
         df = full.to_frame()
         write_with(out / "margins.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
