@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 from imubounds.cli._common import add_drive_options, add_force_option, drive_read_options
