@@ -79,6 +79,8 @@ def register(sub: Any) -> None:
                    help="roll/pitch bound when there is no attitude stream (vehicle.max_tilt_deg)")
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
                    help="non-holonomic |lateral velocity| bound of a wheeled vehicle")
+    f.add_argument("--reverses", action="store_true", default=None,
+                   help="the vehicle may drive backwards: no heading from the GNSS course")
     f.add_argument("--max-speed", type=positive_float, metavar="M/S")
     f.add_argument("--max-accel", type=positive_float, metavar="M/S2",
                    help="horizontal acceleration bound (centripetal included)")
@@ -189,6 +191,7 @@ def _full_options(args: argparse.Namespace) -> dict[str, Any]:
         "compass_fit": args.compass_fit,
         "max_windows": args.max_windows,
         "tol": args.tol,
+        "reverses": args.reverses,
     }
     return {k: v for k, v in o.items() if v is not None}
 
