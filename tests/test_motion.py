@@ -53,7 +53,8 @@ def test_motion_figures_contain_the_true_in_motion_error(trip: tuple[Any, Any]) 
     for ch, c in fig["channels"].items():
         truth = _true_window_errors(sim, res, ch)
         assert len(truth) == len(c["rows"]), ch
-        for row, e in zip(c["rows"], truth, strict=True):
+        levels = res.full.margins[ch].levels
+        for row, e, lv in zip(c["rows"], truth, levels, strict=True):
             worst = float(np.max(np.abs(e)))
             assert row["bound"] is not None, (ch, row["tau_s"])
             # the guaranteed bound contains the true in-motion error at every tau
@@ -65,8 +66,12 @@ def test_motion_figures_contain_the_true_in_motion_error(trip: tuple[Any, Any]) 
             assert (row["inflation"] > 1.0) == (row["bound"] > row["stationary"]), (ch, row)
             assert row["inflation"] == pytest.approx(row["bound"] / row["stationary"])
             if c["F"] is not None and row["resolved"]:
-                # F x the stationary prediction bounds the true error at every resolved tau
-                assert worst <= c["F"] * row["stationary"] * (1 + 1e-12), (ch, row)
+                # F x the stationary prediction bounds the true error of every resolved
+                # window (aided interval no wider than its band) at every resolved tau
+                ok = 0.5 * (lv.x_hi - lv.x_lo) <= lv.band
+                assert ok.sum() == row["n_resolved"]
+                w = float(np.max(np.abs(e[ok])))
+                assert w <= row["bound_resolved"] <= c["F"] * row["stationary"] * (1 + 1e-12)
         if c["F"] is not None:
             assert c["F"] >= 1.0
             assert c["N_motion"] == pytest.approx(c["F"] * c["N_static"])

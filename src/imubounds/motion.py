@@ -23,11 +23,13 @@ derives, per channel and ``tau``:
     that says little; ``inflation_at_least = floor / stationary`` exceeding 1 proves
     that the IMU itself is worse in motion (the ``exceeds`` verdict).
 
-The in-motion noise parameters: the factor ``F`` is the largest ``inflation`` over
-the *resolved* averaging times (those where the median aided half-width is at most
-the stationary band, so that the bound is set by the IMU and not by the aiding),
-and at least 1. ``F`` times the stationary band contains the guaranteed in-motion
-error at every resolved ``tau``; the in-motion ``N`` and ``K`` are ``F`` times the
+The in-motion noise parameters: a window is *resolved* where its aided interval is
+no wider than its stationary band (the IMU, not the aiding, sets its bound), a
+``tau`` where at least half of its windows are. ``bound_resolved`` is the bound over
+the resolved windows; the factor ``F`` is the largest ``bound_resolved /
+stationary`` over the resolved averaging times, and at least 1. ``F`` times the
+stationary prediction contains the guaranteed in-motion error of every resolved
+window at every resolved ``tau``; the in-motion ``N`` and ``K`` are ``F`` times the
 stationary ones (the band's noise part is linear in them). Where no ``tau`` is
 resolved, no in-motion parameters are given (``F`` is ``None``) and the stationary
 ones are not confirmed in motion.
@@ -50,38 +52,36 @@ FORMAT = "imubounds.motion/1"
 _DEG = 180.0 / math.pi
 
 
-def _levels_rows(level: Any, k: float | None = None) -> dict[str, Any]:
+def _levels_rows(level: Any) -> dict[str, Any]:
     import numpy as np
 
     e_lo = np.asarray(level.e_lo, dtype=float)
     e_hi = np.asarray(level.e_hi, dtype=float)
     band = np.asarray(level.band, dtype=float)
-    fin = np.isfinite(e_lo) & np.isfinite(e_hi)
     x_half = 0.5 * (np.asarray(level.x_hi, dtype=float) - np.asarray(level.x_lo, dtype=float))
-    if not fin.any() or band.size == 0:
-        return {"tau_s": float(level.tau_s), "bound": None, "floor": None,
-                "stationary": float(np.median(band)) if band.size else None,
-                "inflation": None, "inflation_at_least": None, "resolved": False,
-                "n_windows": int(band.size)}
-    mag = np.maximum(np.abs(e_lo[fin]), np.abs(e_hi[fin]))
-    dist = np.where((e_lo[fin] <= 0) & (e_hi[fin] >= 0), 0.0,
-                    np.minimum(np.abs(e_lo[fin]), np.abs(e_hi[fin])))
-    bound = float(mag.max())
-    floor = float(dist.max())
-    stat = float(np.median(band))
-    xh = x_half[np.isfinite(x_half)]
-    resolved = bool(level.kind != "vehicle" and xh.size and np.median(xh) <= stat)
-    return {
-        "tau_s": float(level.tau_s),
-        "bound": bound,
-        "floor": floor,
-        "stationary": stat,
-        "inflation": bound / stat if stat > 0 else None,
-        "inflation_at_least": floor / stat if stat > 0 else None,
-        "resolved": resolved,
-        "k": float(level.k),
+    fin = np.isfinite(e_lo) & np.isfinite(e_hi)
+    stat = float(np.median(band)) if band.size else None
+    row: dict[str, Any] = {
+        "tau_s": float(level.tau_s), "bound": None, "floor": None, "stationary": stat,
+        "inflation": None, "inflation_at_least": None, "resolved": False,
+        "bound_resolved": None, "n_resolved": 0, "k": float(level.k),
         "n_windows": int(band.size),
     }
+    if not fin.any() or stat is None or stat <= 0:
+        return row
+    mag = np.maximum(np.abs(e_lo), np.abs(e_hi))
+    dist = np.where((e_lo <= 0) & (e_hi >= 0), 0.0, np.minimum(np.abs(e_lo), np.abs(e_hi)))
+    # a window is resolved where the aided interval is no wider than its stationary band
+    res_w = fin & (x_half <= band) & (level.kind != "vehicle")
+    row["bound"] = float(mag[fin].max())
+    row["floor"] = float(dist[fin].max())
+    row["inflation"] = row["bound"] / stat
+    row["inflation_at_least"] = row["floor"] / stat
+    row["n_resolved"] = int(res_w.sum())
+    row["resolved"] = bool(res_w.sum() * 2 >= band.size)
+    if res_w.any():
+        row["bound_resolved"] = float(mag[res_w].max())
+    return row
 
 
 def motion_figures(
@@ -117,8 +117,8 @@ def motion_figures(
         if not levels:
             continue
         rows = [_levels_rows(lv) for lv in levels]
-        res = [r for r in rows if r["resolved"] and r["inflation"] is not None]
-        F = max(1.0, max(r["inflation"] for r in res)) if res else None
+        res = [r for r in rows if r["resolved"] and r["bound_resolved"] is not None]
+        F = max(1.0, max(r["bound_resolved"] / r["stationary"] for r in res)) if res else None
         n_s, k_s = _static_terms(ch, noise_doc, summary)
         chans[ch] = {
             "unit": getattr(m, "unit", "rad/s" if ch.startswith("gyro") else "m/s^2"),
@@ -131,9 +131,10 @@ def motion_figures(
             "N_motion": None if F is None or n_s is None else F * n_s,
             "K_motion": None if F is None or k_s is None else F * k_s,
             "derivation": (
-                "F = max(1, max over resolved tau of bound/stationary); N_motion = F*N, "
-                "K_motion = F*K: F times the stationary band contains the guaranteed "
-                "in-motion error at every resolved tau"
+                "F = max(1, max over resolved tau of bound_resolved/stationary); "
+                "N_motion = F*N, K_motion = F*K: F times the stationary prediction "
+                "contains the guaranteed in-motion error of every resolved window at "
+                "every resolved tau"
                 if F is not None
                 else "no tau resolved (the aided interval is wider than the stationary "
                 "band at every tau): no in-motion parameters; the stationary ones are "
@@ -148,8 +149,10 @@ def motion_figures(
             "floor": "guaranteed lower bound of the largest |tau-mean IMU error|",
             "stationary": "median stationary band at the same tau (k sigma, as in margins)",
             "inflation": "bound / stationary (> 1 exactly where bound > stationary)",
-            "resolved": "median aided half-width <= stationary band (the IMU, not the "
-            "aiding, sets the bound)",
+            "resolved": "at least half of the windows are resolved: their aided interval "
+            "is no wider than their stationary band (the IMU, not the aiding, sets the "
+            "bound)",
+            "bound_resolved": "the bound over the resolved windows only",
         },
         "channels": chans,
     }
