@@ -291,6 +291,12 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             P.save(P.plot_margins(full.summary, title=title), out, "margins")
             P.save(P.plot_windows(full, title=title), out, "windows")
             P.save(P.plot_trajectory(full, drive, title=title), out, "trajectory")
+            from imubounds.motion import plot_motion, read_motion
+
+            noise_doc = None
+            if args.static:
+                noise_doc = json.loads(Path(args.static).read_text(encoding="utf-8"))
+            P.save(plot_motion(read_motion(out), noise_doc), out, "motion")
         if "paper" in results:
             P.save(P.plot_intervals(results["paper"].paper, title=title), out, "intervals")
     outset.record(getattr(args, "argv", None), command_name="dynamic")
