@@ -203,18 +203,24 @@ def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
     tr = None
     if drive.truth is not None:
         tr = truth_at(drive, sm.te + run.ctx.imu.t0, ag.origin)
-    # the zoom: a square of ~8 box widths around the epoch of the median box
+    # the zoom: a square of ~4 GNSS box widths around the epoch of the median box; the
+    # whole trip where that is smaller
     half = 0.5 * np.where(fin, np.maximum(X[:, SM.E, 1] - X[:, SM.E, 0],
                                           X[:, SM.N, 1] - X[:, SM.N, 0]), np.nan)
-    if ag.has_gnss:
-        gh = np.asarray(ag.gnss_h, dtype=float)
-        half_ref = float(np.nanmedian(np.concatenate([half[fin], gh[np.isfinite(gh)]])))
-    else:
-        half_ref = float(np.nanmedian(half[fin])) if fin.any() else 10.0
-    i0 = int(np.flatnonzero(fin)[np.argmin(np.abs(half[fin] - np.nanmedian(half[fin])))]) if (
-        fin.any()) else 0
-    w = max(8.0 * half_ref, 20.0)
+    gh = np.asarray(ag.gnss_h, dtype=float) if ag.has_gnss else np.zeros(0)
+    ref = gh[np.isfinite(gh)] if gh.size else half[fin]
+    half_ref = float(np.median(ref)) if ref.size else 10.0
+    i0 = 0
+    if fin.any():
+        k_fin = np.flatnonzero(fin)
+        i0 = int(k_fin[np.argmin(np.abs(half[fin] - np.median(half[fin])))])
+    w = max(4.0 * half_ref, 20.0)
     box = (ce[i0] - w, ce[i0] + w, cn[i0] - w, cn[i0] + w)
+    if fin.any() and max(np.ptp(ce[fin]), np.ptp(cn[fin])) < 2 * w:
+        mid_e, mid_n = 0.5 * (np.min(ce[fin]) + np.max(ce[fin])), 0.5 * (
+            np.min(cn[fin]) + np.max(cn[fin]))
+        w = 0.5 * max(np.ptp(ce[fin]), np.ptp(cn[fin])) + 2.5 * half_ref
+        box = (mid_e - w, mid_e + w, mid_n - w, mid_n + w)
 
     def inside(e: Any, n: Any, pad: float = 0.0) -> Any:
         return ((e > box[0] - pad) & (e < box[1] + pad) & (n > box[2] - pad) & (n < box[3] + pad))
@@ -228,17 +234,20 @@ def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
     # boxes in the zoom only: the smoothed boxes at the GNSS epochs, and the GNSS boxes
     if ag.has_gnss:
         gt = np.asarray(ag.gnss_t, dtype=float)
+        gh = np.where(np.isfinite(gh), gh, 0.0)
         j = np.clip(np.searchsorted(sm.te, gt), 0, sm.te.size - 1)
         j = np.where((j > 0) & (np.abs(sm.te[j - 1] - gt) < np.abs(sm.te[j] - gt)), j - 1, j)
         same = np.abs(sm.te[j] - gt) <= 1e-6 * max(1.0, float(np.max(np.abs(gt))))
         ge, gn = np.asarray(ag.gnss_e), np.asarray(ag.gnss_n)
         sel = np.flatnonzero(inside(ge, gn, 2 * half_ref))
+        sel = sel[:: max(1, sel.size // 20)]  # at most ~20 pairs of boxes: readable
         zx.add_collection(PatchCollection(
             [Rectangle((ge[i] - gh[i], gn[i] - gh[i]), 2 * gh[i], 2 * gh[i]) for i in sel],
             facecolor="none", edgecolor="tab:blue", lw=0.9))
         ks = [int(j[i]) for i in sel if same[i] and fin[j[i]]]
     else:
         ks = [int(k) for k in np.flatnonzero(fin & inside(ce, cn, 2 * half_ref))]
+        ks = ks[:: max(1, len(ks) // 20)]
     zx.add_collection(PatchCollection(
         [Rectangle((X[k, SM.E, 0], X[k, SM.N, 0]), X[k, SM.E, 1] - X[k, SM.E, 0],
                    X[k, SM.N, 1] - X[k, SM.N, 0]) for k in ks],
@@ -252,7 +261,8 @@ def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
         ax.set_xlim(np.min(ce[fin]) - pad, np.max(ce[fin]) + pad)
         ax.set_ylim(np.min(cn[fin]) - pad, np.max(cn[fin]) + pad)
     for a, name in ((ax, "whole trip (red square: the zoom)"),
-                    (zx, f"zoom: boxes at the GNSS epochs (±{w:.0f} m)")):
+                    (zx, f"zoom (±{w:.0f} m): GNSS boxes and smoothed boxes at the same "
+                         "epochs (at most 20)")):
         a.set_aspect("equal", adjustable="box")
         a.set_xlabel("east [m]")
         a.set_ylabel("north [m]")
