@@ -120,8 +120,12 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
     run = result.full
     summary = getattr(result, "summary", {}) or {}
     nota = summary.get("channels_not_analysed") or {}
-    chans = [ch for ch in ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
-             if ch in run.margins or ch in ("accel_x", "accel_y", "gyro_z")]
+    every = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
+    has = {ch for ch, m in run.margins.items() if m.levels}
+    # a panel per analysed channel and per channel of the planar analysis (which says why
+    # it has no windows); the others not analysed are named in one line below
+    chans = [ch for ch in every if ch in has or ch in ("accel_x", "accel_y", "gyro_z")]
+    others = [ch for ch in every if ch not in chans]
     fig = Figure(figsize=(11, 2.3 * max(1, len(chans)) + 0.8))
     t_end = 0.0
     for i, ch in enumerate(chans):
@@ -160,10 +164,13 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
         else:
             ax.text(0.5, 0.8, "every interval unbounded at this τ", transform=ax.transAxes,
                     ha="center", fontsize=8)
-        ex = lv.exceeds
+        ex = lv.exceeds & fin
         if ex.any():
             ax.plot(t[ex], np.where(lo[ex] > 0, lo[ex], hi[ex]), "v", color="tab:red", ms=5,
                     label=f"outside the band ({int(ex.sum())})")
+            y0, y1 = ax.get_ylim()  # the exceeding windows are wholly in view
+            pad = 0.05 * (y1 - y0)
+            ax.set_ylim(min(y0, float(np.min(lo[ex])) - pad), max(y1, float(np.max(hi[ex])) + pad))
         if not np.any(lv.decidable):
             ax.text(0.01, 0.05, "undecided: the aided interval is wider than the band",
                     transform=ax.transAxes, fontsize=7, color="0.3")
@@ -171,15 +178,23 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
         ax.set_title(
             f"{ch}: windows of τ = {lv.tau_s:.3g} s ({m.verdict})", fontsize=8, loc="left"
         )
-        ax.legend(fontsize=7, loc="upper right", ncol=3)
+        # above the panel, off the data
+        ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3,
+                  frameon=False, borderaxespad=0.1)
     if chans:
         fig.axes[-1].set_xlabel("time [s] (window centre, relative to the first IMU sample)")
+    bottom = 0.0
+    if others:
+        why = "; ".join(sorted({str(nota.get(ch, "no windows")) for ch in others}))
+        fig.text(0.01, 0.005, f"not analysed: {', '.join(others)} ({why})", fontsize=7,
+                 color="0.3", wrap=True)
+        bottom = 0.03
     fig.suptitle(
         (title + ": " if title else "")
         + "guaranteed intervals of the window-mean IMU error (grey) and stationary band (green)",
         fontsize=10,
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, bottom, 1, 1))
     return fig
 
 
@@ -198,15 +213,17 @@ def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
     ax, zx = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     X = sm.X
     fin = np.all(np.isfinite(X[:, [SM.E, SM.N], :].reshape(len(X), -1)), axis=1)
-    ce = 0.5 * (X[:, SM.E, 0] + X[:, SM.E, 1])
-    cn = 0.5 * (X[:, SM.N, 0] + X[:, SM.N, 1])
+    with np.errstate(invalid="ignore"):  # unbounded epochs (+-inf) are not drawn
+        ce = np.where(fin, 0.5 * (X[:, SM.E, 0] + X[:, SM.E, 1]), np.nan)
+        cn = np.where(fin, 0.5 * (X[:, SM.N, 0] + X[:, SM.N, 1]), np.nan)
     tr = None
     if drive.truth is not None:
         tr = truth_at(drive, sm.te + run.ctx.imu.t0, ag.origin)
     # the zoom: a square of ~4 GNSS box widths around the epoch of the median box; the
     # whole trip where that is smaller
-    half = 0.5 * np.where(fin, np.maximum(X[:, SM.E, 1] - X[:, SM.E, 0],
-                                          X[:, SM.N, 1] - X[:, SM.N, 0]), np.nan)
+    with np.errstate(invalid="ignore"):
+        half = 0.5 * np.where(fin, np.maximum(X[:, SM.E, 1] - X[:, SM.E, 0],
+                                              X[:, SM.N, 1] - X[:, SM.N, 0]), np.nan)
     gh = np.asarray(ag.gnss_h, dtype=float) if ag.has_gnss else np.zeros(0)
     ref = gh[np.isfinite(gh)] if gh.size else half[fin]
     half_ref = float(np.median(ref)) if ref.size else 10.0
