@@ -731,13 +731,21 @@ def _term_cell(e: dict[str, Any], factor: float = 1.0) -> str:
     return f"{mark}{_num(ds['value'] * factor, 3)} {_e(ds.get('unit', ''))}{ci_txt}"
 
 
+def _duration(seconds: float) -> str:
+    if seconds >= 3600:
+        return f"{_num(seconds / 3600, 3)} h"
+    return f"{_num(seconds / 60, 3)} min" if seconds >= 120 else f"{_num(seconds, 3)} s"
+
+
 def _summary_section(
     noise: dict[str, Any] | None, static_dir: Path | None, dyn_dirs: list[Path], root: Path
 ) -> str:
     """The answer first: the IMU's noise terms, its in-motion verdicts and factors, the
     filter parameters and what is not guaranteed (one IMU: the static log's)."""
     inp = (noise or {}).get("input") or {}
-    imu = Path(str(inp.get("path", ""))).name or (dyn_dirs[0].name if dyn_dirs else "?")
+    file, sep, topic = str(inp.get("path", "")).partition(":/")  # a bag's topic
+    imu = (Path(file).name + (f":/{topic}" if sep else "")) if file else (
+        dyn_dirs[0].name if dyn_dirs else "?")
     parts = [f"<section id='summary'><h2>Summary — {_e(imu)}</h2>"]
     not_guaranteed: list[str] = []
     channels = (noise or {}).get("channels") or {}
@@ -749,7 +757,7 @@ def _summary_section(
         conf = ((noise or {}).get("settings") or {}).get("confidence")
         dur = inp.get("duration_s") or 0
         parts.append(
-            f"<p>Static log: {_num(dur / 3600, 3)} h at {_num(inp.get('sample_rate_hz'))} Hz. "
+            f"<p>Static log: {_duration(dur)} at {_num(inp.get('sample_rate_hz'))} Hz. "
             f"Noise terms in datasheet units with their {_num(100 * (conf or 0.95), 3)} % "
             "intervals; '≤': not resolved by the log, its upper bound.</p>"
         )
