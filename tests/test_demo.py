@@ -63,6 +63,7 @@ def test_demo_tells_one_story_and_its_report_answers_first(
     assert "Summary — adis16405_imu1_extract.csv.gz" in html
     assert "Stationary characterisation" in html and "Dynamic error margins" in html
     assert html.count("<section id='dynamic") == 1
+    assert "did not use the static log" not in html  # the trip was bounded with its noise
 
     # the first screen at 1400x900 in headless chromium: the summary of this one IMU
     from PIL import Image

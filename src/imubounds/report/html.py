@@ -753,6 +753,11 @@ def _summary_section(
     dyn = _load_json(dyn_dir / "dynamic.json") if dyn_dir is not None else None
     motion = _load_json(dyn_dir / "motion.json") if dyn_dir is not None else None
     mchans = (motion or {}).get("channels") or {}
+    same_imu = True  # the dynamic analysis used this static log's noise.json (--static)
+    if dyn is not None and channels:
+        full0 = (dyn.get("modes") or {}).get("full") or {}
+        same_imu = any(r.get("source") == "noise.json"
+                       for rows_ in (full0.get("budget") or {}).values() for r in rows_)
     if channels:
         conf = ((noise or {}).get("settings") or {}).get("confidence")
         dur = inp.get("duration_s") or 0
@@ -781,6 +786,15 @@ def _summary_section(
             f"<h3>In motion: {_e(src)} (guaranteed with probability ≥ "
             f"{_num(1 - (alpha or 0.01), 4)})</h3>"
         )
+        if not same_imu:
+            parts.append(
+                "<p class='warn'>This dynamic analysis did not use the static log's noise.json "
+                "(no --static): its verdicts and factors are for the noise model it was given "
+                "(a datasheet preset or drive.yaml), not for the IMU above.</p>"
+            )
+            not_guaranteed.append(
+                f"the in-motion results of {src} are for its own noise model, not this IMU's"
+            )
         rows = []
         for ch in [*verdicts, *(c for c in (full.get("channels_not_analysed") or {})
                                if c not in verdicts)]:
@@ -798,7 +812,7 @@ def _summary_section(
                 _num(F, 3) if F is not None else "—",
                 (f"{_num(min(infl), 3)} – {_num(max(infl), 3)}" if infl else "—"),
                 (f"{_num(res[0]['tau_s'], 3)} – {_num(res[-1]['tau_s'], 3)} s" if res else "—"),
-                _term_cell(sel.get("N") or {}, F) if F is not None and sel else "—",
+                _term_cell(sel.get("N") or {}, F) if F is not None and sel and same_imu else "—",
             ])
             if v is None:
                 why = (full.get("channels_not_analysed") or {}).get(ch, "")
@@ -819,7 +833,7 @@ def _summary_section(
             "the Filter parameters page of the documentation.</p>"
         )
     if channels:
-        parts.append(_filter_block(noise or {}, motion))
+        parts.append(_filter_block(noise or {}, motion if same_imu else None))
     if dyn is not None and "paper" in (dyn.get("modes") or {}):
         not_guaranteed.append("mode paper (the paper's per-step method) is not guaranteed")
     not_guaranteed.append(
