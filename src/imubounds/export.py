@@ -287,6 +287,10 @@ def _vins(fn: FilterNoise) -> str:
         "# VINS's IntegrationBase puts acc_n^2 into the noise of each sample and acc_w^2*dt^2 "
         "into each bias step: acc_n is a per-sample sigma_d = N*sqrt(f), acc_w = K*sqrt(f)"
     )
+    lines.append(
+        "# (its mid-point rule averages two samples per step: with acc_n = N*sqrt(f) the "
+        "velocity variance per step is N^2*dt/2; x sqrt(2) matches the continuous N^2*dt)"
+    )
     names = {"accel": ("acc_n", "acc_w", "m/s^2", "m/s^3"),
              "gyro": ("gyr_n", "gyr_w", "rad/s", "rad/s^2")}
     for kind, _name, _unit in _KINDS:
