@@ -87,3 +87,37 @@ def test_motion_json_round_trip_and_plot(trip: tuple[Any, Any], tmp_path: Path) 
     assert len(fig.axes) == len(doc["channels"])
     with pytest.raises(ib.InputError, match="no motion.json"):
         read_motion(tmp_path / "elsewhere")
+
+
+def test_windows_figure_marks_the_exceeding_windows_at_the_tau_shown() -> None:
+    """A gyro bias step the noise budget does not allow: windows.png shows the tau with
+    the exceeding windows and marks them; every planar channel has its panel."""
+    from imubounds.dynamic.scenario import parse_fault
+    from imubounds.report.dynamic_plots import plot_windows
+
+    sim = ib.simulate_trip("paper", seed=3, duration_s=200, distance_m=2400,
+                           faults=(parse_fault("gyro_z:bias=0.3@100"),))  # fmt: skip
+    res = ib.dynamic_margins(sim.drive, mode="full")
+    assert res.verdicts["gyro_z"] == "exceeds"
+    fig = plot_windows(res)
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert [t.split(":")[0] for t in titles] == ["accel_x", "accel_y", "gyro_z"]
+    gz = fig.axes[2]
+    n_ex = max(int(np.sum(lv.exceeds)) for lv in res.full.margins["gyro_z"].levels)
+    marks = [ln for ln in gz.get_lines() if ln.get_marker() == "v"]
+    assert len(marks) == 1 and len(marks[0].get_xdata()) == n_ex
+    lo, hi = gz.get_ylim()  # the marked windows are in view
+    assert all(lo <= y <= hi for y in marks[0].get_ydata())
+    assert any("not analysed" in t.get_text() for t in fig.texts)  # accel_z, gyro_x, gyro_y
+    # trajectory.png: the whole trip and a zoom where the boxes are drawn (at most ~20 of
+    # each, the smoothed ones at the GNSS epochs); the legend is the figure's, off the data
+    from imubounds.report.dynamic_plots import plot_trajectory
+
+    tf = plot_trajectory(res, sim.drive)
+    whole, zoom = tf.axes
+    assert not whole.collections and whole.get_legend() is None and zoom.get_legend() is None
+    assert len(tf.legends) == 1
+    gnss_boxes, smoothed = zoom.collections
+    assert 0 < len(gnss_boxes.get_paths()) <= 20 and 0 < len(smoothed.get_paths()) <= 20
+    x0, x1 = zoom.get_xlim()
+    assert x1 - x0 < 0.5 * np.ptp(whole.get_xlim())  # a zoom, where 10 m boxes are visible

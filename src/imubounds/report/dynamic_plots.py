@@ -257,14 +257,14 @@ def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
         same = np.abs(sm.te[j] - gt) <= 1e-6 * max(1.0, float(np.max(np.abs(gt))))
         ge, gn = np.asarray(ag.gnss_e), np.asarray(ag.gnss_n)
         sel = np.flatnonzero(inside(ge, gn, 2 * half_ref))
-        sel = sel[:: max(1, sel.size // 20)]  # at most ~20 pairs of boxes: readable
+        sel = sel[:: max(1, math.ceil(sel.size / 20))]  # at most ~20 pairs of boxes: readable
         zx.add_collection(PatchCollection(
             [Rectangle((ge[i] - gh[i], gn[i] - gh[i]), 2 * gh[i], 2 * gh[i]) for i in sel],
             facecolor="none", edgecolor="tab:blue", lw=0.9))
         ks = [int(j[i]) for i in sel if same[i] and fin[j[i]]]
     else:
         ks = [int(k) for k in np.flatnonzero(fin & inside(ce, cn, 2 * half_ref))]
-        ks = ks[:: max(1, len(ks) // 20)]
+        ks = ks[:: max(1, math.ceil(len(ks) / 20))]
     zx.add_collection(PatchCollection(
         [Rectangle((X[k, SM.E, 0], X[k, SM.N, 0]), X[k, SM.E, 1] - X[k, SM.E, 0],
                    X[k, SM.N, 1] - X[k, SM.N, 0]) for k in ks],
