@@ -130,6 +130,14 @@ def test_motion_factor_multiplies_n_and_k() -> None:
     assert kal["gyroscope_noise_density"] == pytest.approx(3.0 * 3.0e-4, rel=1e-6)
     text = ib.export_noise(known_noise(), "kalibr", motion=motion)
     assert "IN MOTION" in text and "accel_z: the trip did not resolve" in text
+    # in-motion figures of another noise model are refused, naming the channel
+    other = {"format": "imubounds.motion/1",
+             "channels": {"gyro_y": {"F": 3.0, "N_static": 1.0e-3}}}  # fmt: skip
+    with pytest.raises(InputError, match="gyro_y: its in-motion figures were computed"):
+        ib.export_noise(known_noise(), "kalibr", motion=other)
+    same = {"format": "imubounds.motion/1",
+            "channels": {"gyro_y": {"F": 3.0, "N_static": 3.0e-4}}}  # fmt: skip
+    assert "IN MOTION" in ib.export_noise(known_noise(), "kalibr", motion=same)
 
 
 def test_cli_export_writes_the_file_and_a_summary(tmp_path: Path, capsys: Any) -> None:

@@ -135,6 +135,15 @@ def filter_noise(results: Any, motion: Any = None) -> FilterNoise:
             F = mc.get("F")
             if ax is None:
                 continue
+            n_used = mc.get("N_static")
+            if n_used is not None and ax.N is not None and not math.isclose(
+                float(n_used), ax.N, rel_tol=1e-9
+            ):
+                raise InputError(
+                    f"motion.json {ch}: its in-motion figures were computed for N = "
+                    f"{float(n_used):.6g}, not this noise.json's {ax.N:.6g}; run 'imubounds "
+                    "dynamic ... --static' with this noise.json, then export again"
+                )
             if F is None:
                 out.notes.append(
                     f"{ch}: the trip did not resolve an in-motion factor (the aiding is "
