@@ -93,6 +93,11 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
     assert page.count("Error budget of the IMU channels") == 1
     assert "Error budget — " not in page and "turn-on bias (1 sigma)" in page
     assert "Error budget of the aiding sensors" in page
+    # the in-motion figures per tau (motion.json) beside the stationary prediction
+    motion = json.loads((run_dir / "dynamic" / "motion.json").read_text())
+    assert "In motion: guaranteed bound vs stationary prediction" in page
+    ch, c = next(iter(motion["channels"].items()))
+    assert f"{c['rows'][-1]['inflation']:.3g}" in page
     assert "Aiding sensors: input vs contracted half-widths" in page
     assert "Whole-trip probability split" in page
     assert f"Empty intersections: {full['empty_intersections']['count']}" in page

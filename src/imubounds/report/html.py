@@ -533,6 +533,34 @@ def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
     return "".join(parts)
 
 
+def _motion_table(motion: dict[str, Any]) -> str:
+    """motion.json per channel and tau: the guaranteed in-motion bound beside the
+    stationary prediction, their ratio (the inflation factor) and the floor."""
+    rows = []
+    for ch, c in motion["channels"].items():
+        f, unit = _ch_factor(ch)
+        for r in c.get("rows", []):
+            infl = r.get("inflation")
+            cls = "bad" if infl is not None and infl > 1 else "ok"
+            rows.append([
+                _e(ch), _num(r.get("tau_s"), 3),
+                _num(None if r.get("bound") is None else r["bound"] * f),
+                _num(None if r.get("stationary") is None else r["stationary"] * f),
+                f"<span class='{cls}'>{_num(infl, 3)}</span>",
+                _num(None if r.get("floor") is None else r["floor"] * f),
+                "yes" if r.get("resolved") else "no", _e(unit),
+            ])
+    return (
+        "<h3>In motion: guaranteed bound vs stationary prediction (motion.json)</h3>"
+        + _table(["channel", "τ [s]", "in-motion bound", "stationary prediction",
+                  "inflation", "floor", "resolved", "unit"], rows)
+        + "<p class='muted'>bound: the largest |window-mean error| the trip allows; "
+        "inflation = bound / stationary prediction (above 1 exactly where the bound exceeds "
+        "it; where the τ is not resolved the aiding, not the IMU, sets the bound); floor: "
+        "some window's error is at least this.</p>"
+    )
+
+
 def _budget_table(budget: dict[str, Any]) -> str:
     """One table: a row per budget term, a column per channel (value and unit)."""
     chans = list(budget)
@@ -597,6 +625,9 @@ def _dynamic_section(
         parts.append("<p class='muted'>dynamic.json has no mode results.</p>")
     if isinstance(modes.get("full"), dict):
         parts.append(_full_block(modes["full"], warnings))
+    motion = _load_json(d / "motion.json")
+    if motion and motion.get("channels"):
+        parts.append(_motion_table(motion))
     shown = set()
     for stem, caption in DYN_FIGURES:
         if _listed(d, f"{stem}.png"):
