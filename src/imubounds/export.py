@@ -175,8 +175,8 @@ def _e(x: float) -> str:
 
 
 def _status(ax: AxisTerms, term: str) -> str:
-    st = getattr(ax, f"{term}_status")
-    txt = {"resolved": "resolved", "upper_bound": "UPPER BOUND (not resolved by the log)"}.get(
+    st = str(getattr(ax, f"{term}_status"))
+    txt: str = {"resolved": "resolved", "upper_bound": "UPPER BOUND (not resolved by the log)"}.get(
         st, st.replace("_", " ")
     )
     if ax.motion_F is not None:
