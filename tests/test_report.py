@@ -296,3 +296,19 @@ def test_title_is_the_output_folder_not_the_staging_folder(run_dir: Path, tmp_pa
     shutil.copytree(run_dir / "static", staged)
     html = build_report(staged)
     assert "<title>imubounds report — out</title>" in html
+
+
+def test_allan_labels_sigma_min_in_the_axis_unit() -> None:
+    """allan.png: σ_min is written in the unit of its axis (deg/h for gyros), not deg/s."""
+    import math
+
+    import imubounds as ib
+    from imubounds.report.static_plots import _format_terms
+
+    res = ib.characterize(ib.read_log(FORMATS / "adis_ros2"), taus=20, models=())
+    ch = res.channels["gyro_z"]
+    label = _format_terms(ch).splitlines()[-1]
+    sm = ch.selected.sigma_min
+    want = sm["value"] * 180 / math.pi * 3600  # rad/s -> deg/h
+    assert label.startswith(f"σ_min = {want:.3g} deg/h"), label
+    assert "deg/s" not in label
