@@ -4,6 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.installed-test
+RUNTIME_STAMP := $(VENV)/.installed-runtime
 OUT ?= out
 PYTEST_ARGS ?=
 
@@ -13,14 +14,19 @@ $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install --quiet --upgrade pip
 
-# Install once per change of pyproject.toml (test extras include everything).
+# Install once per change of pyproject.toml: the demo needs the runtime dependencies
+# only; the tests, lint, docs and benchmarks the test extras (which include everything).
+$(RUNTIME_STAMP): pyproject.toml | $(VENV)/bin/python
+	$(PIP) install --quiet -e .
+	touch $(RUNTIME_STAMP)
+
 $(STAMP): pyproject.toml | $(VENV)/bin/python
 	$(PIP) install --quiet -e '.[test]'
-	touch $(STAMP)
+	touch $(STAMP) $(RUNTIME_STAMP)
 
 venv: $(STAMP)
 
-demo: $(STAMP)
+demo: $(RUNTIME_STAMP)
 	$(VENV)/bin/imubounds demo -o $(OUT)
 
 # The report's browser test needs Debian's chromium; install it when we can (root + apt).
@@ -45,10 +51,9 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(VENV)/bin/mkdocs build --strict -d site
 
+# every benchmark in benchmarks/
 bench: $(STAMP)
-	$(PY) benchmarks/bench_allan.py
-	$(PY) benchmarks/bench_interval.py
-	$(PY) benchmarks/bench_estimator.py
+	@set -e; for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b; done
 
 clean:
 	rm -rf $(VENV) $(OUT) site .pytest_cache .ruff_cache .hypothesis

@@ -73,8 +73,11 @@ def test_dynamic_on_a_drive_layout(main, layout_dir: Path, tmp_path: Path,  # ty
     states = pd.read_csv(out / "states.csv")
     assert {"time_s", "east_lo_m", "east_hi_m", "heading_lo_rad", "u_lo_mps"} <= set(states.columns)
     assert len(states) == full["smoother"]["epochs"]
-    err = capsys.readouterr().err
-    assert "mode full (guaranteed)" in err and "mode paper (NOT guaranteed)" in err
+    out_text = capsys.readouterr().out  # the summary is on stdout, as static's
+    assert "mode full (guaranteed)" in out_text and "mode paper (NOT guaranteed)" in out_text
+    motion = json.loads((out / "motion.json").read_text())
+    assert motion["format"] == "imubounds.motion/1" and set(motion["channels"]) <= set(
+        full["margins"])
 
 
 def test_dynamic_mode_full_only_and_json(main, layout_dir: Path, tmp_path: Path,  # type: ignore[no-untyped-def]

@@ -51,3 +51,68 @@ def test_site_builds_without_warnings(tmp_path: Path) -> None:
                    "stationary.allan.AllanResult", "stationary.pipeline.StaticResult"):
         assert f'id="imubounds.{anchor}"' in api, anchor
     assert (tmp_path / "site" / "tutorial" / "index.html").is_file()
+    # docstrings' Sphinx roles are shown as code, not as raw ':class:' markup
+    import re
+
+    for page in (tmp_path / "site").rglob("index.html"):
+        html = page.read_text(encoding="utf-8")
+        raw = re.findall(r":(?:class|func|meth|mod|attr|data|exc):<code>", html)
+        assert not raw, (page, raw[:3])
+    assert "<code>ImuLog</code>" in api
+    assert 'id="imubounds.api.export_noise"' in api
+    assert (tmp_path / "site" / "export" / "index.html").is_file()
+
+
+# options of other programs named in the docs (not imubounds'), with where they belong
+_FOREIGN_OPTIONS = {
+    "--strict": "mkdocs build",
+    "--nworkers": "dask worker",
+    "--nthreads": "dask worker",
+    "--partition": "Slurm (dask-jobqueue job_extra_directives)",
+}
+_BENCH_OPTIONS = ("--repeat", "--pairs")  # benchmarks/bench_fleet.py's own options
+
+
+def _cli_options() -> tuple[dict[str, set[str]], set[str]]:
+    import argparse
+
+    from imubounds.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    per = {name: {o for a in sp._actions for o in a.option_strings}
+           for name, sp in sub.choices.items()}  # fmt: skip
+    top = {o for a in parser._actions for o in a.option_strings}
+    return per, top.union(*per.values())
+
+
+def test_every_option_named_in_readme_and_docs_exists() -> None:
+    import re
+
+    per, every = _cli_options()
+    bench = (REPO / "benchmarks" / "bench_fleet.py").read_text(encoding="utf-8")
+    for o in _BENCH_OPTIONS:
+        assert f'"{o}"' in bench, o
+    known = every | set(_FOREIGN_OPTIONS) | set(_BENCH_OPTIONS)
+    tok = re.compile(r"(?<![\w/-])--[a-z][a-z0-9]*(?:-[a-z0-9]+)*")
+    bad: list[str] = []
+    for f in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        for i, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1):
+            where = f"{f.name}:{i}"
+            bad += [f"{where}: {o} is no imubounds option" for o in tok.findall(line)
+                    if o not in known]  # fmt: skip
+            # a command line (code) names the options of its own command
+            m = re.match(r"\s*(?:\$ )?imubounds ([a-z-]+)\b(.*)", line)
+            if m and m.group(1) in per:
+                bad += [f"{where}: {o} is not an option of 'imubounds {m.group(1)}'"
+                        for o in tok.findall(m.group(2))
+                        if o in every and o not in per[m.group(1)]]  # fmt: skip
+    assert not bad, "\n".join(bad)
+
+
+def test_the_renamed_options_are_gone_from_the_docs() -> None:
+    per, _ = _cli_options()
+    assert "--gnss-cep" in per["dynamic"] and "--gps-cep" not in per["dynamic"]
+    assert "--reverses" in per["dynamic"]
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    assert "dynamic" in text and "--gnss-cep" in text

@@ -133,8 +133,8 @@ def test_convert_end_to_end_and_round_trip(
     inputs = _inputs(items, shared_data)
     out = tmp_path / "layout"
     assert main(["convert", *inputs, "-o", str(out), *opts]) == 0
-    err = capsys.readouterr().err
-    assert f"-> {out}" in err
+    summary = capsys.readouterr().out  # the summary is on stdout
+    assert f"-> {out}" in summary
     run = json.loads((out / "run.json").read_text())
     assert run["complete"] and "drive.yaml" in run["files"]
     direct = read_drive(inputs, **_read_kwargs(opts))

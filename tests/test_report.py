@@ -89,7 +89,15 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
     for ch, v in full["verdict"].items():
         assert f"<b>{ch}</b>: <span" in page and v in page
     # the budget tables, the contracted aiding bounds and the probability split are shown
-    assert "Error budget — accel_x" in page and "turn-on bias (1 sigma)" in page
+    # one budget table for the IMU channels (not one per channel), one for the aiding
+    assert page.count("Error budget of the IMU channels") == 1
+    assert "Error budget — " not in page and "turn-on bias (1 sigma)" in page
+    assert "Error budget of the aiding sensors" in page
+    # the in-motion figures per tau (motion.json) beside the stationary prediction
+    motion = json.loads((run_dir / "dynamic" / "motion.json").read_text())
+    assert "In motion: guaranteed bound vs stationary prediction" in page
+    ch, c = next(iter(motion["channels"].items()))
+    assert f"{c['rows'][-1]['inflation']:.3g}" in page
     assert "Aiding sensors: input vs contracted half-widths" in page
     assert "Whole-trip probability split" in page
     assert f"Empty intersections: {full['empty_intersections']['count']}" in page
@@ -101,7 +109,7 @@ def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
     expected = [run_dir / "static" / "allan.png"]
     if VN100.is_dir():
         expected += [run_dir / "dynamic" / f"{s}.png" for s in
-                     ("margins", "windows", "trajectory", "intervals")]
+                     ("margins", "motion", "windows", "trajectory", "intervals")]
     assert len(imgs) == len(expected)
     for data, path in zip(imgs, expected, strict=True):
         assert base64.b64decode(data) == path.read_bytes()
@@ -115,7 +123,8 @@ def test_warnings_and_reproduce(run_dir: Path, page: str) -> None:
     run = json.loads((run_dir / "static" / "run.json").read_text())
     assert run["command"].startswith("imubounds static ")
     assert run["command"].replace("/", "&#x2F;") in page or run["command"] in page
-    assert f"imubounds=={__version__}" in page
+    # the version is not on the package index: install from the source tree
+    assert f"imubounds=={__version__}" not in page and "pip install -e ." in page
 
 
 def test_report_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -149,16 +158,21 @@ def _chromium() -> str:
     pytest.skip(msg)
 
 
-def _render(html: Path, shot: Path, profile: Path) -> list[str]:
-    """Load ``html`` in headless chromium, write a 1280x4000 screenshot; console lines."""
+def _render(html: Path, shot: Path, profile: Path, size: str = "1280,4000") -> list[str]:
+    """Load ``html`` in headless chromium, write a screenshot (1280x4000); console lines."""
     cmd = [_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-           "--virtual-time-budget=5000", f"--screenshot={shot}", "--window-size=1280,4000",
+           "--virtual-time-budget=5000", f"--screenshot={shot}", f"--window-size={size}",
            "--hide-scrollbars", html.resolve().as_uri()]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert shot.is_file(), proc.stderr[-2000:]
     return [line for line in proc.stderr.splitlines() if ":CONSOLE" in line]
 
+
+# the details are collapsed as written: open them all to see every figure
+OPEN_ALL = """<script>
+document.querySelectorAll('details').forEach(function (d) { d.open = true; });
+</script>"""
 
 PROBE = """<script>
 window.addEventListener('load', function () {
@@ -185,7 +199,8 @@ def test_page_in_headless_chromium(run_dir: Path, tmp_path: Path) -> None:
         shutil.copy(shot, keep)
     # 2. The same page with a probe script: every image decoded, and where it is.
     probed = tmp_path / "probed.html"
-    probed.write_text((run_dir / "report.html").read_text().replace("</body>", PROBE + "</body>"))
+    probed.write_text((run_dir / "report.html").read_text().replace(
+        "</body>", OPEN_ALL + PROBE + "</body>"))
     lines = _render(probed, tmp_path / "probed.png", tmp_path / "profile2")
     probe = [ln for ln in lines if "PROBE " in ln]
     assert len(probe) == 1 and len(lines) == 1, lines
@@ -196,7 +211,7 @@ def test_page_in_headless_chromium(run_dir: Path, tmp_path: Path) -> None:
     assert all(r[4] == 1 and r[2] > 400 and r[3] > 150 for r in rects), rects
     # 3. The screenshot shows the figures: inside each visible image rectangle the pixels
     #    vary and include plot colours (not a blank or broken-image box).
-    img = np.asarray(Image.open(shot).convert("RGB"), dtype=float)
+    img = np.asarray(Image.open(tmp_path / "probed.png").convert("RGB"), dtype=float)
     assert img.shape == (4000, 1280, 3)
     seen = 0
     for left, top, width, height, _ in rects:
@@ -248,3 +263,52 @@ def test_save_figure_lays_out_once_and_restores_the_engine(tmp_path: Path) -> No
     pos = ax.get_position().bounds
     fig.savefig(tmp_path / "again.png", dpi=130)  # laid out anew by the engine
     assert np.allclose(ax.get_position().bounds, pos)
+
+
+def test_summary_first_and_details_collapsed(run_dir: Path, page: str) -> None:
+    """The answer first: a summary of the static log's IMU, then the details collapsed."""
+    main_part = page[page.index("<main>"):]
+    assert main_part.startswith("<main><section id='summary'><h2>Summary — ")
+    summary = main_part[: main_part.index("</section>")]
+    noise = json.loads((run_dir / "static" / "noise.json").read_text())
+    for ch, c in noise["channels"].items():
+        n = c["noise"]["selected"]["N"]["datasheet"]
+        assert f"<td class='l'>{ch}</td>" in summary
+        assert f"{n['value']:.3g} {n['unit']}" in summary  # N in datasheet units
+    assert "What is not guaranteed" in summary and "Filter parameters" in summary
+    assert "gyroscope_noise_density" in summary
+    if VN100.is_dir():
+        assert "In motion" in summary and "in-motion factor F" in summary
+        # the VN-100 drive was bounded with its datasheet preset, not this noise.json:
+        # the summary says so rather than pass its verdicts off as this IMU's
+        assert "did not use the static log's noise.json" in summary
+    # every detail section is collapsed (a <details> without 'open')
+    for sid in ("static", "dynamic"):
+        if f"<section id='{sid}'>" in page:
+            assert f"<section id='{sid}'><details><summary>" in page
+    assert "<details open" not in page
+    # the title names the run folder, never a staging folder
+    assert ".imubounds-" not in page[: page.index("</header>")]
+
+
+def test_title_is_the_output_folder_not_the_staging_folder(run_dir: Path, tmp_path: Path) -> None:
+    staged = tmp_path / ".out.imubounds-1234-abcd1234"
+    shutil.copytree(run_dir / "static", staged)
+    html = build_report(staged)
+    assert "<title>imubounds report — out</title>" in html
+
+
+def test_allan_labels_sigma_min_in_the_axis_unit() -> None:
+    """allan.png: σ_min is written in the unit of its axis (deg/h for gyros), not deg/s."""
+    import math
+
+    import imubounds as ib
+    from imubounds.report.static_plots import _format_terms
+
+    res = ib.characterize(ib.read_log(FORMATS / "adis_ros2"), taus=20, models=())
+    ch = res.channels["gyro_z"]
+    label = _format_terms(ch).splitlines()[-1]
+    sm = ch.selected.sigma_min
+    want = sm["value"] * 180 / math.pi * 3600  # rad/s -> deg/h
+    assert label.startswith(f"σ_min = {want:.3g} deg/h"), label
+    assert "deg/s" not in label

@@ -482,8 +482,8 @@ def test_cli_writes_a_variant(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     argv = ["simulate", "--variant", "hills", "--seed", "2", "-o", str(out), "--duration", "200"]
     argv += ["--distance", "2000", "--corner-length", "100", "--fault", "accel_x:bias=0.3@100"]
     assert main(argv) == 0
-    err = capsys.readouterr().err
-    assert "record:" in err and "fault accel_x:bias=0.3@100" in err
+    summary = capsys.readouterr().out  # the summary is on stdout
+    assert "record:" in summary and "fault accel_x:bias=0.3@100" in summary
     doc = json.loads((out / "scenario.json").read_text())
     assert doc["variant"] == "hills" and doc["config"]["hill_amplitude_m"] == 15.0
     assert (out / "attitude.csv").is_file() and (out / "run.json").is_file()

@@ -19,8 +19,9 @@ The curated API (everything in SI; every result has ``.to_dict()``,
 
 Functions: :func:`read_log`, :func:`read_frame`, :func:`allan`,
 :func:`noise_terms`, :func:`characterize`, :func:`read_drive`,
-:func:`dynamic_margins`, :func:`simulate_trip`, :func:`bundled_static_log`,
-:func:`bundled_drive_log`. Errors (all subclasses of :class:`ValueError`):
+:func:`dynamic_margins`, :func:`simulate_trip`, :func:`export_noise`,
+:func:`bundled_static_log`, :func:`bundled_drive_log`. Errors (all subclasses of
+:class:`ValueError`):
 :class:`ImuboundsError`, :class:`InputError`, :class:`UnitsError`,
 :class:`OptionError`, :class:`AnalysisError`, :class:`OutputError`.
 
@@ -54,6 +55,7 @@ _LAZY: dict[str, str] = {
     "allan": "imubounds.api",
     "noise_terms": "imubounds.api",
     "characterize": "imubounds.api",
+    "export_noise": "imubounds.api",
     "simulate_trip": "imubounds.api",
     "read_drive": "imubounds.io.drive_readers",
     "bundled_drive_log": "imubounds.io.drive_readers",
@@ -99,6 +101,7 @@ __all__ = [
     "bundled_static_log",
     "characterize",
     "dynamic_margins",
+    "export_noise",
     "noise_terms",
     "read_drive",
     "read_frame",
@@ -110,6 +113,7 @@ if TYPE_CHECKING:
     from imubounds.api import (
         allan,
         characterize,
+        export_noise,
         noise_terms,
         read_log,
         simulate_trip,

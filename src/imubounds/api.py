@@ -20,6 +20,10 @@ Dynamic (a drive with aiding sensors)::
 
     drive = read_drive(path)                   # Drive (SI, body frame FLU)
     margins = dynamic_margins(drive, noise=result)   # DynamicResult == dynamic.json
+
+A filter's IMU noise file (Kalibr, OpenVINS, VINS, GTSAM, ROS)::
+
+    text = export_noise(result, "kalibr")      # imu.yaml text (units in comments)
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ __all__ = [
     "SI_SIGNAL_UNITS",
     "allan",
     "characterize",
+    "export_noise",
     "noise_terms",
     "read_log",
     "simulate_trip",
@@ -492,3 +497,43 @@ def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> Si
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise OptionError(f"seed must be a whole number >= 0, got {seed!r}")
     return make_trip(variant, seed=int(seed), **overrides)
+
+
+def export_noise(
+    results: StaticResult | Mapping[str, Any] | PathType,
+    format: Literal["kalibr", "openvins", "vins", "gtsam", "ros"] = "kalibr",
+    *,
+    motion: Mapping[str, Any] | PathType | None = None,
+) -> str:
+    """The text of a filter's IMU noise file from the noise terms (``imubounds export``).
+
+    Parameters
+    ----------
+    results : StaticResult, mapping or path
+        A result of :func:`characterize`, a loaded noise.json, its path, or an
+        ``imubounds static`` output folder.
+    format : {"kalibr", "openvins", "vins", "gtsam", "ros"}
+        ``kalibr``: imu.yaml (continuous-time densities, the worst axis);
+        ``openvins``: kalibr_imu_chain.yaml; ``vins``: ``acc_n``, ``gyr_n`` (per-sample
+        sigma = N*sqrt(rate)) and ``acc_w``, ``gyr_w`` (K*sqrt(rate)); ``gtsam``:
+        PreintegrationCombinedParams covariances (N^2, K^2 per axis); ``ros``:
+        sensor_msgs/Imu covariances (N^2 * rate per axis).
+    motion : mapping or path, optional
+        ``motion.json`` or an ``imubounds dynamic`` output folder (mode full): N and K
+        multiplied by each channel's in-motion factor F.
+
+    Returns
+    -------
+    str
+        YAML text; each number's unit and conversion is in a comment beside it.
+
+    Raises
+    ------
+    OptionError
+        An unknown format.
+    InputError
+        The results cannot give the format's numbers (the message names the key).
+    """
+    from imubounds.export import export_noise as _export
+
+    return _export(results, format, motion=motion)

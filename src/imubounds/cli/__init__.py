@@ -47,6 +47,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "dynamic",
     "fleet",
     "report",
+    "export",
     "demo",
 )
 

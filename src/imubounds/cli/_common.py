@@ -418,7 +418,7 @@ class Reporter:
         print(f"imubounds: warning: {msg}", file=sys.stderr)
 
     def progress(self, stage: str, done: int, total: int) -> None:
-        if self.quiet:
+        if self.quiet or not sys.stderr.isatty():  # progress bars only on a terminal
             return
         from tqdm import tqdm
 

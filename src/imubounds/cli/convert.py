@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 from imubounds.cli._common import add_drive_options, add_force_option, drive_read_options
@@ -38,7 +37,7 @@ def register(sub: Any) -> None:
         help="table format of the output (csv)",
     )
     add_drive_options(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
 
 
@@ -68,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         out.record(getattr(args, "argv", None), command_name="convert")
     if not args.quiet:
         for line in summary(drive, args.out):
-            print(line, file=sys.stderr)
+            print(line)
     return 0
 
 

@@ -13,10 +13,12 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "demo",
         help="run the whole pipeline on the bundled real data",
-        description="Run the stationary analysis on the bundled ADIS16405 extract, the "
-        "dynamic analysis on the paper's simulated trip and on the bundled VN-100 drive, "
-        "and write one report: DIR/static, DIR/sim, DIR/dynamic, DIR/dynamic_vn100, "
-        "DIR/report.html.",
+        description="One story about one IMU: characterise the bundled ADIS16405 static "
+        "log (DIR/static), simulate the paper's 9.4 km trip with an IMU of the ADIS16405's "
+        "datasheet noise (DIR/sim), bound its error in motion against the characterised "
+        "noise (DIR/dynamic, with the in-motion figures in motion.json), export the filter "
+        "parameters in every format, stationary and in motion (DIR/filter), and write one "
+        "report (DIR/report.html).",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
     add_force_option(p)
@@ -35,54 +37,55 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
     from imubounds.cli import run_command
     from imubounds.io import bundled_static_log
-    from imubounds.io.drive_readers import bundled_drive_log
 
     quiet = ["--quiet"] if args.quiet else []
+    static, sim, dyn, filt = (str(out / x) for x in ("static", "sim", "dynamic", "filter"))
     steps: list[tuple[str, list[str]]] = [
         (
-            "stationary analysis of the bundled ADIS16405 static log",
-            [
-                "static",
-                str(bundled_static_log()),
-                "-o",
-                str(out / "static"),
-                "--tau",
-                "points:40",
-                "--no-report",
-            ],
+            "characterising the bundled ADIS16405 static log (45 min at 100 Hz)",
+            ["static", str(bundled_static_log()), "-o", static, "--tau", "points:40",
+             "--no-report"],
         ),
         (
-            "simulating the paper's 9.4 km / 792 s trip (MTx-grade IMU, GPS, compass)",
-            ["simulate", "--scenario", "paper", "--seed", "0", "-o", str(out / "sim")],
+            "simulating the paper's 9.4 km / 792 s trip with an ADIS16405-grade IMU "
+            "(datasheet noise), GNSS and compass",
+            ["simulate", "--scenario", "paper", "--imu-preset", "adis16405", "--seed", "0",
+             "-o", sim],
         ),
         (
-            "dynamic error margins on the simulated trip",
-            ["dynamic", str(out / "sim"), "-o", str(out / "dynamic"), "--no-report"],
-        ),
-        (
-            "dynamic error margins on the bundled VN-100 + BU-353N drive",
-            [
-                "dynamic",
-                str(bundled_drive_log()),
-                "-o",
-                str(out / "dynamic_vn100"),
-                "--imu-spec",
-                "vn100",
-                "--no-report",
-            ],
+            "bounding the IMU's error in motion against the characterised noise",
+            ["dynamic", sim, "--static", str(Path(static) / "noise.json"), "-o", dyn,
+             "--no-report"],
         ),
     ]
-    for i, (what, argv) in enumerate(steps, 1):
-        if not args.quiet:
-            print(f"[{i}/{len(steps) + 1}] {what}")
+    from imubounds.export import FORMATS
+
+    for fmt in FORMATS:
+        steps.append((
+            f"exporting the {fmt} filter parameters (stationary and in motion)",
+            ["export", static, "--format", fmt, "-o", str(Path(filt) / f"{fmt}.yaml")],
+        ))
+        steps.append((
+            "",
+            ["export", static, "--format", fmt, "--motion", dyn, "-o",
+             str(Path(filt) / f"{fmt}_motion.yaml")],
+        ))
+    from imubounds.io.outputs import ensure_dir
+
+    ensure_dir(filt)
+    shown = [w for w, _ in steps if w] + ["writing the report"]
+    for what, argv in steps:
+        if what and not args.quiet:
+            print(f"[{shown.index(what) + 1}/{len(shown)}] {what}")
         # errors and Ctrl-C propagate, so the message names what was written
-        code = run_command([*argv, *quiet, *(["--force"] if args.force else [])])
+        quiet_step = quiet if argv[0] != "export" else ["--quiet"]
+        code = run_command([*argv, *quiet_step, *(["--force"] if args.force else [])])
         if code:
             return code
     from imubounds.report.html import write_report
 
     if not args.quiet:
-        print(f"[{len(steps) + 1}/{len(steps) + 1}] writing the report")
+        print(f"[{len(shown)}/{len(shown)}] writing the report")
     write_report(out, dest=outset.path("report.html"))
     outset.record(getattr(args, "argv", None), command_name="demo")
     if not args.quiet:

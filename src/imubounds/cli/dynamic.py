@@ -84,6 +84,8 @@ def register(sub: Any) -> None:
                    help="roll/pitch bound when there is no attitude stream (vehicle.max_tilt_deg)")
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
                    help="non-holonomic |lateral velocity| bound of a wheeled vehicle")
+    f.add_argument("--reverses", action="store_true", default=None,
+                   help="the vehicle may drive backwards: no heading from the GNSS course")
     f.add_argument("--max-speed", type=positive_float, metavar="M/S")
     f.add_argument("--max-accel", type=positive_float, metavar="M/S2",
                    help="horizontal acceleration bound (centripetal included)")
@@ -139,7 +141,7 @@ def register(sub: Any) -> None:
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
     p.add_argument("--json", action="store_true", help="print dynamic.json on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
 
 
@@ -194,6 +196,7 @@ def _full_options(args: argparse.Namespace) -> dict[str, Any]:
         "compass_fit": args.compass_fit,
         "max_windows": args.max_windows,
         "tol": args.tol,
+        "reverses": args.reverses,
     }
     return {k: v for k, v in o.items() if v is not None}
 
@@ -222,11 +225,14 @@ def run(args: argparse.Namespace) -> int:
 
     inputs = [*args.log, *(x for x in (args.static,) if x)]
     with OutputSet(args.out, force=args.force, inputs=inputs) as outset:
-        outset.check(["dynamic.json", "margins.csv", "states.csv", "steps.csv", "report.html"])
+        outset.check(["dynamic.json", "motion.json", "margins.csv", "states.csv", "steps.csv",
+                      "report.html"])
         messages = _run(args, outset)
     if not args.quiet:
+        # the summary on stdout (as static's); notes on stderr
         for m in messages:
-            print(m, file=sys.stderr)
+            note = m.startswith("imubounds: note:")
+            print(m, file=sys.stderr if note or args.json else sys.stdout)
     return 0
 
 
@@ -270,6 +276,10 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         doc["input"]["origin_lat_lon_alt"] = list(full.full.ctx.aiding.origin)
     out = outset.staging
     write_json(out / "dynamic.json", doc)
+    if full is not None and getattr(full, "full", None) is not None:
+        from imubounds.motion import motion_figures
+
+        write_json(out / "motion.json", motion_figures(full, noise=args.static))
     if full is not None:
         df = full.to_frame()
         write_with(out / "margins.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
@@ -286,6 +296,12 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             P.save(P.plot_margins(full.summary, title=title), out, "margins")
             P.save(P.plot_windows(full, title=title), out, "windows")
             P.save(P.plot_trajectory(full, drive, title=title), out, "trajectory")
+            from imubounds.motion import plot_motion, read_motion
+
+            noise_doc = None
+            if args.static:
+                noise_doc = json.loads(Path(args.static).read_text(encoding="utf-8"))
+            P.save(plot_motion(read_motion(out), noise_doc), out, "motion")
         if "paper" in results:
             P.save(P.plot_intervals(results["paper"].paper, title=title), out, "intervals")
     outset.record(getattr(args, "argv", None), command_name="dynamic")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 from imubounds.cli._common import (
@@ -185,7 +184,7 @@ def register(sub: Any) -> None:
         help="draw every error inside its stated bound (the record is then clean "
         "unless there are outliers or faults)",
     )
-    p.add_argument("-q", "--quiet", action="store_true", help="no messages on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
 
 
@@ -257,8 +256,7 @@ def run(args: argparse.Namespace) -> int:
             f"simulated {cfg.variant} (seed {cfg.seed}): {d.imu.t.size} IMU samples at "
             f"{cfg.rate_hz:g} Hz, streams {', '.join(d.streams())}; closure "
             f"{res.closure_error_m():.2e} m, max speed {res.truth['speed'].max():.1f} m/s -> "
-            f"{args.out}",
-            file=sys.stderr,
+            f"{args.out}"
         )
-        print(res.record.summary(), file=sys.stderr)
+        print(res.record.summary())
     return 0

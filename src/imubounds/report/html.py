@@ -40,6 +40,9 @@ figcaption{font-size:.85em;color:#555}
 .warn{background:#fff6e0;border-left:4px solid #e0a800;padding:6px 10px;margin:4px 0;font-size:.9em}
 .ok{color:#1a7f37;font-weight:600} .bad{color:#b42318;font-weight:600}
 code,pre{background:#f0f2f5;border-radius:4px;padding:2px 5px;font-size:.88em}
+details>summary{cursor:pointer;list-style:none} details>summary h2{display:inline}
+details>summary::before{content:"▸ ";color:#1f3a5f} details[open]>summary::before{content:"▾ "}
+#summary table{font-size:.92em}
 pre{padding:8px 10px;overflow-x:auto}
 .muted{color:#666;font-size:.85em}
 """
@@ -95,6 +98,15 @@ def _img(path: Path, caption: str) -> str:
         f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
         f"<figcaption>{_e(caption)}</figcaption></figure>"
     )
+
+
+def _real_root(root: Path) -> Path:
+    """The folder a run writes to: a command stages its outputs in
+    ``.NAME.imubounds-PID-XXXX`` beside ``NAME`` and renames it at the end."""
+    name = root.name
+    if name.startswith(".") and ".imubounds-" in name:
+        return root.parent / name[1:].split(".imubounds-")[0]
+    return root
 
 
 def _find(root: Path, name: str, subdirs: tuple[str, ...]) -> Path | None:
@@ -189,7 +201,8 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
     run = _load_json(d / "run.json")
     if run and run.get("command"):
         commands.append(str(run["command"]))
-    parts = ["<section id='static'><h2>Stationary characterisation</h2>"]
+    parts = ["<section id='static'><details><summary><h2>Stationary characterisation</h2>"
+             "</summary>"]
     parts.append(
         "<table><tr><th class='l'>input</th><td class='l'>"
         f"{_e(inp.get('path', '?'))}</td></tr>"
@@ -311,7 +324,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             )
         )
     parts.append(_run_block(d))
-    parts.append("</section>")
+    parts.append("</details></section>")
     return "".join(parts), warnings, commands
 
 
@@ -321,6 +334,12 @@ DYN_FIGURES = (
         "Mode full: half-width of the guaranteed interval of the window-mean IMU error "
         "against the averaging time τ (solid: median window, dotted: worst), and the "
         "stationary band of the noise budget (dashed, shaded), like an Allan plot.",
+    ),
+    (
+        "motion",
+        "In motion, on the Allan axes: the stationary Allan deviation (grey), the stationary "
+        "prediction (dashed) and the guaranteed in-motion bound (red; dots: resolved τ), "
+        "both divided by k to read as one-sigma deviations; F is the in-motion factor.",
     ),
     (
         "windows",
@@ -490,16 +509,15 @@ def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
         for sensor, n in (ei.get("by_sensor") or {}).items():
             warnings.append(f"mode full: {n} {sensor} measurement(s) dropped (q-relaxed)")
     budget = mode.get("budget") or {}
-    for ch, rows_ in budget.items():
-        rows = [[_e(r.get("term")), _num(r.get("value")), _e(r.get("unit")), _e(r.get("source")),
-                 _e(r.get("assumption"))] for r in rows_]
-        parts.append(f"<h3>Error budget — {_e(ch)}</h3>"
-                     + _table(["term", "value", "unit", "source", "assumption"], rows))
-    for sensor, rows_ in (mode.get("aiding_budget") or {}).items():
-        rows = [[_e(r.get("term")), _num(r.get("value")), _e(r.get("unit")), _e(r.get("source")),
-                 _e(r.get("assumption"))] for r in rows_]
-        parts.append(f"<h3>Error budget — {_e(sensor)}</h3>"
-                     + _table(["term", "value", "unit", "source", "assumption"], rows))
+    if budget:
+        parts.append("<h3>Error budget of the IMU channels</h3>" + _budget_table(budget))
+    aid = mode.get("aiding_budget") or {}
+    if aid:
+        rows = [[_e(sensor), _e(r.get("term")), _num(r.get("value")), _e(r.get("unit")),
+                 _e(r.get("source")), _e(r.get("assumption"))]
+                for sensor, rows_ in aid.items() for r in rows_]
+        parts.append("<h3>Error budget of the aiding sensors</h3>"
+                     + _table(["sensor", "term", "value", "unit", "source", "assumption"], rows))
     fam = ((mode.get("alpha") or {}).get("families")) or {}
     if fam:
         rows = [[_e(k), _e(v.get("count")), _num(v.get("alpha")), _num(v.get("k")),
@@ -513,6 +531,51 @@ def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
     for n in mode.get("notes") or []:
         warnings.append(f"mode full: {n}")
     return "".join(parts)
+
+
+def _motion_table(motion: dict[str, Any]) -> str:
+    """motion.json per channel and tau: the guaranteed in-motion bound beside the
+    stationary prediction, their ratio (the inflation factor) and the floor."""
+    rows = []
+    for ch, c in motion["channels"].items():
+        f, unit = _ch_factor(ch)
+        for r in c.get("rows", []):
+            infl = r.get("inflation")
+            cls = "bad" if infl is not None and infl > 1 else "ok"
+            rows.append([
+                _e(ch), _num(r.get("tau_s"), 3),
+                _num(None if r.get("bound") is None else r["bound"] * f),
+                _num(None if r.get("stationary") is None else r["stationary"] * f),
+                f"<span class='{cls}'>{_num(infl, 3)}</span>",
+                _num(None if r.get("floor") is None else r["floor"] * f),
+                "yes" if r.get("resolved") else "no", _e(unit),
+            ])
+    return (
+        "<h3>In motion: guaranteed bound vs stationary prediction (motion.json)</h3>"
+        + _table(["channel", "τ [s]", "in-motion bound", "stationary prediction",
+                  "inflation", "floor", "resolved", "unit"], rows)
+        + "<p class='muted'>bound: the largest |window-mean error| the trip allows; "
+        "inflation = bound / stationary prediction (above 1 exactly where the bound exceeds "
+        "it; where the τ is not resolved the aiding, not the IMU, sets the bound); floor: "
+        "some window's error is at least this.</p>"
+    )
+
+
+def _budget_table(budget: dict[str, Any]) -> str:
+    """One table: a row per budget term, a column per channel (value and unit)."""
+    chans = list(budget)
+    terms: list[str] = []
+    cells: dict[tuple[str, str], str] = {}
+    notes: dict[str, str] = {}
+    for ch, rows_ in budget.items():
+        for r in rows_:
+            t = str(r.get("term"))
+            if t not in terms:
+                terms.append(t)
+                notes[t] = f"{r.get('source', '')}: {r.get('assumption', '')}"
+            cells[(t, ch)] = f"{_num(r.get('value'))} {_e(r.get('unit', ''))}"
+    rows = [[_e(t), *(cells.get((t, ch), "—") for ch in chans), _e(notes[t])] for t in terms]
+    return _table(["term", *chans, "source: assumption (first channel)"], rows)
 
 
 def _paper_block(mode: dict[str, Any], warnings: list[str]) -> str:
@@ -556,12 +619,15 @@ def _dynamic_section(
         commands.append(str(run["command"]))
     sid = "dynamic" if not label else f"dynamic-{label}"
     title = "Dynamic error margins" + (f" — {_e(label)}" if label else "")
-    parts = [f"<section id='{sid}'><h2>{title}</h2>"]
+    parts = [f"<section id='{sid}'><details><summary><h2>{title}</h2></summary>"]
     modes = dyn.get("modes") or {}
     if not isinstance(modes, dict) or not modes:
         parts.append("<p class='muted'>dynamic.json has no mode results.</p>")
     if isinstance(modes.get("full"), dict):
         parts.append(_full_block(modes["full"], warnings))
+    motion = _load_json(d / "motion.json")
+    if motion and motion.get("channels"):
+        parts.append(_motion_table(motion))
     shown = set()
     for stem, caption in DYN_FIGURES:
         if _listed(d, f"{stem}.png"):
@@ -577,7 +643,7 @@ def _dynamic_section(
             "<h3>Inputs</h3>" + _kv_table({k: v for k, v in inp.items() if k != "warnings"})
         )
     parts.append(_run_block(d))
-    parts.append("</section>")
+    parts.append("</details></section>")
     return "".join(parts), warnings, commands
 
 
@@ -679,6 +745,167 @@ def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
     return "".join(parts), warnings
 
 
+# ----------------------------------------------------------------------- the summary
+
+
+def _term_cell(e: dict[str, Any], factor: float = 1.0) -> str:
+    """A selected term in datasheet units with its CI; '≤' for an upper bound."""
+    ds = e.get("datasheet") or {}
+    if ds.get("value") is None:
+        return "—"
+    mark = "≤ " if e.get("status") == "upper_bound" else ""
+    ci = ds.get("ci")
+    ci_txt = ""
+    if ci and e.get("status") != "upper_bound":
+        lo, hi = _num(ci[0] * factor, 3), _num(ci[1] * factor, 3)
+        ci_txt = f" <span class='muted'>[{lo}, {hi}]</span>"
+    return f"{mark}{_num(ds['value'] * factor, 3)} {_e(ds.get('unit', ''))}{ci_txt}"
+
+
+def _duration(seconds: float) -> str:
+    if seconds >= 3600:
+        return f"{_num(seconds / 3600, 3)} h"
+    return f"{_num(seconds / 60, 3)} min" if seconds >= 120 else f"{_num(seconds, 3)} s"
+
+
+def _summary_section(
+    noise: dict[str, Any] | None, static_dir: Path | None, dyn_dirs: list[Path], root: Path
+) -> str:
+    """The answer first: the IMU's noise terms, its in-motion verdicts and factors, the
+    filter parameters and what is not guaranteed (one IMU: the static log's)."""
+    inp = (noise or {}).get("input") or {}
+    file, sep, topic = str(inp.get("path", "")).partition(":/")  # a bag's topic
+    imu = (Path(file).name + (f":/{topic}" if sep else "")) if file else (
+        dyn_dirs[0].name if dyn_dirs else "?")
+    parts = [f"<section id='summary'><h2>Summary — {_e(imu)}</h2>"]
+    not_guaranteed: list[str] = []
+    channels = (noise or {}).get("channels") or {}
+    dyn_dir = dyn_dirs[0] if dyn_dirs else None
+    dyn = _load_json(dyn_dir / "dynamic.json") if dyn_dir is not None else None
+    motion = _load_json(dyn_dir / "motion.json") if dyn_dir is not None else None
+    mchans = (motion or {}).get("channels") or {}
+    same_imu = True  # the dynamic analysis used this static log's noise.json (--static)
+    if dyn is not None and channels:
+        full0 = (dyn.get("modes") or {}).get("full") or {}
+        same_imu = any(r.get("source") == "noise.json"
+                       for rows_ in (full0.get("budget") or {}).values() for r in rows_)
+    if channels:
+        conf = ((noise or {}).get("settings") or {}).get("confidence")
+        dur = inp.get("duration_s") or 0
+        parts.append(
+            f"<p>Static log: {_duration(dur)} at {_num(inp.get('sample_rate_hz'))} Hz. "
+            f"Noise terms in datasheet units with their {_num(100 * (conf or 0.95), 3)} % "
+            "intervals; '≤': not resolved by the log, its upper bound.</p>"
+        )
+        rows = []
+        for ch, c in channels.items():
+            sel = ((c or {}).get("noise") or {}).get("selected") or {}
+            rows.append([_e(ch), *(_term_cell(sel.get(t) or {}) for t in ("N", "B", "K"))])
+            for t in ("N", "B", "K"):
+                if (sel.get(t) or {}).get("status") == "upper_bound":
+                    not_guaranteed.append(
+                        f"{ch} {t}: not resolved by the static log (only its upper bound is known)"
+                    )
+        parts.append(_table(["channel", "N (white noise)", "B (bias instability)",
+                             "K (rate random walk)"], rows))
+    if dyn is not None:
+        full = (dyn.get("modes") or {}).get("full") or {}
+        verdicts = full.get("verdict") or {}
+        src = Path(str((dyn.get("input") or {}).get("source", dyn_dir))).name
+        alpha = ((full.get("alpha") or {}).get("alpha"))
+        parts.append(
+            f"<h3>In motion: {_e(src)} (guaranteed with probability ≥ "
+            f"{_num(1 - (alpha or 0.01), 4)})</h3>"
+        )
+        if not same_imu:
+            parts.append(
+                "<p class='warn'>This dynamic analysis did not use the static log's noise.json "
+                "(no --static): its verdicts and factors are for the noise model it was given "
+                "(a datasheet preset or drive.yaml), not for the IMU above.</p>"
+            )
+            not_guaranteed.append(
+                f"the in-motion results of {src} are for its own noise model, not this IMU's"
+            )
+        rows = []
+        for ch in [*verdicts, *(c for c in (full.get("channels_not_analysed") or {})
+                               if c not in verdicts)]:
+            v = verdicts.get(ch)
+            mc = mchans.get(ch) or {}
+            F = mc.get("F")
+            res = [r for r in mc.get("rows", []) if r.get("resolved")]
+            infl = [r["bound_resolved"] / r["stationary"] for r in res
+                    if r.get("bound_resolved") is not None and r.get("stationary")]
+            cls = "ok" if v == "consistent" else "bad" if v == "exceeds" else "muted"
+            sel = (((channels.get(ch) or {}).get("noise") or {}).get("selected") or {})
+            rows.append([
+                _e(ch),
+                f"<span class='{cls}'>{_e(v or 'not analysed')}</span>",
+                _num(F, 3) if F is not None else "—",
+                (f"{_num(min(infl), 3)} – {_num(max(infl), 3)}" if infl else "—"),
+                (f"{_num(res[0]['tau_s'], 3)} – {_num(res[-1]['tau_s'], 3)} s" if res else "—"),
+                _term_cell(sel.get("N") or {}, F) if F is not None and sel and same_imu else "—",
+            ])
+            if v is None:
+                why = (full.get("channels_not_analysed") or {}).get(ch, "")
+                not_guaranteed.append(f"{ch}: not analysed in motion ({why})")
+            elif F is None:
+                not_guaranteed.append(
+                    f"{ch}: the trip's aiding is coarser than the stationary band at every "
+                    "averaging time: its in-motion noise is not bounded tightly (verdict "
+                    f"{v})"
+                )
+        parts.append(_table(["channel", "verdict", "in-motion factor F",
+                             "bound / stationary (resolved τ)", "resolved τ",
+                             "N in motion = F·N"], rows))
+        parts.append(
+            "<p class='muted'>F: the smallest factor (≥ 1) by which the stationary prediction "
+            "must grow to contain the guaranteed in-motion error of every resolved window "
+            "(aided interval no wider than the stationary band); details in motion.json and "
+            "the Filter parameters page of the documentation.</p>"
+        )
+    if channels:
+        parts.append(_filter_block(noise or {}, motion if same_imu else None))
+    if dyn is not None and "paper" in (dyn.get("modes") or {}):
+        not_guaranteed.append("mode paper (the paper's per-step method) is not guaranteed")
+    not_guaranteed.append(
+        "the filter parameters: a white-noise and random-walk model fitted to the bounds; a "
+        "filter given them is not thereby guaranteed consistent"
+    )
+    parts.append("<h3>What is not guaranteed</h3><ul>"
+                 + "".join(f"<li>{_e(x)}</li>" for x in not_guaranteed) + "</ul>")
+    parts.append("<p class='muted'>The details follow, collapsed: click a heading to open "
+                 "it.</p></section>")
+    return "".join(parts)
+
+
+def _filter_block(noise: dict[str, Any], motion: dict[str, Any] | None) -> str:
+    """Kalibr's four densities, stationary and in motion (the worst axis of each sensor)."""
+    import yaml
+
+    from imubounds.errors import ImuboundsError
+    from imubounds.export import export_noise
+
+    try:
+        stat = yaml.safe_load(export_noise(noise, "kalibr"))
+        mot = yaml.safe_load(export_noise(noise, "kalibr", motion=motion)) if motion else None
+    except ImuboundsError as err:
+        return f"<h3>Filter parameters</h3><p class='muted'>not exported: {_e(err)}</p>"
+    units = {
+        "gyroscope_noise_density": "rad/s/√Hz", "gyroscope_random_walk": "rad/s²/√Hz",
+        "accelerometer_noise_density": "m/s²/√Hz", "accelerometer_random_walk": "m/s³/√Hz",
+    }
+    rows = [[_e(k), _num(stat.get(k)), _num(mot.get(k)) if mot else "—", _e(u)]
+            for k, u in units.items()]
+    return (
+        "<h3>Filter parameters (Kalibr / OpenVINS, continuous time, worst axis)</h3>"
+        + _table(["key", "stationary", "in motion", "unit"], rows)
+        + f"<p class='muted'>update_rate {_num(stat.get('update_rate'))} Hz. Every format "
+        "(kalibr, openvins, vins, gtsam, ros) with its units and conversions: "
+        "<code>imubounds export STATIC_DIR --format F [--motion DYNAMIC_DIR] -o FILE</code>"
+        " (the demo wrote them to filter/).</p>"
+    )
+
+
 def _result_json(path: Path) -> dict[str, Any]:
     """A result file written by imubounds (a JSON object with an imubounds ``format``)."""
     data = _load_json(path)
@@ -753,17 +980,27 @@ def build_report(directory: str | Path) -> str:
         if commands
         else "<p class='muted'>No run.json found; commands unknown.</p>"
     )
+    if static_dir is not None or dyn_dirs:
+        noise_doc = _load_json(static_dir / "noise.json") if static_dir is not None else None
+        with _unexpected(root):
+            sections.insert(
+                1 if fleet_json.is_file() else 0,
+                _summary_section(noise_doc, static_dir, dyn_dirs, root),
+            )
     now = datetime.now(UTC).isoformat(timespec="seconds")
+    shown = _real_root(root)
     return (
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
-        f"<title>imubounds report — {_e(root.name)}</title><style>{CSS}</style></head><body>"
-        f"<header><h1>imubounds report</h1><p>{_e(root.resolve())} · imubounds {__version__} · "
+        f"<title>imubounds report — {_e(shown.name)}</title><style>{CSS}</style></head><body>"
+        f"<header><h1>imubounds report</h1><p>{_e(shown.resolve())} · imubounds {__version__} · "
         f"generated {now}</p></header><main>"
         + "".join(sections)
         + f"<section id='warnings'><h2>Warnings</h2>{warn_html}</section>"
         + f"<section id='reproduce'><h2>How to reproduce</h2>{cmd_html}"
-        f"<p class='muted'>pip install imubounds=={__version__}</p></section>"
+        f"<p class='muted'>imubounds {__version__} is not on the package index: install it "
+        "from its source tree (<code>pip install -e .</code> in the repository) to rerun "
+        "these commands.</p></section>"
         "</main></body></html>\n"
     )
 

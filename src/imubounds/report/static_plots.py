@@ -79,7 +79,8 @@ def _format_terms(ch: ChannelResult) -> str:
         mark = "≤ " if e["status"] == "upper_bound" else "= "
         parts.append(f"{t} {mark}{e['ieee']['value']:.3g} {e['ieee']['unit']}")
     sm = js["sigma_min"]
-    parts.append(f"σ_min = {sm['datasheet']['value']:.3g} {sm['datasheet']['unit']} "
+    f, unit = display_scale(kind)  # in the axis's unit (deg/h for gyros), not the datasheet's
+    parts.append(f"σ_min = {sm['value'] * f:.3g} {unit} "
                  f"at τ = {sm['tau_s']:.3g} s")  # fmt: skip
     return "\n".join(parts)
 
