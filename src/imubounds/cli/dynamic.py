@@ -155,6 +155,10 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()
+    from imubounds.dynamic.imu_mount import mount_warning
+
+    if (w := mount_warning(drive)) is not None:
+        drive.warnings.append(w)
     return drive
 
 
