@@ -13,6 +13,29 @@ from typing import Any
 
 import numpy as np
 
+#: the verdict of a channel whose noise figures (N, B) were given nowhere: its band would
+#: be a default preset's, so the margins are given but not judged
+NO_REFERENCE = "no reference"
+HOW_TO_REFERENCE = (
+    "give the IMU's stationary noise: --static noise.json (from 'imubounds static' on a "
+    "static log of this IMU), --imu-spec PRESET or accel_nd=..,accel_bs=..,gyro_nd=..,"
+    "gyro_bs=.., or imu: accel_nd/accel_bs/gyro_nd/gyro_bs (or preset:) in drive.yaml"
+)
+
+
+def _is_default(src: str) -> bool:
+    return src == "default" or src.endswith("(default)")
+
+
+def band_reference(cn: Any) -> str | None:
+    """Where the stationary band of a channel comes from (the sources of its white noise N
+    and bias instability B), None when either is only a default."""
+    srcs = getattr(cn, "sources", {}) or {}
+    n, b = str(srcs.get("N", "default")), str(srcs.get("B", "default"))
+    if _is_default(n) or _is_default(b):
+        return None
+    return n if n == b else f"N: {n}, B: {b}"
+
 
 @dataclass
 class LevelResult:
@@ -116,6 +139,9 @@ class ChannelMargins:
     exceeding: list[dict[str, Any]]
     n_exceeding: int
     notes: list[str] = field(default_factory=list)
+    #: the verdict against the band as computed (the same as ``verdict`` unless that is
+    #: ``no reference``: then the verdict against the default preset's band, not a finding)
+    raw_verdict: str = ""
 
     def table(self) -> list[dict[str, Any]]:
         return [lv.summary() for lv in self.levels]
@@ -129,6 +155,11 @@ class ChannelMargins:
             "exceeding_windows": self.exceeding,
             "n_exceeding_windows": self.n_exceeding,
             "notes": self.notes,
+            **(
+                {"verdict_against_default_band": self.raw_verdict}
+                if self.verdict == NO_REFERENCE
+                else {}
+            ),
         }
 
 

@@ -33,7 +33,14 @@ from imubounds.dynamic.estimator.aided.vehicle import vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.band import change_band, level_band
 from imubounds.dynamic.estimator.budget import UNITS
-from imubounds.dynamic.estimator.verdicts import ChannelMargins, LevelResult, verdict_of
+from imubounds.dynamic.estimator.verdicts import (
+    HOW_TO_REFERENCE,
+    NO_REFERENCE,
+    ChannelMargins,
+    LevelResult,
+    band_reference,
+    verdict_of,
+)
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan, plan_channel, tau_grid
 from imubounds.interval import IntervalArray as IA
 
@@ -75,9 +82,15 @@ class MarginBuilder(WindowContext):
 
     def aided(self, ch: str, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
         """``[x_W]`` of the level's windows."""
+        veh = vehicle_only(self, ch, lp, tau)
         if lp.kind == "vehicle":
-            return vehicle_only(self, ch, lp, tau)
-        return CONSTRAINTS[ch](self, plan, lp, tau)
+            return veh
+        # both enclose the same kernel mean: the tighter of the two at every window (the
+        # aided one where they contradict each other)
+        x = CONSTRAINTS[ch](self, plan, lp, tau)
+        lo, hi = np.maximum(x.lo, veh.lo), np.minimum(x.hi, veh.hi)
+        ok = lo <= hi
+        return IA(np.where(ok, lo, x.lo), np.where(ok, hi, x.hi))
 
     def evaluate(self, plan: ChannelPlan) -> ChannelMargins:
         """Every level of a channel: ``[x_W]``, ``[y_W]``, the bands; then the verdict."""
@@ -124,4 +137,13 @@ class MarginBuilder(WindowContext):
         verdict, reason, exc, n_exc = verdict_of(levels)
         if plan.reason and not levels:
             verdict, reason = "undecided", plan.reason
-        return ChannelMargins(ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc)
+        raw = verdict
+        if levels and band_reference(self.ctx.noise[ch]) is None:
+            verdict = NO_REFERENCE
+            reason = (
+                "no noise figures for this IMU: the stationary band shown is a default "
+                f"preset's, not a reference to judge against; {HOW_TO_REFERENCE}"
+            )
+        return ChannelMargins(
+            ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc, raw_verdict=raw
+        )
