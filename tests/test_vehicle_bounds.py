@@ -52,3 +52,17 @@ def test_stated_tilt_contradicted_by_the_attitude_is_replaced_and_said() -> None
     d = dynamic_margins(drive).to_dict()
     assert d["vehicle"]["max_tilt_deg"] >= pitch
     assert any("exceeds the stated maximum tilt" in n for n in d["notes"])
+
+
+def test_a_dominant_assumed_tilt_is_named() -> None:
+    """No attitude stream and no stated tilt: the 10 deg default bounds gravity's part of
+    accel_x (g sin 10 deg = 1.71 m/s^2) and the channel's notes say it dominates."""
+    res = make_trip("gnss-posvel", seed=6, duration_s=200.0, distance_m=2400.0, rate_hz=50.0)
+    drive = res.drive
+    veh = dataclasses.replace(drive.settings.vehicle, max_tilt_deg=None)
+    drive.settings = dataclasses.replace(drive.settings, vehicle=veh)
+    d = dynamic_margins(drive).to_dict()
+    assert d["vehicle"]["sources"]["max_tilt"].startswith("default")
+    notes = d["verdict_detail"]["accel_x"]["notes"]
+    assert any("default maximum tilt" in n and "dominates" in n for n in notes), notes
+    assert d["margins"]["accel_x"][-1]["halfwidth_median"] >= 9.76 * math.sin(10 * DEG)

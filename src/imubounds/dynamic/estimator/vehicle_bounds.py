@@ -180,3 +180,21 @@ def refine_vehicle(
             "(assumed; state them in drive.yaml vehicle: or by option): " + ", ".join(left)
         )
     return imu, aiding, notes
+
+
+def dominant_default(ch: str, veh: Vehicle, halfwidth: float | None, tau_s: float) -> str | None:
+    """A note when an assumed default dominates an accelerometer's aided interval at its
+    longest averaging time: the gravity through the default maximum tilt."""
+    if halfwidth is None or not ch.startswith("accel_") or ch == "accel_z":
+        return None
+    if not veh.sources.get("max_tilt", "default").startswith("default"):
+        return None
+    grav = 9.84 * math.sin(veh.max_tilt)
+    if grav < 0.5 * halfwidth:
+        return None
+    return (
+        f"the assumed default maximum tilt ({veh.max_tilt / DEG:g} deg; nothing in the data "
+        f"bounds roll and pitch) dominates: gravity through it is +-{grav:.3g} m/s^2 of the "
+        f"+-{halfwidth:.3g} m/s^2 at tau {tau_s:.3g} s; an attitude stream or "
+        "vehicle.max_tilt_deg in drive.yaml tightens it"
+    )

@@ -33,6 +33,7 @@ from imubounds.dynamic.estimator.aided.vehicle import vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.band import change_band, level_band
 from imubounds.dynamic.estimator.budget import UNITS
+from imubounds.dynamic.estimator.vehicle_bounds import dominant_default
 from imubounds.dynamic.estimator.verdicts import (
     HOW_TO_REFERENCE,
     NO_REFERENCE,
@@ -144,6 +145,13 @@ class MarginBuilder(WindowContext):
                 "no noise figures for this IMU: the stationary band shown is a default "
                 f"preset's, not a reference to judge against; {HOW_TO_REFERENCE}"
             )
-        return ChannelMargins(
+        out = ChannelMargins(
             ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc, raw_verdict=raw
         )
+        aided = [lv for lv in levels if lv.kind == "aided"]
+        if aided:
+            last = aided[-1].summary()
+            note = dominant_default(ch, self.veh, last["halfwidth_median"], last["tau_s"])
+            if note:
+                out.notes.append(note)
+        return out
