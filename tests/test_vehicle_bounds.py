@@ -8,9 +8,11 @@ import dataclasses
 import math
 
 import numpy as np
+import pytest
 
 from imubounds.dynamic.estimator import dynamic_margins
 from imubounds.dynamic.scenario import make_trip
+from imubounds.errors import InputError
 from imubounds.units import DEG
 
 #: a short hilly trip: pitch up to about 13 deg (quadrotor-like), attitude stream at 10 Hz
@@ -66,3 +68,13 @@ def test_a_dominant_assumed_tilt_is_named() -> None:
     notes = d["verdict_detail"]["accel_x"]["notes"]
     assert any("default maximum tilt" in n and "dominates" in n for n in notes), notes
     assert d["margins"]["accel_x"][-1]["halfwidth_median"] >= 9.76 * math.sin(10 * DEG)
+
+
+def test_an_attitude_on_its_side_is_a_user_error_naming_the_mount() -> None:
+    """Roll 89.5 deg (an IMU on its side read as the body frame): an InputError naming
+    imu_axes, never an internal interval error."""
+    drive, _, _ = _steep(None)
+    att = drive.attitude
+    att.roll_rad = np.full_like(np.asarray(att.roll_rad, dtype=float), math.radians(89.5))
+    with pytest.raises(InputError, match="imu_axes"):
+        dynamic_margins(drive)

@@ -16,8 +16,9 @@ its share of alpha and no new one):
 
 A stated bound that the data contradict (an attitude beyond the stated maximum tilt) is
 replaced by the data's, with a note: a guaranteed interval cannot rest on a bound the
-drive itself shows false; a stated bound the data do not contradict is kept. A default
-stays only where nothing in the data bounds the quantity, and is then listed by
+drive itself shows false; a stated bound the data do not contradict is kept. An attitude
+stream beyond 85 deg of roll or pitch is refused with an InputError naming the mount. A
+default stays only where nothing in the data bounds the quantity, and is then listed by
 :func:`assumed_defaults`.
 """
 
@@ -29,10 +30,13 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle, build_aiding
+from imubounds.errors import InputError
 from imubounds.units import DEG
 
-#: the largest tilt the Euler-angle constraints accept (their 1/cos terms stay finite)
+#: an attitude stream beyond this tilt is refused (Euler angles near their singularity)
 TILT_LIMIT = 85.0 * DEG
+#: the largest tilt bound used (the 1/cos terms of the constraints stay finite)
+TILT_CAP = 89.0 * DEG
 
 
 def tilt_from_attitude(ag: Aiding, veh: Vehicle, span: tuple[float, float]) -> float | None:
@@ -107,15 +111,18 @@ def bound_vehicle(
     tilt = tilt_from_attitude(ag, veh, span)
     if tilt is not None:
         stated = not veh.sources.get("max_tilt", "default").startswith("default")
-        if tilt > TILT_LIMIT:
-            notes.append(
-                f"the attitude stream reaches {tilt / DEG:.1f} deg of roll or pitch: "
-                f"beyond {TILT_LIMIT / DEG:.0f} deg the Euler-angle constraints are not "
-                "used (tilt bound held at that limit; check the IMU mount, imu_axes)"
-            )
-            tilt = TILT_LIMIT
         assert ag.att_roll is not None and ag.att_pitch is not None
         seen = float(max(np.max(np.abs(ag.att_roll)), np.max(np.abs(ag.att_pitch))))
+        if seen - ag.att_bound > TILT_LIMIT:
+            raise InputError(
+                f"the attitude stream reaches {seen / DEG:.1f} deg of roll or pitch: beyond "
+                f"{TILT_LIMIT / DEG:.0f} deg the roll/pitch constraints of the windows do not "
+                "hold (Euler angles near their singularity); check the IMU mount (imu_axes "
+                "in drive.yaml or --imu-axes) and the attitude stream's frame"
+            )
+        # between samples the growth terms may pass the limit: hold the bound below 90 deg
+        # (the 1/cos terms stay finite; they only widen)
+        tilt = min(tilt, TILT_CAP)
         contradicted = seen - ag.att_bound > veh.max_tilt
         if stated and contradicted:
             notes.append(
