@@ -55,6 +55,10 @@ def run(args: argparse.Namespace) -> int:
 
     opts = drive_read_options(args)
     drive = read_drive(list(args.input), **opts)
+    from imubounds.dynamic.imu_mount import mount_warning
+
+    if (w := mount_warning(drive)) is not None:
+        drive.warnings.append(w)
     if opts.get("topics") and drive.layout != "rosbag":
         raise OptionError("--topic applies to ROS bags only")
     inputs = [*args.input, *([args.settings] if args.settings else [])]

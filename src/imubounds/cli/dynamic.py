@@ -36,11 +36,12 @@ def register(sub: Any) -> None:
         description="For each IMU channel and each averaging time tau (octaves from one "
         "sample to a quarter of the trip): the guaranteed interval of the tau-averaged IMU "
         "error, built from the aiding sensors only, against the stationary band of the "
-        "noise budget, and a verdict (consistent, exceeds, undecided); a whole-trip "
-        "interval smoother encloses position, heading, body velocity and each channel's "
-        "bias (mode full, the default). Mode paper reproduces the paper's per-step method "
-        "(not guaranteed). DIR: a drive-layout directory (imu.csv, gnss.csv, velocity.csv, "
-        "heading.csv, attitude.csv, truth.csv, drive.yaml), an 'imubounds simulate' "
+        "noise budget, and a verdict (consistent, exceeds, undecided; 'no reference' when "
+        "no noise figures are given); a whole-trip interval smoother encloses position, "
+        "heading, body velocity and each channel's bias (mode full, the default). Mode "
+        "paper reproduces the paper's per-step method (not guaranteed). DIR: a drive-layout "
+        "directory (imu.csv, gnss.csv, velocity.csv, heading.csv, attitude.csv, truth.csv, "
+        "drive.yaml), an 'imubounds simulate' "
         "directory, a VN-100 directory (or its two CSV files), a comma2k19 segment, a ROS "
         "bag/MCAP, a PX4 ULog, or an NMEA file with an IMU log.",
     )
@@ -162,6 +163,10 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()
+    from imubounds.dynamic.imu_mount import mount_warning
+
+    if (w := mount_warning(drive)) is not None:
+        drive.warnings.append(w)
     return drive
 
 
@@ -332,6 +337,10 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
                         f"{unit} (band {x['stationary'] * f:.3g})"
                     )
             say(f"    {ch:8s} {v}{extra}")
+        if "no reference" in s.get("verdict", {}).values():
+            from imubounds.dynamic.estimator.verdicts import HOW_TO_REFERENCE
+
+            say(f"    no reference to judge against: {HOW_TO_REFERENCE}")
         enc = s.get("enclosure")
         if enc:
             keys = [k for k in ("position", "heading", "u", "v") if enc.get(k) is not None]

@@ -36,6 +36,7 @@ from imubounds.dynamic.estimator.inputs import (
     heading_input,
     vehicle_from,
 )
+from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
 from imubounds.dynamic.estimator.windows import (
     EARTH_RATE,
     G_HI,
@@ -258,6 +259,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 extra += float(np.max(np.abs(imu.sig[other].y))) + E0[other]
         E0[ch] += cn.misalignment_rad * extra
     aiding = build_aiding(drive, imu.t0, vehicle, alpha, o, heading)
+    imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -274,7 +276,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         tilt=None,  # type: ignore[arg-type]
         te=te,
         assumptions=assumed + vnotes,
-        notes=list(aiding.notes),
+        notes=list(aiding.notes) + vnotes_data,
     )
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
@@ -623,7 +625,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     notes: list[str] = []
     for ch in order:
         margins[ch] = mb.evaluate(ctx.plans[ch])
-        if ch == "gyro_z" and margins[ch].verdict == "exceeds":
+        if ch == "gyro_z" and margins[ch].raw_verdict == "exceeds":
             mb.fine_r = False
             notes.append(
                 "gyro_z exceeds its stationary band: the accelerometers' transport terms use "

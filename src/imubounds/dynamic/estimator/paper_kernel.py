@@ -4,11 +4,12 @@ Array layout (all float64, intervals as lo/hi column pairs, empty = (+inf, -inf)
 
 ``S`` (n, 10)
     Contracted state per step: x, y (m, ENU), u, v (m/s, body), psi (rad, CCW
-    from east, unwrapped).
+    from east, unwrapped); lower ends in columns ``SX, SY, SU, SV, SPSI``.
 ``P`` (n, 10)
     The INS prediction of the same state before contraction (forward pass).
 ``M`` (n, 6)
-    Measured-input intervals per step: a = accel_x, b = accel_y (m/s^2), r (rad/s).
+    Measured-input intervals per step: a = accel_x, b = accel_y (m/s^2), r (rad/s);
+    lower ends in columns ``IN_A, IN_B, IN_R`` (also of ``D`` and ``A``).
 ``D`` (n, 6)
     Contracted input domains (subsets of ``M``).
 ``G`` (n, 4)
@@ -51,7 +52,18 @@ from imubounds.dynamic.estimator._rules import (
     sin,
     sub,
 )
+from imubounds.dynamic.estimator.rotation import irot, rot
 from imubounds.interval.qinter import qinter_1d as qrelaxed_1d
+
+# column of the lower end of each quantity (the upper end is the next column)
+#: ``S``, ``P`` (state): east x, north y (m), body velocity u, v (m/s), heading psi (rad)
+SX, SY, SU, SV, SPSI = 0, 2, 4, 6, 8
+#: ``M``, ``D``, ``A`` (inputs): accel_x a, accel_y b (m/s^2), yaw rate r (rad/s)
+IN_A, IN_B, IN_R = 0, 2, 4
+#: ``G`` (GNSS box): x, y
+GX, GY = 0, 2
+#: ``C`` (heading): centre and half-width
+HC, HH = 0, 1
 
 # flag bits
 F_GPS_MISSING = 1
@@ -129,32 +141,24 @@ def qrelaxed_position(
         i = k - j
         if i < 0:
             break
-        if G[i, 0] == G[i, 0]:
-            a1, a2 = add(G[i, 0], G[i, 1], dxl, dxh)
-            b1, b2 = add(G[i, 2], G[i, 3], dyl, dyh)
+        if G[i, GX] == G[i, GX]:
+            a1, a2 = add(G[i, GX], G[i, GX + 1], dxl, dxh)
+            b1, b2 = add(G[i, GY], G[i, GY + 1], dyl, dyh)
             xl[m], xh[m], yl[m], yh[m] = a1, a2, b1, b2
             m += 1
         if i == 0:
             break
         # displacement of step i (from i-1 to i)
-        if j == 0:
-            ul, uh, vl, vh, pl, ph = pred[4], pred[5], pred[6], pred[7], pred[8], pred[9]
-        else:
-            ul, uh, vl, vh, pl, ph = S[i, 4], S[i, 5], S[i, 6], S[i, 7], S[i, 8], S[i, 9]
-        cl, ch = cos(pl, ph)
-        sl, sh = sin(pl, ph)
-        t1l, t1h = mul(ul, uh, cl, ch)
-        t2l, t2h = mul(vl, vh, sl, sh)
-        el, eh = sub(t1l, t1h, t2l, t2h)
+        st = pred if j == 0 else S[i]
+        cl, ch = cos(st[SPSI], st[SPSI + 1])
+        sl, sh = sin(st[SPSI], st[SPSI + 1])
+        el, eh, nl, nh = rot(cl, ch, sl, sh, st[SU], st[SU + 1], st[SV], st[SV + 1])
         el, eh = mul(el, eh, dt, dt)
         el, eh = add(el, eh, -ep, ep)
         dxl, dxh = add(dxl, dxh, el, eh)
-        t1l, t1h = mul(vl, vh, cl, ch)
-        t2l, t2h = mul(ul, uh, sl, sh)
-        el, eh = add(t1l, t1h, t2l, t2h)
-        el, eh = mul(el, eh, dt, dt)
-        el, eh = add(el, eh, -ep, ep)
-        dyl, dyh = add(dyl, dyh, el, eh)
+        nl, nh = mul(nl, nh, dt, dt)
+        nl, nh = add(nl, nh, -ep, ep)
+        dyl, dyh = add(dyl, dyh, nl, nh)
     a1, a2 = qrelaxed_1d(xl, xh, m, q)
     b1, b2 = qrelaxed_1d(yl, yh, m, q)
     return a1, a2, b1, b2
@@ -185,13 +189,13 @@ def qrelaxed_heading(
         i = k - j
         if i < 0:
             break
-        if C[i, 0] == C[i, 0]:
-            cl, ch = heading_interval(C[i, 0], C[i, 1], ref - 0.5 * (dl + dh))
+        if C[i, HC] == C[i, HC]:
+            cl, ch = heading_interval(C[i, HC], C[i, HH], ref - 0.5 * (dl + dh))
             lo[m], hi[m] = add(cl, ch, dl, dh)
             m += 1
         if i == 0:
             break
-        tl, th = mul(M[i, 4], M[i, 5], dt, dt)
+        tl, th = mul(M[i, IN_R], M[i, IN_R + 1], dt, dt)
         dl, dh = add(dl, dh, tl, th)
     return qrelaxed_1d(lo, hi, m, q)
 
@@ -221,14 +225,14 @@ def forward_backward_step(
     tolerating ``q`` outliers; the prediction if even that is empty).
     """
     flags = 0
-    xl, xh = S[k - 1, 0], S[k - 1, 1]
-    yl, yh = S[k - 1, 2], S[k - 1, 3]
-    ul, uh = S[k - 1, 4], S[k - 1, 5]
-    vl, vh = S[k - 1, 6], S[k - 1, 7]
-    pl, ph = S[k - 1, 8], S[k - 1, 9]
-    al, ah = M[k, 0], M[k, 1]
-    bl, bh = M[k, 2], M[k, 3]
-    rl, rh = M[k, 4], M[k, 5]
+    xl, xh = S[k - 1, SX], S[k - 1, SX + 1]
+    yl, yh = S[k - 1, SY], S[k - 1, SY + 1]
+    ul, uh = S[k - 1, SU], S[k - 1, SU + 1]
+    vl, vh = S[k - 1, SV], S[k - 1, SV + 1]
+    pl, ph = S[k - 1, SPSI], S[k - 1, SPSI + 1]
+    al, ah = M[k, IN_A], M[k, IN_A + 1]
+    bl, bh = M[k, IN_B], M[k, IN_B + 1]
+    rl, rh = M[k, IN_R], M[k, IN_R + 1]
     # ---- forward (prediction) ----
     if mode == 0:
         dul, duh = mul(al, ah, dt, dt)
@@ -248,46 +252,41 @@ def forward_backward_step(
     ppl, pph = add(pl, ph, tl, th)
     cl, ch = cos(ppl, pph)
     sl, sh = sin(ppl, pph)
-    t1l, t1h = mul(upl, uph, cl, ch)
-    t2l, t2h = mul(vpl, vph, sl, sh)
-    xdl, xdh = sub(t1l, t1h, t2l, t2h)
-    t1l, t1h = mul(vpl, vph, cl, ch)
-    t2l, t2h = mul(upl, uph, sl, sh)
-    ydl, ydh = add(t1l, t1h, t2l, t2h)
+    xdl, xdh, ydl, ydh = rot(cl, ch, sl, sh, upl, uph, vpl, vph)
     t1l, t1h = mul(xdl, xdh, dt, dt)
     xpl, xph = add(xl, xh, t1l, t1h)
     xpl, xph = add(xpl, xph, -ep, ep)
     t1l, t1h = mul(ydl, ydh, dt, dt)
     ypl, yph = add(yl, yh, t1l, t1h)
     ypl, yph = add(ypl, yph, -ep, ep)
-    P[k, 0], P[k, 1], P[k, 2], P[k, 3] = xpl, xph, ypl, yph
-    P[k, 4], P[k, 5], P[k, 6], P[k, 7] = upl, uph, vpl, vph
-    P[k, 8], P[k, 9] = ppl, pph
+    P[k, SX], P[k, SX + 1], P[k, SY], P[k, SY + 1] = xpl, xph, ypl, yph
+    P[k, SU], P[k, SU + 1], P[k, SV], P[k, SV + 1] = upl, uph, vpl, vph
+    P[k, SPSI], P[k, SPSI + 1] = ppl, pph
     # ---- contraction with the aiding sensors ----
-    if G[k, 0] != G[k, 0]:
+    if G[k, GX] != G[k, GX]:
         flags |= F_GPS_MISSING
         nxl, nxh, nyl, nyh = xpl, xph, ypl, yph
     else:
-        nxl, nxh = inter(xpl, xph, G[k, 0], G[k, 1])
-        nyl, nyh = inter(ypl, yph, G[k, 2], G[k, 3])
+        nxl, nxh = inter(xpl, xph, G[k, GX], G[k, GX + 1])
+        nyl, nyh = inter(ypl, yph, G[k, GY], G[k, GY + 1])
         if _emp(nxl, nxh) or _emp(nyl, nyh):
             flags |= F_GPS_EMPTY
             if fallback == 0:
                 nxl, nxh, nyl, nyh = xpl, xph, ypl, yph
             elif fallback == 1:
-                nxl, nxh, nyl, nyh = G[k, 0], G[k, 1], G[k, 2], G[k, 3]
+                nxl, nxh, nyl, nyh = G[k, GX], G[k, GX + 1], G[k, GY], G[k, GY + 1]
             else:
                 nxl, nxh, nyl, nyh = qrelaxed_position(k, S, G, P[k], dt, ep, window, q)
                 if _emp(nxl, nxh) or _emp(nyl, nyh):
                     nxl, nxh, nyl, nyh = xpl, xph, ypl, yph
-    if C[k, 0] != C[k, 0]:
+    if C[k, HC] != C[k, HC]:
         flags |= F_HEAD_MISSING
         npl, nph = ppl, pph
     else:
         ref = 0.5 * (ppl + pph) if (math.isfinite(ppl) and math.isfinite(pph)) else pl
         if not math.isfinite(ref):
-            ref = C[k, 0]
-        cil, cih = heading_interval(C[k, 0], C[k, 1], ref)
+            ref = C[k, HC]
+        cil, cih = heading_interval(C[k, HC], C[k, HH], ref)
         npl, nph = inter(ppl, pph, cil, cih)
         if _emp(npl, nph):
             flags |= F_HEAD_EMPTY
@@ -301,7 +300,7 @@ def forward_backward_step(
                     npl, nph = ppl, pph
     # ---- backward: nav velocity, body velocity ----
     if veldiff == 1:
-        oxl, oxh, oyl, oyh = P[k - 1, 0], P[k - 1, 1], P[k - 1, 2], P[k - 1, 3]
+        oxl, oxh, oyl, oyh = P[k - 1, SX], P[k - 1, SX + 1], P[k - 1, SY], P[k - 1, SY + 1]
     else:
         oxl, oxh, oyl, oyh = xl, xh, yl, yh
     t1l, t1h = sub(nxl, nxh, oxl, oxh)
@@ -313,12 +312,7 @@ def forward_backward_step(
     if npl != ppl or nph != pph:  # else cos/sin of the prediction still hold
         cl, ch = cos(npl, nph)
         sl, sh = sin(npl, nph)
-    t1l, t1h = mul(cl, ch, vxl, vxh)
-    t2l, t2h = mul(sl, sh, vyl, vyh)
-    Ul, Uh = add(t1l, t1h, t2l, t2h)
-    t1l, t1h = mul(cl, ch, vyl, vyh)
-    t2l, t2h = mul(sl, sh, vxl, vxh)
-    Vl, Vh = sub(t1l, t1h, t2l, t2h)
+    Ul, Uh, Vl, Vh = irot(cl, ch, sl, sh, vxl, vxh, vyl, vyh)
     nul, nuh = inter(upl, uph, Ul, Uh)
     if _emp(nul, nuh):
         flags |= F_U_EMPTY
@@ -327,9 +321,9 @@ def forward_backward_step(
     if _emp(nvl, nvh):
         flags |= F_V_EMPTY
         nvl, nvh = vpl, vph
-    S[k, 0], S[k, 1], S[k, 2], S[k, 3] = nxl, nxh, nyl, nyh
-    S[k, 4], S[k, 5], S[k, 6], S[k, 7] = nul, nuh, nvl, nvh
-    S[k, 8], S[k, 9] = npl, nph
+    S[k, SX], S[k, SX + 1], S[k, SY], S[k, SY + 1] = nxl, nxh, nyl, nyh
+    S[k, SU], S[k, SU + 1], S[k, SV], S[k, SV + 1] = nul, nuh, nvl, nvh
+    S[k, SPSI], S[k, SPSI + 1] = npl, nph
     return flags
 
 
@@ -338,18 +332,18 @@ def aided_inputs(
     k: int, S: np.ndarray, Dr_lo: float, Dr_hi: float, dt: float, ev: float, mode: int
 ) -> tuple[float, float, float, float, float, float]:
     """Projection of the kinematic constraints of step ``k`` onto a, b and r."""
-    t1l, t1h = sub(S[k, 8], S[k, 9], S[k - 1, 8], S[k - 1, 9])
+    t1l, t1h = sub(S[k, SPSI], S[k, SPSI + 1], S[k - 1, SPSI], S[k - 1, SPSI + 1])
     Rl, Rh = div(t1l, t1h, dt, dt)
-    t1l, t1h = sub(S[k, 4], S[k, 5], S[k - 1, 4], S[k - 1, 5])
+    t1l, t1h = sub(S[k, SU], S[k, SU + 1], S[k - 1, SU], S[k - 1, SU + 1])
     t1l, t1h = sub(t1l, t1h, -ev, ev)
     Al, Ah = div(t1l, t1h, dt, dt)
-    t1l, t1h = sub(S[k, 6], S[k, 7], S[k - 1, 6], S[k - 1, 7])
+    t1l, t1h = sub(S[k, SV], S[k, SV + 1], S[k - 1, SV], S[k - 1, SV + 1])
     t1l, t1h = sub(t1l, t1h, -ev, ev)
     Bl, Bh = div(t1l, t1h, dt, dt)
     if mode == 1:
-        ql, qh = mul(Dr_lo, Dr_hi, S[k - 1, 6], S[k - 1, 7])
+        ql, qh = mul(Dr_lo, Dr_hi, S[k - 1, SV], S[k - 1, SV + 1])
         Al, Ah = sub(Al, Ah, ql, qh)
-        ql, qh = mul(Dr_lo, Dr_hi, S[k - 1, 4], S[k - 1, 5])
+        ql, qh = mul(Dr_lo, Dr_hi, S[k - 1, SU], S[k - 1, SU + 1])
         Bl, Bh = add(Bl, Bh, ql, qh)
     return Al, Ah, Bl, Bh, Rl, Rh
 
@@ -364,23 +358,26 @@ def revise_step(
     False if a domain became empty (the arrays may then be partly updated).
     """
     # --- heading: psi_j = psi_{j-1} + r dt
-    rl, rh = D[j, 4], D[j, 5]
+    P_, R_ = SPSI, IN_R
+    rl, rh = D[j, R_], D[j, R_ + 1]
     tl, th = mul(rl, rh, dt, dt)
-    a1, a2 = add(S[j - 1, 8], S[j - 1, 9], tl, th)
-    S[j, 8], S[j, 9] = inter(S[j, 8], S[j, 9], a1, a2)
-    a1, a2 = sub(S[j, 8], S[j, 9], tl, th)
-    S[j - 1, 8], S[j - 1, 9] = inter(S[j - 1, 8], S[j - 1, 9], a1, a2)
-    a1, a2 = sub(S[j, 8], S[j, 9], S[j - 1, 8], S[j - 1, 9])
+    a1, a2 = add(S[j - 1, P_], S[j - 1, P_ + 1], tl, th)
+    S[j, P_], S[j, P_ + 1] = inter(S[j, P_], S[j, P_ + 1], a1, a2)
+    a1, a2 = sub(S[j, P_], S[j, P_ + 1], tl, th)
+    S[j - 1, P_], S[j - 1, P_ + 1] = inter(S[j - 1, P_], S[j - 1, P_ + 1], a1, a2)
+    a1, a2 = sub(S[j, P_], S[j, P_ + 1], S[j - 1, P_], S[j - 1, P_ + 1])
     a1, a2 = div(a1, a2, dt, dt)
-    D[j, 4], D[j, 5] = inter(rl, rh, a1, a2)
-    if _emp(S[j, 8], S[j, 9]) or _emp(S[j - 1, 8], S[j - 1, 9]) or _emp(D[j, 4], D[j, 5]):
+    D[j, R_], D[j, R_ + 1] = inter(rl, rh, a1, a2)
+    if _emp(S[j, P_], S[j, P_ + 1]) or _emp(S[j - 1, P_], S[j - 1, P_ + 1]) or _emp(
+        D[j, R_], D[j, R_ + 1]
+    ):
         return False
-    rl, rh = D[j, 4], D[j, 5]
+    rl, rh = D[j, R_], D[j, R_ + 1]
     # --- velocities
     for comp in range(2):
-        ci = 4 if comp == 0 else 6  # u or v at j
-        oi = 6 if comp == 0 else 4  # the other component at j-1 (transport term)
-        di = 0 if comp == 0 else 2  # a or b
+        ci = SU if comp == 0 else SV  # u or v at j
+        oi = SV if comp == 0 else SU  # the other component at j-1 (transport term)
+        di = IN_A if comp == 0 else IN_B  # a or b
         il, ih = D[j, di], D[j, di + 1]
         if mode == 1:
             ql, qh = mul(rl, rh, S[j - 1, oi], S[j - 1, oi + 1])
@@ -426,15 +423,16 @@ def revise_step(
         D[j, di], D[j, di + 1] = il, ih
         if _emp(il, ih):
             return False
-    D[j, 4], D[j, 5] = rl, rh
-    # --- positions
-    cl, ch = cos(S[j, 8], S[j, 9])
-    sl, sh = sin(S[j, 8], S[j, 9])
+    D[j, IN_R], D[j, IN_R + 1] = rl, rh
+    # --- positions: HC4-revise of the rotation x' = u c - v s, y' = v c + u s
+    # (the contractor of :func:`~imubounds.dynamic.estimator.rotation.rot`)
+    cl, ch = cos(S[j, SPSI], S[j, SPSI + 1])
+    sl, sh = sin(S[j, SPSI], S[j, SPSI + 1])
     for comp in range(2):
-        pi_ = 0 if comp == 0 else 2
+        pi_ = SX if comp == 0 else SY
         # x: p1 = u c, p2 = v s, d = p1 - p2 ; y: p1 = v c, p2 = u s, d = p1 + p2
-        f1 = 4 if comp == 0 else 6
-        f2 = 6 if comp == 0 else 4
+        f1 = SU if comp == 0 else SV
+        f2 = SV if comp == 0 else SU
         p1l, p1h = mul(S[j, f1], S[j, f1 + 1], cl, ch)
         p2l, p2h = mul(S[j, f2], S[j, f2 + 1], sl, sh)
         if comp == 0:
@@ -529,11 +527,11 @@ def run_kernel(
             D[k, c] = M[k, c]
         if waltz:
             # the Waltz sweeps need the contracted rate of step k as a domain
-            t1l, t1h = sub(S[k, 8], S[k, 9], S[k - 1, 8], S[k - 1, 9])
+            t1l, t1h = sub(S[k, SPSI], S[k, SPSI + 1], S[k - 1, SPSI], S[k - 1, SPSI + 1])
             r1, r2 = div(t1l, t1h, dt, dt)
-            rl, rh = inter(M[k, 4], M[k, 5], r1, r2)
+            rl, rh = inter(M[k, IN_R], M[k, IN_R + 1], r1, r2)
             if not _emp(rl, rh):
-                D[k, 4], D[k, 5] = rl, rh
+                D[k, IN_R], D[k, IN_R + 1] = rl, rh
             lo = k - window + 1
             if lo < 1:
                 lo = 1
@@ -589,25 +587,21 @@ def finish_step(
 ) -> None:
     """Aided projections of step k and the final contracted inputs (D ∩ aided)."""
     # the rate first: the full mode's transport terms use the contracted rate
-    t1l, t1h = sub(S[k, 8], S[k, 9], S[k - 1, 8], S[k - 1, 9])
+    t1l, t1h = sub(S[k, SPSI], S[k, SPSI + 1], S[k - 1, SPSI], S[k - 1, SPSI + 1])
     r1, r2 = div(t1l, t1h, dt, dt)
-    l, h = inter(D[k, 4], D[k, 5], r1, r2)
+    l, h = inter(D[k, IN_R], D[k, IN_R + 1], r1, r2)
     if not _emp(l, h):
-        D[k, 4], D[k, 5] = l, h
-    a1, a2, b1, b2, r1, r2 = aided_inputs(k, S, D[k, 4], D[k, 5], dt, ev, mode)
-    A[k, 0], A[k, 1], A[k, 2], A[k, 3], A[k, 4], A[k, 5] = a1, a2, b1, b2, r1, r2
-    l, h = inter(D[k, 0], D[k, 1], a1, a2)
-    if _emp(l, h):
-        flags[k] |= F_AX_EMPTY
-    else:
-        D[k, 0], D[k, 1] = l, h
-    l, h = inter(D[k, 2], D[k, 3], b1, b2)
-    if _emp(l, h):
-        flags[k] |= F_AY_EMPTY
-    else:
-        D[k, 2], D[k, 3] = l, h
-    l, h = inter(D[k, 4], D[k, 5], r1, r2)
-    if _emp(l, h):
-        flags[k] |= F_R_EMPTY
-    else:
-        D[k, 4], D[k, 5] = l, h
+        D[k, IN_R], D[k, IN_R + 1] = l, h
+    a1, a2, b1, b2, r1, r2 = aided_inputs(k, S, D[k, IN_R], D[k, IN_R + 1], dt, ev, mode)
+    A[k, IN_A], A[k, IN_A + 1], A[k, IN_B], A[k, IN_B + 1] = a1, a2, b1, b2
+    A[k, IN_R], A[k, IN_R + 1] = r1, r2
+    for col, (lo, hi), flag in (
+        (IN_A, (a1, a2), F_AX_EMPTY),
+        (IN_B, (b1, b2), F_AY_EMPTY),
+        (IN_R, (r1, r2), F_R_EMPTY),
+    ):
+        l, h = inter(D[k, col], D[k, col + 1], lo, hi)
+        if _emp(l, h):
+            flags[k] |= flag
+        else:
+            D[k, col], D[k, col + 1] = l, h

@@ -222,6 +222,8 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         if sm is not None and ch in rows:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
+            if hi - lo >= 2 * cn.turn_on_bound(k_to) * (1 - 1e-9):
+                src = "turn-on prior (the windows and the smoother did not contract it)"
         else:
             b = cn.turn_on_bound(k_to)
             lo, hi = -b, b

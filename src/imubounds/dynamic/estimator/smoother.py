@@ -46,6 +46,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from imubounds.dynamic.estimator.rotation import irot as _irot
+from imubounds.dynamic.estimator.rotation import rot as _rot
 from imubounds.interval import scalar as c
 from imubounds.interval import scalar_contractors as k
 
@@ -59,34 +61,6 @@ INF = math.inf
 
 
 # ----------------------------------------------------------------------- helpers
-
-
-@njit(cache=True)
-def _rot(
-    clo: float, chi: float, slo: float, shi: float, xlo: float, xhi: float, ylo: float, yhi: float
-) -> tuple[float, float, float, float]:
-    """``R(psi) (x, y) = (c x - s y, s x + c y)`` for intervals c = cos psi, s = sin psi."""
-    a = c.mul(clo, chi, xlo, xhi)
-    b = c.mul(slo, shi, ylo, yhi)
-    e = c.sub(a[0], a[1], b[0], b[1])
-    a = c.mul(slo, shi, xlo, xhi)
-    b = c.mul(clo, chi, ylo, yhi)
-    n = c.add(a[0], a[1], b[0], b[1])
-    return e[0], e[1], n[0], n[1]
-
-
-@njit(cache=True)
-def _irot(
-    clo: float, chi: float, slo: float, shi: float, xlo: float, xhi: float, ylo: float, yhi: float
-) -> tuple[float, float, float, float]:
-    """``R(-psi) (x, y) = (c x + s y, c y - s x)``."""
-    a = c.mul(clo, chi, xlo, xhi)
-    b = c.mul(slo, shi, ylo, yhi)
-    f = c.add(a[0], a[1], b[0], b[1])
-    a = c.mul(clo, chi, ylo, yhi)
-    b = c.mul(slo, shi, xlo, xhi)
-    l_ = c.sub(a[0], a[1], b[0], b[1])
-    return f[0], f[1], l_[0], l_[1]
 
 
 @njit(cache=True)

@@ -1,0 +1,28 @@
+"""accel_x (docs/dynamic-method.md, section 3, **accel_x**): ``(u(b) - u(a))/tau -
+mean(r v) + g mean(sin theta)`` plus the Earth rate, the transport term bounded by
+``max_W|v| mean_W|r|`` (never computed from the gyro); for an aerial/marine vehicle
+also ``max|w| mean|q|``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from imubounds.dynamic.estimator.aided.base import pm
+from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
+from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
+from imubounds.interval import IntervalArray as IA
+
+
+def accel_x(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
+    """``[x_W]`` of accel_x."""
+    h = horizontal_terms(w, plan, lp, tau)
+    ends, rng = h.ends, h.rng
+    r_mag = r_abs(w, lp, tau)
+    transport = pm(rng["v_max"] * r_mag)
+    grav = w.tilt.kmean("g_sinp", lp, tau)
+    x = (ends["u2"] - ends["u1"]) / IA(tau) - transport + grav + h.earth
+    if w.veh.kind != "ground":
+        x = x + pm(rng["w_max"] * w.kernel_mag("gyro_y", lp, tau))
+    return x

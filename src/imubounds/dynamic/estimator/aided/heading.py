@@ -1,0 +1,118 @@
+"""gyro_z from the heading (docs/dynamic-method.md, section 3, **gyro_z**).
+
+Boxcar between heading epochs: ``r = psi' cos(theta)/cos(phi) - q tan(phi)``, so the
+kernel mean of the yaw rate is ``c0 (psi(b) - psi(a))/tau +- rate |c - c0| +- mean|q|
+tan(phi)`` with ``c = cos(theta)/cos(phi)`` over the window, plus the Earth rate. Also the
+heading between its epochs (:func:`heading_at`, :func:`heading_mean`), which the
+accelerometer constraints use.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.inputs import RangeExt
+from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
+from imubounds.interval import IntervalArray as IA
+
+
+def psi_dot_abs(
+    w: WindowContext, a: np.ndarray, b: np.ndarray, own_q: bool = True
+) -> np.ndarray:
+    """Bound of mean |d psi/dt| over [a, b] from the gyro magnitudes (other channels)."""
+    veh = w.veh
+    r = w.gyro_abs_mean("gyro_z", a, b)
+    q = w.gyro_abs_mean("gyro_y", a, b) if own_q else np.full(r.shape, veh.max_rate)
+    sr = w.tilt.hull("abs_sinr", a, b).hi
+    sec = 1.0 + w.tilt.hull("sec_p_minus_1", a, b).hi
+    return np.minimum(up((r + q * sr) * sec), veh.max_rate / math.cos(veh.max_tilt))
+
+
+def heading_at(w: WindowContext, t: np.ndarray) -> IA:
+    """Heading (model convention, unwrapped branch of the compass centres) at ``t``,
+    interpolated from the nearest heading epochs; the change over the gap is bounded
+    by the gyro magnitudes (a magnitude bound, never the gyro's value)."""
+    ag = w.ag
+    t = np.asarray(t, dtype=float)
+    if not ag.has_heading:
+        return IA(np.full(t.shape, -np.inf), np.full(t.shape, np.inf))
+    ht, hc, hh = ag.head_t, ag.head_c, ag.head_h
+    j = np.searchsorted(ht, t)
+    lo = np.full(t.shape, -np.inf)
+    hi = np.full(t.shape, np.inf)
+    for e in (j - 1, j):
+        ok = (e >= 0) & (e < ht.size)
+        ee = np.clip(e, 0, ht.size - 1)
+        te = ht[ee]
+        a, b = np.minimum(t, te), np.maximum(t, te)
+        exact = np.abs(t - te) <= 1e-9
+        g = np.where(exact, 0.0, psi_dot_abs(w, a, b) * (b - a))
+        g = up(g)
+        c_lo = np.nextafter(hc[ee] - hh[ee] - g, -np.inf)
+        c_hi = up(hc[ee] + hh[ee] + g)
+        lo = np.where(ok, np.maximum(lo, c_lo), lo)
+        hi = np.where(ok, np.minimum(hi, c_hi), hi)
+    bad = lo > hi
+    if np.any(bad):  # inconsistent neighbours: keep their hull (reported by the smoother)
+        lo = np.where(bad, np.minimum(lo, hi), lo)
+        hi = np.where(bad, np.maximum(lo, hi), hi)
+    return IA(lo, hi)
+
+
+def heading_mean(w: WindowContext, a: np.ndarray, b: np.ndarray) -> IA:
+    """Interval containing the mean heading over [a, b] (hull of the heading there)."""
+    ag = w.ag
+    lo = heading_at(w, a)
+    hi = heading_at(w, b)
+    ht = ag.head_t
+    out_lo = np.minimum(lo.lo, hi.lo)
+    out_hi = np.maximum(lo.hi, hi.hi)
+    if ht.size:
+        i = np.searchsorted(ht, a)
+        j = np.searchsorted(ht, b, side="right") - 1
+        has = j >= i
+        ext = RangeExt(ag.head_c - ag.head_h, ag.head_c + ag.head_h)
+        ii = np.clip(i, 0, ht.size - 1)
+        jj = np.clip(np.maximum(j, i), 0, ht.size - 1)
+        mn, mx = ext.query(ii, jj)
+        out_lo = np.where(has, np.minimum(out_lo, mn), out_lo)
+        out_hi = np.where(has, np.maximum(out_hi, mx), out_hi)
+        # between heading epochs the heading moves by at most the rate bound x gap
+        gaps = np.diff(ht) if ht.size > 1 else np.zeros(1)
+        gext = RangeExt(gaps)
+        _, gm = gext.query(np.clip(ii, 0, gaps.size - 1), np.clip(jj, 0, gaps.size - 1))
+        g = up(psi_dot_abs(w, a, b) * gm / 2)
+        out_lo, out_hi = out_lo - g, out_hi + g
+    return IA(np.nextafter(out_lo, -np.inf), up(out_hi))
+
+
+def r_from_psidot(
+    w: WindowContext, dpsi: IA, lp: LevelPlan, tau: np.ndarray, own_q: bool
+) -> IA:
+    """r = psi' cos(p)/cos(r) - q tan(roll): from the mean heading rate, with the tilt
+    terms bounded (|psi'| by the vehicle's rate bound, |q| by gyro_y's magnitude)."""
+    veh = w.veh
+    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
+    c0 = c.mid()
+    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
+    rate = veh.max_rate / math.cos(veh.max_tilt)
+    q = (
+        w.kernel_mag("gyro_y", lp, tau)
+        if own_q
+        else up(veh.max_rate * (lp.b2 - lp.a1) / tau)
+    )
+    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
+    earth = pm(EARTH_RATE + veh.max_speed / R_EARTH)
+    return dpsi * IA(c0) + pm(rate * cdev) + pm(q * tr) + earth
+
+
+def gyro_z(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
+    """``[x_W]`` of gyro_z: the yaw rate from the heading at the window ends."""
+    ag = w.ag
+    p1 = IA(ag.head_c[lp.i] - ag.head_h[lp.i], ag.head_c[lp.i] + ag.head_h[lp.i])
+    p2 = IA(ag.head_c[lp.j] - ag.head_h[lp.j], ag.head_c[lp.j] + ag.head_h[lp.j])
+    return r_from_psidot(w, (p2 - p1) / IA(tau), lp, tau, own_q=True)

@@ -1,0 +1,125 @@
+"""Positions only (docs/dynamic-method.md, section 3, **positions only**): the mean body
+velocities over the fix intervals I1, I2 of a trapezoid window, from the position boxes,
+projected on the mid-heading ``psi0`` of the heading hull over each interval (radius
+``eps``): ``mean(u_h) = mean(V).e(psi0) +- (S_max (1 - cos eps) + v_l sin eps)`` (second
+order in the heading width through the speed, ``v_l`` the lateral bound),
+``mean(v_h) = mean(V).e_perp(psi0) +- (S_max sin eps + v_l (1 - cos eps))``; then from
+the horizontal to the body frame with the tilt intervals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imubounds.dynamic.estimator.aided.base import pm, up
+from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.heading import heading_mean
+from imubounds.dynamic.estimator.aided.velocity import speed_max
+from imubounds.dynamic.estimator.inputs import lateral_h_bound
+from imubounds.dynamic.estimator.window_plan import LevelPlan
+from imubounds.interval import IntervalArray as IA
+
+
+def _second_order(eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``1 - cos eps`` and ``sin eps`` (eps >= 0), rounded up."""
+    e2 = up(1.0 - np.cos(np.minimum(eps, math.pi)) + 1e-15)
+    e1 = up(np.sin(np.minimum(eps, 0.5 * math.pi)) + 1e-15)
+    return e2, e1
+
+
+def _gap_tables(w: WindowContext) -> dict[str, np.ndarray]:
+    """Per gap k between fixes k and k + 1: the chord projected on the gap's mid-heading
+    ``e_k`` (u and v), the second-order remainder times the gap, and, per fix, the
+    weight of its position error in a sum of projected chords (summation by parts:
+    ``sum (P_k+1 - P_k).e_k = P_n.e_n-1 - P_0.e_0 - sum P_k.(e_k - e_k-1)``); prefix
+    sums of each (computed once)."""
+    if "pos_tables" in w.cache:
+        return w.cache["pos_tables"]
+    ag, veh = w.ag, w.veh
+    t = ag.gnss_t
+    a, b = t[:-1], t[1:]
+    g = b - a
+    psi = heading_mean(w, a, b)
+    fin = np.isfinite(psi.lo) & np.isfinite(psi.hi)
+    psi0 = np.where(fin, psi.mid(), 0.0)
+    eps = np.where(fin, up(psi.radius()) + 1e-12, math.pi)
+    c, sn = np.cos(psi0), np.sin(psi0)
+    smax = speed_max(w, a, b)
+    vl_h = lateral_h_bound(veh)
+    vlat = smax if vl_h is None else np.minimum(smax, vl_h)
+    e2, e1 = _second_order(eps)
+    dE, dN = np.diff(ag.gnss_e), np.diff(ag.gnss_n)
+    du = dE * c + dN * sn
+    dv = dN * c - dE * sn
+    # |e_k - e_k-1|_1 (the same for e_perp), times the interior fix's box half-width
+    de = np.abs(np.diff(c)) + np.abs(np.diff(sn))
+    h = ag.gnss_h
+
+    def cum(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([[0.0], np.cumsum(x)])
+
+    tab = {
+        "du": cum(du),
+        "dv": cum(dv),
+        "abs": cum(np.abs(dE) + np.abs(dN)),
+        "ru": cum(g * (smax * e2 + vlat * e1)),
+        "rv": cum(g * (smax * e1 + vlat * e2)),
+        "perr": cum(h[1:-1] * de) if t.size > 2 else np.zeros(1),
+        "end": np.abs(c) + np.abs(sn),
+        "smax": smax,
+    }
+    w.cache["pos_tables"] = tab
+    return tab
+
+
+def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
+    """Mean horizontal heading-frame velocities (u_h, v_h) over [t_p, t_q] (fix indices,
+    q > p): the projected chords of every gap inside, their position errors by summation
+    by parts, their second-order remainders, and a bound of the prefix sums' rounding."""
+    ag = w.ag
+    tab = _gap_tables(w)
+    t, h = ag.gnss_t, ag.gnss_h
+    L = t[q] - t[p]
+    nu = tab["du"][q] - tab["du"][p]
+    nv = tab["dv"][q] - tab["dv"][p]
+    inner = tab["perr"][np.maximum(q - 1, p)] - tab["perr"][p]  # interior fixes p+1..q-1
+    perr = h[p] * tab["end"][p] + h[q] * tab["end"][q - 1] + np.maximum(inner, 0.0)
+    n = t.size
+    guard = (n + 4) * 2.3e-16 * (tab["abs"][q] + tab["abs"][p] + 1.0) * 2.0
+    ru = tab["ru"][q] - tab["ru"][p]
+    rv = tab["rv"][q] - tab["rv"][p]
+    gr = (n + 4) * 2.3e-16 * (tab["ru"][q] + tab["rv"][q] + tab["perr"][-1] + 1.0)
+    wu = up((perr + ru + guard + gr) * (1 + 1e-12))
+    wv = up((perr + rv + guard + gr) * (1 + 1e-12))
+    dT = IA(L)
+    return (IA(nu) + pm(wu)) / dT, (IA(nv) + pm(wv)) / dT
+
+
+def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str, IA]:
+    """Mean body velocities ``u1, v1`` over I1 and ``u2, v2`` over I2 from the GNSS
+    positions (trapezoid kernel)."""
+    ag, veh = w.ag, w.veh
+    out: dict[str, IA] = {}
+    t = ag.gnss_t
+    i0 = np.searchsorted(t, lp.a1)
+    i1 = np.searchsorted(t, lp.b1)
+    i2 = np.searchsorted(t, lp.b2)
+    for key, (p, q) in (("1", (i0, i1)), ("2", (i1, i2))):
+        a, b = t[p], t[q]
+        uh, vh = _mean_over(w, p, q)
+        smax = speed_max(w, a, b)
+        sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
+        sec_r = w.tilt.hull("sec_r_minus_1", a, b).hi
+        trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
+        vl = veh.lateral_bound
+        vmax = np.minimum(smax, vl) if vl is not None else smax
+        u = uh + pm(smax * sec_p + vmax * trp)
+        v = vh + pm(smax * sec_r)
+        if veh.kind != "ground":
+            wv = veh.vertical_bound
+            u = u + pm(wv * w.tilt.hull("abs_tanp", a, b).hi)
+            v = v + pm(wv * w.tilt.hull("abs_tanr", a, b).hi)
+        out["u" + key] = u
+        out["v" + key] = v
+    return out

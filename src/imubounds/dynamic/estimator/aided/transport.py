@@ -1,0 +1,92 @@
+"""The bound of the kernel mean of |r| in the accelerometers' transport terms (docs/dynamic-
+method.md, section 3, **accel_x**: ``mean_W|r|``, ``r_abs``).
+
+The gyro's magnitude centred on its own mean error over the window (known from the
+heading): ``mean|y_r - c| + |e - c| + sqrt(S^2) + 2D + 2s mean|x|``, ``S^2`` a bound of
+the mean square deviation of the gyro noise from its mean
+(:func:`~imubounds.dynamic.estimator.budget.centered_ms_bound`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from imubounds.dynamic.estimator.aided.base import up
+from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.heading import heading_at, r_from_psidot
+from imubounds.dynamic.estimator.budget import centered_ms_bound
+from imubounds.dynamic.estimator.window_plan import LevelPlan
+from imubounds.interval import IntervalArray as IA
+
+
+@njit(cache=True)
+def abs_dev_integral(
+    bnd: np.ndarray,
+    y: np.ndarray,
+    unknown: np.ndarray,
+    xmax: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+) -> np.ndarray:
+    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
+    segments ``bnd``; an unknown segment counts ``xmax + |c|``). Plain float sums
+    inflated by ``(n + 2) * 2^-52`` relative for rounding."""
+    out = np.empty(a.size)
+    nseg = bnd.size - 1
+    for w in range(a.size):
+        lo = np.searchsorted(bnd, a[w], side="right") - 1
+        if lo < 0:
+            lo = 0
+        acc = 0.0
+        cnt = 0
+        k = lo
+        while k < nseg and bnd[k] < b[w]:
+            s0 = bnd[k] if bnd[k] > a[w] else a[w]
+            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
+            if s1 > s0:
+                v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
+                acc += v * (s1 - s0)
+                cnt += 1
+            k += 1
+        out[w] = acc * (1.0 + (cnt + 4) * 2.3e-16)
+    return out
+
+
+def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
+    """Bound of the kernel mean of |r| (true yaw rate) over each window: the gyro's
+    magnitude centred on its own mean error over the window's support (known from
+    the heading), plus a bound of the noise's deviation from its mean (Gaussian
+    quadratic form); the per-sample bound if the gyro is judged faulty or there is
+    no heading. Used only in second-order (transport) terms of the accelerometers."""
+    coarse = w.kernel_mag("gyro_z", lp, tau)
+    if not w.fine_r or not w.ag.has_heading or not w.imu.available["gyro_z"]:
+        return coarse
+    s0, s1 = lp.a1, lp.b2
+    L = s1 - s0
+    sup = LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j)
+    sig = w.imu.sig["gyro_z"]
+    ylo, yhi = sig.integral(s0, s1)
+    ybox = IA(ylo, yhi) / IA(L)
+    p0, p1 = heading_at(w, s0), heading_at(w, s1)
+    xbox = r_from_psidot(w, (p1 - p0) / IA(L), sup, L, own_q=True)
+    e = ybox - xbox
+    fin = np.isfinite(e.lo) & np.isfinite(e.hi)
+    c0 = np.where(fin, e.mid(), 0.0)
+    rad = np.where(fin, e.radius(), np.inf)
+    dev = abs_dev_integral(
+        sig.bnd, sig.y, sig.unknown, sig.xmax, s0, s1, np.ascontiguousarray(c0)
+    ) / L
+    cn = w.ctx.noise["gyro_z"]
+    m = w.imu.count(s0, s1)
+    uc, inv = np.unique(m, return_inverse=True)
+    p = w.p_window
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, p) for mm in uc])[inv]
+    ratio = max(1.0, w.imu.max_len / w.imu.dt)
+    det = 2 * w.ctx.D_KR["gyro_z"] + 2 * cn.scale * w.mag_mean("gyro_z", s0, s1)
+    for other in ("gyro_x", "gyro_y"):
+        det = det + 2 * cn.misalignment_rad * w.mag_mean(other, s0, s1)
+    fine = dev + rad + np.sqrt(ms) * ratio + det
+    fine = up(fine * L / tau)
+    return np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))

@@ -1,0 +1,240 @@
+"""Margins and verdicts (docs/dynamic-method.md, section 4).
+
+``[E_W] = [y_W] - [x_W]`` per window. Verdict per channel: ``exceeds`` if some window's
+``[E_W]`` (or some change ``[E_W2] - [E_W1]``) lies entirely outside its band;
+``consistent`` if there is a decidable window (``[x_W]`` not wider than the band) and
+none exceeds; ``undecided`` otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: the verdict of a channel whose noise figures (N, B) were given nowhere: its band would
+#: be a default preset's, so the margins are given but not judged
+NO_REFERENCE = "no reference"
+HOW_TO_REFERENCE = (
+    "give the IMU's stationary noise: --static noise.json (from 'imubounds static' on a "
+    "static log of this IMU), --imu-spec PRESET or accel_nd=..,accel_bs=..,gyro_nd=..,"
+    "gyro_bs=.., or imu: accel_nd/accel_bs/gyro_nd/gyro_bs (or preset:) in drive.yaml"
+)
+
+
+def _is_default(src: str) -> bool:
+    return src == "default" or src.endswith("(default)")
+
+
+def band_reference(cn: Any) -> str | None:
+    """Where the stationary band of a channel comes from (the sources of its white noise N
+    and bias instability B), None when either is only a default."""
+    srcs = getattr(cn, "sources", {}) or {}
+    n, b = str(srcs.get("N", "default")), str(srcs.get("B", "default"))
+    if _is_default(n) or _is_default(b):
+        return None
+    return n if n == b else f"N: {n}, B: {b}"
+
+
+@dataclass
+class LevelResult:
+    """Windows of one tau level evaluated (arrays over windows)."""
+
+    tau_s: float
+    kind: str
+    t_start: np.ndarray
+    tau: np.ndarray
+    x_lo: np.ndarray
+    x_hi: np.ndarray
+    y_lo: np.ndarray
+    y_hi: np.ndarray
+    band: np.ndarray
+    band_nto: np.ndarray
+    k: float
+    #: change test: adjacent pairs (window indices), the stationary band of the change
+    #: of the window means (turn-on bias cancels), its k
+    p1: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    p2: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    c_band: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    c_k: float = 0.0
+
+    @property
+    def d_lo(self) -> np.ndarray:
+        """Lower end of ``[E_W2] - [E_W1]`` over the adjacent pairs."""
+        return np.nextafter(self.e_lo[self.p2] - self.e_hi[self.p1], -np.inf)
+
+    @property
+    def d_hi(self) -> np.ndarray:
+        return np.nextafter(self.e_hi[self.p2] - self.e_lo[self.p1], np.inf)
+
+    @property
+    def c_exceeds(self) -> np.ndarray:
+        return (self.d_lo > self.c_band) | (self.d_hi < -self.c_band)
+
+    @property
+    def c_decidable(self) -> np.ndarray:
+        xw = 0.5 * (self.x_hi - self.x_lo)
+        return xw[self.p1] + xw[self.p2] <= self.c_band
+
+    @property
+    def e_lo(self) -> np.ndarray:
+        return np.nextafter(self.y_lo - self.x_hi, -np.inf)
+
+    @property
+    def e_hi(self) -> np.ndarray:
+        return np.nextafter(self.y_hi - self.x_lo, np.inf)
+
+    @property
+    def halfwidth(self) -> np.ndarray:
+        return 0.5 * (self.e_hi - self.e_lo)
+
+    @property
+    def decidable(self) -> np.ndarray:
+        return 0.5 * (self.x_hi - self.x_lo) <= self.band
+
+    @property
+    def exceeds(self) -> np.ndarray:
+        return (self.e_lo > self.band) | (self.e_hi < -self.band)
+
+    def summary(self) -> dict[str, Any]:
+        hw = self.halfwidth
+        fin = np.isfinite(hw)
+        return {
+            "tau_s": self.tau_s,
+            "halfwidth_max": float(np.max(hw[fin])) if fin.any() else None,
+            "halfwidth_median": float(np.median(hw[fin])) if fin.any() else None,
+            "stationary": float(np.median(self.band)) if self.band.size else None,
+            "stationary_max": float(np.max(self.band)) if self.band.size else None,
+            "exceeds_fraction": float(np.mean(self.exceeds)) if self.band.size else 0.0,
+            "decidable_fraction": float(np.mean(self.decidable)) if self.band.size else 0.0,
+            "n_windows": int(self.band.size),
+            "k": self.k,
+            "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
+            **self._change_summary(),
+        }
+
+    def _change_summary(self) -> dict[str, Any]:
+        if self.p1.size == 0:
+            return {"n_changes": 0}
+        hw = 0.5 * (self.d_hi - self.d_lo)
+        fin = np.isfinite(hw)
+        return {
+            "n_changes": int(self.p1.size),
+            "change_halfwidth_median": float(np.median(hw[fin])) if fin.any() else None,
+            "change_stationary": float(np.median(self.c_band)),
+            "change_exceeds_fraction": float(np.mean(self.c_exceeds)),
+            "change_k": self.c_k,
+        }
+
+
+@dataclass
+class ChannelMargins:
+    channel: str
+    unit: str
+    source: str
+    levels: list[LevelResult]
+    verdict: str
+    reason: str
+    exceeding: list[dict[str, Any]]
+    n_exceeding: int
+    notes: list[str] = field(default_factory=list)
+    #: the verdict against the band as computed (the same as ``verdict`` unless that is
+    #: ``no reference``: then the verdict against the default preset's band, not a finding)
+    raw_verdict: str = ""
+
+    def table(self) -> list[dict[str, Any]]:
+        return [lv.summary() for lv in self.levels]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "unit": self.unit,
+            "aided_from": self.source,
+            "verdict": self.verdict,
+            "reason": self.reason,
+            "exceeding_windows": self.exceeding,
+            "n_exceeding_windows": self.n_exceeding,
+            "notes": self.notes,
+            **(
+                {"verdict_against_default_band": self.raw_verdict}
+                if self.verdict == NO_REFERENCE
+                else {}
+            ),
+        }
+
+
+def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str, list[Any], int]:
+    """The channel verdict from its evaluated levels."""
+    exc: list[dict[str, Any]] = []
+    n_exc = 0
+    any_dec = False
+    n_lev = n_chg = 0
+    for lv in levels:
+        ex = lv.exceeds
+        any_dec |= bool(np.any(lv.decidable))
+        for w in np.flatnonzero(ex):
+            n_lev += 1
+            if len(exc) < max_list:
+                exc.append(
+                    {
+                        "test": "level",
+                        "t_start_s": float(lv.t_start[w]),
+                        "tau_s": float(lv.tau[w]),
+                        "interval": [float(lv.e_lo[w]), float(lv.e_hi[w])],
+                        "stationary": float(lv.band[w]),
+                    }
+                )
+    for lv in levels:
+        if lv.p1.size == 0:
+            continue
+        any_dec |= bool(np.any(lv.c_decidable))
+        cex = lv.c_exceeds
+        d_lo, d_hi = lv.d_lo, lv.d_hi
+        for q in np.flatnonzero(cex):
+            n_chg += 1
+            if len(exc) < max_list:
+                w1, w2 = int(lv.p1[q]), int(lv.p2[q])
+                exc.append(
+                    {
+                        "test": "change",
+                        "t_start_s": float(lv.t_start[w1]),
+                        "t_change_s": float(lv.t_start[w2]),
+                        "tau_s": float(lv.tau[w1]),
+                        "interval": [float(d_lo[q]), float(d_hi[q])],
+                        "stationary": float(lv.c_band[q]),
+                    }
+                )
+    n_exc = n_lev + n_chg
+    if n_exc:
+        parts = []
+        if n_lev:
+            f = next(e for e in exc if e["test"] == "level") if any(
+                e["test"] == "level" for e in exc
+            ) else None
+            parts.append(
+                f"{n_lev} window(s) lie entirely outside the stationary band"
+                + (f" (first at t = {f['t_start_s']:.1f} s, tau = {f['tau_s']:.3g} s)" if f else "")
+            )
+        if n_chg:
+            f = next((e for e in exc if e["test"] == "change"), None)
+            parts.append(
+                f"{n_chg} change(s) between adjacent windows lie entirely outside the "
+                "stationary band of changes"
+                + (f" (first at t = {f['t_change_s']:.1f} s, tau = {f['tau_s']:.3g} s)"
+                   if f else "")
+            )
+        return "exceeds", "; ".join(parts), exc, n_exc
+    if any_dec:
+        return (
+            "consistent",
+            "every decidable window, and every change between adjacent windows, lies "
+            "within its stationary band",
+            exc,
+            0,
+        )
+    return (
+        "undecided",
+        "the aided interval is wider than the stationary band at every tau",
+        exc,
+        0,
+    )
