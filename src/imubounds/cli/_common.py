@@ -130,7 +130,7 @@ def noise_json(text: str) -> str:
     figures for the accelerometers and the gyros; :func:`imubounds.io.drive_layout.
     check_noise_json`)."""
     from imubounds.errors import InputError
-    from imubounds.io.drive_layout import check_noise_json
+    from imubounds.io.drive_settings import check_noise_json
 
     try:
         check_noise_json(text)
@@ -141,9 +141,9 @@ def noise_json(text: str) -> str:
 
 def compass_calibration(text: str) -> str:
     """``--compass-cal``: a swing-calibration CSV whose pairs are all finite (checked when
-    parsed; :func:`imubounds.io.drive_layout.check_calibration`)."""
+    parsed; :func:`imubounds.io.drive_settings.check_calibration`)."""
     from imubounds.errors import InputError
-    from imubounds.io.drive_layout import check_calibration
+    from imubounds.io.drive_settings import check_calibration
 
     try:
         check_calibration(text)

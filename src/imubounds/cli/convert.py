@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from imubounds.cli._common import add_drive_options, add_force_option, drive_read_options
@@ -70,8 +71,8 @@ def run(args: argparse.Namespace) -> int:
         write_layout(drive, out.staging, fmt=args.format)
         out.record(getattr(args, "argv", None), command_name="convert")
     if not args.quiet:
-        for line in summary(drive, args.out):
-            print(line)
+        for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
+            print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
     return 0
 
 

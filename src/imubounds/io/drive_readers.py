@@ -84,13 +84,15 @@ from imubounds.io.drive import (
 )
 from imubounds.io.drive_layout import (
     FILES,
-    SETTINGS_FILE,
     TABLE_COLUMNS,
     drive_from_tables,
     is_layout,
+    read_layout,
+)
+from imubounds.io.drive_settings import (
+    SETTINGS_FILE,
     load_settings_yaml,
     parse_settings,
-    read_layout,
     read_settings_with_info,
 )
 from imubounds.io.drive_validate import check_input_path, validate_drive

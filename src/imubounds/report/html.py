@@ -11,8 +11,6 @@ so the file can be mailed or archived as it is.
 
 from __future__ import annotations
 
-import base64
-import html
 import json
 import math
 from collections.abc import Iterator
@@ -23,6 +21,8 @@ from typing import Any
 
 from imubounds import __version__
 from imubounds.errors import InputError
+from imubounds.report._html_fleet import _fleet_section
+from imubounds.report._html_parts import _e, _img, _listed, _load_json, _num, _table, _term_cell
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2433;
@@ -48,56 +48,6 @@ pre{padding:8px 10px;overflow-x:auto}
 """
 
 TERM_ORDER = ("Q", "N", "B", "K", "R")
-
-
-def _e(text: Any) -> str:
-    return html.escape(str(text))
-
-
-def _num(v: Any, digits: int = 4) -> str:
-    if v is None:
-        return "—"
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return _e(v)
-    if not math.isfinite(f):
-        return "—"
-    return f"{f:.{digits}g}"
-
-
-def _load_json(path: Path) -> dict[str, Any] | None:
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError) as err:  # JSON and UTF-8 errors are ValueErrors
-        reason = " ".join(str(err).split())[:120]
-        raise InputError(
-            f"{path}: not readable JSON ({reason}); rerun the command that wrote it"
-        ) from err
-    return data if isinstance(data, dict) else None
-
-
-def _listed(d: Path, name: str) -> bool:
-    """Whether ``d/name`` is a file of the complete set in ``d`` (any file if no run.json
-    lists one): a figure left over from an earlier run is not shown with newer results."""
-    if not (d / name).is_file():
-        return False
-    run = _load_json(d / "run.json")
-    files = run.get("files") if run else None
-    return not isinstance(files, list) or name in files
-
-
-def _img(path: Path, caption: str) -> str:
-    try:
-        data = base64.b64encode(path.read_bytes()).decode("ascii")
-    except OSError as err:
-        raise InputError(f"{path}: cannot read ({err.strerror or err})") from err
-    return (
-        f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
-        f"<figcaption>{_e(caption)}</figcaption></figure>"
-    )
 
 
 def _real_root(root: Path) -> Path:
@@ -378,18 +328,6 @@ def _ch_factor(ch: str) -> tuple[float, str]:
     return (180.0 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
 
 
-def _table(head: list[str], rows: list[list[str]]) -> str:
-    h = "".join(f"<th class='l'>{_e(x)}</th>" if i == 0 else f"<th>{_e(x)}</th>"
-                for i, x in enumerate(head))
-    body = "".join(
-        "<tr>" + "".join(
-            f"<td class='l'>{c}</td>" if i == 0 else f"<td>{c}</td>" for i, c in enumerate(r)
-        ) + "</tr>"
-        for r in rows
-    )
-    return f"<table><tr>{h}</tr>{body}</table>"
-
-
 def _verdict_items(mode: dict[str, Any]) -> str:
     items = []
     for ch, v in (mode.get("verdict") or {}).items():
@@ -645,121 +583,6 @@ def _dynamic_section(
     parts.append(_run_block(d))
     parts.append("</details></section>")
     return "".join(parts), warnings, commands
-
-
-FLEET_FIGURES = (
-    ("fleet", "Allan deviation of every unit (faint) with the fleet median; histograms of N, B, K"),
-    ("fleet_stats", "N, B, K across units per channel (box: quartiles); outliers in red"),
-)
-
-
-def _fleet_section(d: Path, summ: dict[str, Any]) -> tuple[str, list[str]]:
-    """The fleet section: counts, failures, term statistics, outliers, spec, drift."""
-    warnings: list[str] = []
-    parts = ["<section id='fleet'><h2>Fleet</h2>"]
-    parts.append(
-        f"<p>{_num(summ.get('n_units'))} units: {_num(summ.get('n_ok'))} analysed "
-        f"({_num(summ.get('n_cached'))} from the cache), {_num(summ.get('n_failed'))} failed; "
-        f"terms from the {_e(summ.get('terms_from', 'fit'))}, "
-        f"{_e(summ.get('scheduler', ''))}, {_num(summ.get('seconds'), 3)} s.</p>"
-    )
-    failed = summ.get("failed") or []
-    if failed:
-        warnings += [f"unit {f.get('unit')} failed: {f.get('error')}" for f in failed]
-        parts.append("<h3>Failed units</h3>" + _table(
-            ["unit", "error"],
-            [[_e(f.get("unit")), _e(f.get("error"))]
-             for f in failed]))  # fmt: skip
-    for stem, caption in FLEET_FIGURES:
-        if _listed(d, f"{stem}.png"):
-            parts.append(_img(d / f"{stem}.png", caption))
-    stats = summ.get("statistics") or {}
-    if stats.get("terms"):
-        thr = stats.get("threshold_z")
-        parts.append(
-            "<h3>Noise terms across units</h3><p class='muted'>Per channel: median, quartiles, "
-            "IQR and robust spread (1.4826 MAD) in IEEE units; a unit is an outlier when "
-            f"|z| &gt; {_num(thr)}, z = {_e(stats.get('z_definition', ''))}.</p>"
-        )
-        rows = []
-        for r in stats["terms"]:
-            rows.append([
-                _e(r.get("channel")), _e(r.get("term")), _num(r.get("n")),
-                _num(r.get("median_ieee")), _num(r.get("p25_ieee")), _num(r.get("p75_ieee")),
-                _num(r.get("iqr_ieee")), _num(r.get("spread_ieee")), _e(r.get("unit_ieee", "")),
-                _num(r.get("n_outliers")),
-            ])  # fmt: skip
-        parts.append(_table(["channel", "term", "units resolving it", "median", "p25", "p75",
-                             "IQR", "spread", "IEEE unit", "outliers"], rows))  # fmt: skip
-        outl = stats.get("outliers") or []
-        if outl:
-            parts.append("<h3>Outliers</h3>" + _table(
-                ["unit", "channel", "term", "value", "fleet median", "IEEE unit", "× median",
-                 "z"],
-                [[_e(o.get("unit")), _e(o.get("channel")), _e(o.get("term")),
-                  _num(o.get("value_ieee")), _num(o.get("median_ieee")),
-                  _e(o.get("unit_ieee", "")), _num(o.get("ratio_to_median"), 3),
-                  _num(o.get("z"), 3)] for o in outl]))  # fmt: skip
-            units = ", ".join(map(str, stats.get("units_outlying") or []))
-            warnings.append(f"fleet: outlying unit(s) {units} (|z| > {_num(thr)})")
-        else:
-            parts.append(f"<p class='ok'>No unit outlying (|z| &gt; {_num(thr)}).</p>")
-    sp = summ.get("spec")
-    if isinstance(sp, dict):
-        cls = "ok" if not sp.get("n_fail") else "bad"
-        failing = ", ".join(map(str, sp.get("units_failing") or []))
-        parts.append(
-            f"<h3>Datasheet spec {_e(sp.get('name', ''))}</h3><p class='{cls}'>"
-            f"{_num(sp.get('n_pass'))} pass, {_num(sp.get('n_fail'))} fail "
-            f"(criterion {_e(sp.get('criterion', ''))})"
-            + (f": {_e(failing)}" if failing else "")
-            + (f"; undetermined (a term not resolved, its upper bound above the limit): "
-               f"{_e(', '.join(map(str, sp.get('units_undetermined') or [])))}"
-               if sp.get("units_undetermined") else "") + "</p>"
-        )
-    drift = summ.get("drift")
-    if isinstance(drift, dict):
-        parts.append(
-            f"<h3>Drift since {_e(drift.get('compared_with', ''))}</h3><p>"
-            f"{_num(drift.get('n_units_compared'))} units compared; drifted (|z| &gt; "
-            f"{_num(drift.get('threshold_z'))}, the change on the log scale over both runs' "
-            f"combined uncertainty): {_e(', '.join(drift.get('units_drifted') or []) or 'none')}"
-            + (f"; new units: {_e(', '.join(drift['new_units']))}" if drift.get("new_units")
-               else "")
-            + (f"; units gone: {_e(', '.join(drift['missing_units']))}"
-               if drift.get("missing_units") else "") + "</p>"
-        )  # fmt: skip
-        rows = []
-        for r in drift.get("rows") or []:
-            moved = bool(r.get("drifted"))
-            rows.append([
-                _e(r.get("unit")), _e(r.get("channel")), _e(r.get("term")),
-                _num(r.get("previous_ieee")), _num(r.get("value_ieee")),
-                _num(r.get("diff_ieee")), _e(r.get("unit_ieee", "")), _num(r.get("ratio"), 3),
-                _num(r.get("z"), 2),
-                f"<span class='{'bad' if moved else 'ok'}'>{'yes' if moved else 'no'}</span>",
-            ])  # fmt: skip
-        parts.append(_table(["unit", "channel", "term", "previous", "now", "difference",
-                             "IEEE unit", "ratio", "z", "drifted"], rows))  # fmt: skip
-    parts.append("</section>")
-    return "".join(parts), warnings
-
-
-# ----------------------------------------------------------------------- the summary
-
-
-def _term_cell(e: dict[str, Any], factor: float = 1.0) -> str:
-    """A selected term in datasheet units with its CI; '≤' for an upper bound."""
-    ds = e.get("datasheet") or {}
-    if ds.get("value") is None:
-        return "—"
-    mark = "≤ " if e.get("status") == "upper_bound" else ""
-    ci = ds.get("ci")
-    ci_txt = ""
-    if ci and e.get("status") != "upper_bound":
-        lo, hi = _num(ci[0] * factor, 3), _num(ci[1] * factor, 3)
-        ci_txt = f" <span class='muted'>[{lo}, {hi}]</span>"
-    return f"{mark}{_num(ds['value'] * factor, 3)} {_e(ds.get('unit', ''))}{ci_txt}"
 
 
 def _duration(seconds: float) -> str:
