@@ -10,7 +10,8 @@ import pytest
 from imubounds.errors import OptionError
 from imubounds.stationary import theory
 from imubounds.stationary.allan import ESTIMATORS, allan, max_cluster_size
-from imubounds.stationary.models import ArModel, GaussMarkovModel, ar_autocovariance
+from imubounds.stationary.ar_model import ArModel, ar_autocovariance
+from imubounds.stationary.gauss_markov import GaussMarkovModel
 from imubounds.stationary.terms import NoiseTerms
 
 from .synthetic import five_term_signal

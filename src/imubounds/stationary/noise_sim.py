@@ -47,7 +47,8 @@ from scipy.optimize import nnls
 from imubounds import presets as _presets
 from imubounds.errors import InputError, OptionError
 from imubounds.io.log import IMU_CHANNELS, ImuLog
-from imubounds.stationary.models import ArModel, GaussMarkovModel, gm_avar_continuous
+from imubounds.stationary.ar_model import ArModel
+from imubounds.stationary.gauss_markov import GaussMarkovModel, gm_avar_continuous
 from imubounds.units import DEG, G0, SI_UNITS, sensor_kind, si_unit_of_signal
 
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")
