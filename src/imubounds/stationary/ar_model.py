@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
@@ -196,15 +197,47 @@ class ArModel:
 def burg_path(x: ArrayLike, order_max: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Burg reflection coefficients and residual variances for orders 0..order_max.
 
-    Thin wrapper of ``statsmodels.tsa.stattools.pacf_burg`` (O(n·p), one
-    pass for all orders) on the demeaned series.  Returns ``(pacf, sigma2)``,
-    ``pacf[0] = 1``.
+    The recursion of ``statsmodels.tsa.stattools.pacf_burg`` (Brockwell & Davis
+    2016, O(n·p), one pass for all orders) on the demeaned series, compiled
+    (:func:`_burg_kernel`). Returns ``(pacf, sigma2)``, ``pacf[0] = 1``.
     """
-    from statsmodels.tsa.stattools import pacf_burg
-
     arr = np.asarray(x, dtype=np.float64)
-    res = pacf_burg(arr - arr.mean(), nlags=order_max, demean=False)
-    return np.asarray(res.pacf), np.asarray(res.sigma2)
+    p = max(int(order_max), 1)
+    if p > arr.size - 1:
+        raise ValueError("order_max must be smaller than the number of samples - 1")
+    pacf, d = _burg_kernel(np.ascontiguousarray(arr - arr.mean()), p)
+    sigma2 = (1.0 - pacf**2) * d / (2.0 * (arr.size - np.arange(p + 1)))
+    pacf[0] = 1.0
+    return np.asarray(pacf), np.asarray(sigma2)
+
+
+@njit(cache=True, fastmath=False)  # type: ignore[misc]
+def _burg_kernel(x: NDArray[np.float64], p: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Burg's recursion: reflection coefficients ``pacf[1..p]`` and the forward plus
+    backward prediction error energies ``d[0..p]`` (u, v: backward/forward errors of
+    the reversed series, updated in place)."""
+    n = x.size
+    u = x[::-1].copy()
+    v = x[::-1].copy()
+    d = np.zeros(p + 1)
+    pacf = np.zeros(p + 1)
+    d[0] = 2.0 * np.dot(x, x)
+    d[1] = np.dot(u[:-1], u[:-1]) + np.dot(v[1:], v[1:])
+    pacf[1] = 2.0 / d[1] * np.dot(v[1:], u[:-1])
+    for i in range(1, p):
+        k = pacf[i]
+        prev_u = u[0]
+        for t in range(1, n):  # u[t] = u[t-1] - k v[t], v[t] = v[t] - k u[t-1] (old values)
+            ut = u[t]
+            u[t] = prev_u - k * v[t]
+            v[t] = v[t] - k * prev_u
+            prev_u = ut
+        d[i + 1] = (1.0 - k * k) * d[i] - v[i] ** 2 - u[n - 1] ** 2
+        acc = 0.0
+        for t in range(i + 1, n):
+            acc += v[t] * u[t - 1]
+        pacf[i + 1] = 2.0 / d[i + 1] * acc
+    return pacf, d
 
 
 def ar_from_pacf(pacf: ArrayLike) -> NDArray[np.float64]:

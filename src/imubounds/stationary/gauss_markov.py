@@ -12,12 +12,14 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, signal
 
 from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import theory
 from imubounds.stationary.model_base import (
     FIT_SPAN_TC,
     MIN_SAMPLES,
     WHITE_FRACTION,
     ModelNotSupportedError,
     _as_signal,
+    _at_tau,
     _avar_at_tau,
     _rng,
     _variance_at_tau,
@@ -49,6 +51,36 @@ def gm_avar_continuous(tau: ArrayLike, sigma: float, beta: float) -> NDArray[np.
         bracket = np.where(x < 1.0, series, bracket)
         out = 2.0 * sigma**2 * tc / t * bracket
     return np.asarray(out, dtype=np.float64)
+
+
+def gm_sum_variance(
+    k: ArrayLike, sigma2: float, a: float, white_var: float = 0.0
+) -> NDArray[np.float64]:
+    """S(k) = Var(sum of k consecutive samples) of a sampled first-order GM plus white
+    noise, in closed form: R(0) = σ² + r_w, R(j) = σ²·e^{-a·j} (a = β·δt > 0).
+
+    S(k) = k·R(0) + 2σ²·Σ_{j=1}^{k-1}(k-j)φ^j, φ = e^{-a}, and
+    Σ_{j=1}^{k-1}(k-j)φ^j = φ·[k(1-φ) - (1-φ^k)]/(1-φ)². The bracket cancels
+    for small k·a; there its series Σ_{n≥2} (-1)^n (k^n - k) a^n / n! is used.
+    Equals :func:`imubounds.stationary.theory.sum_variance` of the same
+    autocovariance to rounding, without building the lags.
+    """
+    kk = np.asarray(k, dtype=np.float64)
+    u = -math.expm1(-a)  # 1 - φ
+    ka = kk * a
+    with np.errstate(over="ignore", invalid="ignore"):
+        bracket = kk * u + np.expm1(-ka)
+        small = ka < 0.5
+        if np.any(small):
+            ks = kk[small]
+            ser = np.zeros(ks.size)
+            for n in range(30, 1, -1):  # smallest terms first
+                ser += (-1.0) ** n * (ks**n - ks) * a**n / math.factorial(n)
+            bracket = bracket.copy()
+            bracket[small] = ser
+    phi = math.exp(-a)
+    return np.asarray(kk * (sigma2 + white_var) + 2.0 * sigma2 * phi * bracket / (u * u),
+                      dtype=np.float64)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -154,6 +186,17 @@ class GaussMarkovModel:
         log_phi = -self.beta * dt
         sig2 = self.sigma**2
 
+        if theory.FAMILY.get(estimator) in ("allan", "total", "hadamard"):
+            a = -log_phi
+
+            def at_m(m: NDArray[np.int64]) -> NDArray[np.float64]:
+                def sums(k: NDArray[np.int64]) -> NDArray[np.float64]:
+                    return gm_sum_variance(k, sig2, a, r_white)
+
+                return theory.variance_at_sums(sums, m, estimator)
+
+            return _at_tau(tau, dt, at_m)
+
         def acov(nlag: int) -> NDArray[np.float64]:
             r = sig2 * np.exp(np.arange(nlag, dtype=np.float64) * log_phi)
             r[0] += r_white
@@ -231,6 +274,28 @@ def _gm_block_factors(beta: float, dt: float, d: int) -> tuple[float, float]:
     s_plus = np.sum(phi ** np.arange(d, dtype=np.float64))
     s_minus = np.sum(phi ** (-np.arange(d, dtype=np.float64)))
     return float(s_plus * s_minus / d**2), float(v)
+
+
+def _fit_exponential(
+    j: NDArray[np.float64], y: NDArray[np.float64], b0: float, a0: float
+) -> tuple[float, float]:
+    """Least squares of ``A·exp(-b·j)`` to ``y`` from (a0, b0): Levenberg–Marquardt
+    (MINPACK) on (ln A, ln b) with the analytic Jacobian, so A > 0 and b > 0; b is
+    then clipped to [1e-12, 50]. Returns (A, b)."""
+
+    def model(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.exp(p[0] - math.exp(p[1]) * j), dtype=np.float64)
+
+    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        return model(p) - y
+
+    def jac(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        m = model(p)
+        return np.column_stack((m, -m * j * math.exp(p[1])))
+
+    p0 = np.array([math.log(max(a0, 1e-300)), math.log(min(max(b0, 1e-12), 50.0))])
+    sol = optimize.least_squares(resid, p0, jac=jac, method="lm", xtol=1e-12, ftol=1e-12)
+    return float(math.exp(sol.x[0])), float(min(max(math.exp(sol.x[1]), 1e-12), 50.0))
 
 
 def fit_gauss_markov(
@@ -356,21 +421,8 @@ def fit_gauss_markov(
         jj = np.arange(1, big_l + 1, dtype=np.float64)
         yy = acov[1 : big_l + 1]
         scale = float(acov[1])
-
-        def resid(
-            p: NDArray[np.float64],
-            jj: NDArray[np.float64] = jj,
-            yy: NDArray[np.float64] = yy,
-            scale: float = scale,
-        ) -> NDArray[np.float64]:
-            return np.asarray((np.exp(p[0] - p[1] * jj) - yy / scale), dtype=np.float64)
-
-        p0 = np.array([math.log(amp / scale), b])
-        sol = optimize.least_squares(
-            resid, p0, bounds=([-np.inf, 1e-12], [np.inf, 50.0]), x_scale="jac"
-        )
-        amp = float(math.exp(sol.x[0]) * scale)
-        b = float(sol.x[1])
+        amp_s, b = _fit_exponential(jj, yy / scale, b, amp / scale)
+        amp = amp_s * scale
     jj = np.arange(1, lags_used + 1, dtype=np.float64)
     yy = acov[1 : lags_used + 1]
     model_vals = amp * np.exp(-b * jj)

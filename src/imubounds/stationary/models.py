@@ -193,7 +193,10 @@ def _best_gm(
 ) -> tuple[GaussMarkovModel | None, dict[str, Any] | None]:
     best: tuple[tuple[int, float], GaussMarkovModel, dict[str, Any], list[str]] | None = None
     errors: list[str] = []
-    for d in factors:
+    # an adequate model at the smallest factor (highest rate) wins: try those first
+    for d in sorted(factors):
+        if best is not None and best[0][0] == 0:
+            break
         local: list[str] = []
         try:
             gm = fit_gauss_markov(arr, rate_hz, decimate_to_hz=rate_hz / d, notes=local, **kw)
@@ -226,7 +229,9 @@ def _best_ar(
     unit: str | None,
 ) -> tuple[ArModel | None, dict[str, Any] | None]:
     best: tuple[tuple[int, float], ArModel, dict[str, Any]] | None = None
-    for d in factors:
+    for d in sorted(factors):  # as in _best_gm: the first adequate model wins
+        if best is not None and best[0][0] == 0:
+            break
         x = block_average(arr, d)
         n = x.size
         pmax = min(int(order_max), n // 10 - 1)

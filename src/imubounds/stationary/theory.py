@@ -455,6 +455,29 @@ def variance_from_sums(s: NDArray[np.float64], m: ArrayLike, estimator: str) -> 
     return np.asarray(var_sum / (2.0 * mf**4), dtype=np.float64)
 
 
+def variance_at_sums(
+    sums: Callable[[NDArray[np.int64]], NDArray[np.float64]], m: ArrayLike, estimator: str
+) -> NDArray[np.float64]:
+    """:func:`variance_from_sums` for the Allan and Hadamard families from
+    ``sums(k) = S(k)`` evaluated only at the cluster sizes needed (m, 2m, 3m): for a
+    process whose S(k) has a closed form
+    (:func:`~imubounds.stationary.gauss_markov.gm_sum_variance`)."""
+    fam = _family(estimator)
+    if fam not in ("allan", "total", "hadamard"):
+        raise OptionError(
+            f"variance_at_sums covers the Allan and Hadamard families, not {estimator!r}"
+        )
+    mm = np.atleast_1d(np.asarray(m, dtype=np.int64))
+    if mm.size and np.any(mm < 1):
+        raise OptionError("cluster sizes must be >= 1")
+    mf = mm.astype(np.float64)
+    s1, s2 = sums(mm), sums(2 * mm)
+    if fam == "hadamard":
+        s3 = sums(3 * mm)
+        return np.asarray((15.0 * s1 - 6.0 * s2 + s3) / (6.0 * mf * mf), dtype=np.float64)
+    return np.asarray((4.0 * s1 - s2) / (2.0 * mf * mf), dtype=np.float64)
+
+
 def stationary_variance(
     acov: Callable[[int], NDArray[np.float64]], m: ArrayLike, estimator: str
 ) -> NDArray[np.float64]:
