@@ -211,7 +211,7 @@ def burg_path(x: ArrayLike, order_max: int) -> tuple[NDArray[np.float64], NDArra
     return np.asarray(pacf), np.asarray(sigma2)
 
 
-@njit(cache=True, fastmath=False)  # type: ignore[misc]
+@njit(cache=True, fastmath=False)
 def _burg_kernel(x: NDArray[np.float64], p: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Burg's recursion: reflection coefficients ``pacf[1..p]`` and the forward plus
     backward prediction error energies ``d[0..p]`` (u, v: backward/forward errors of

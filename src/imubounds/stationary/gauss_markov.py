@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, signal
 
@@ -276,26 +277,63 @@ def _gm_block_factors(beta: float, dt: float, d: int) -> tuple[float, float]:
     return float(s_plus * s_minus / d**2), float(v)
 
 
+@njit(cache=True, fastmath=False)
+def _exp_fit_cost(q: float, y: NDArray[np.float64]) -> tuple[float, float]:
+    """For e_j = q^j (j = 1..L): the best amplitude A = Σ e·y / Σ e² (> 0) and the
+    residual sum of squares Σ (A·e - y)², in two passes without temporaries."""
+    see = 0.0
+    sey = 0.0
+    e = 1.0
+    for k in range(y.size):
+        e *= q
+        see += e * e
+        sey += e * y[k]
+    amp = sey / see if see > 0.0 else 1e-300
+    amp = max(amp, 1e-300)
+    cost = 0.0
+    e = 1.0
+    for k in range(y.size):
+        e *= q
+        r = amp * e - y[k]
+        cost += r * r
+    return amp, cost
+
+
 def _fit_exponential(
-    j: NDArray[np.float64], y: NDArray[np.float64], b0: float, a0: float
+    j: NDArray[np.float64], y: NDArray[np.float64], b0: float
 ) -> tuple[float, float]:
-    """Least squares of ``A·exp(-b·j)`` to ``y`` from (a0, b0): Levenberg–Marquardt
-    (MINPACK) on (ln A, ln b) with the analytic Jacobian, so A > 0 and b > 0; b is
-    then clipped to [1e-12, 50]. Returns (A, b)."""
+    """Least squares of ``A·exp(-b·j)`` to ``y`` (b in [1e-12, 50]) by variable
+    projection: for a given b the best A is linear, ``Σ e·y / Σ e²`` (e = exp(-b·j)),
+    so only b is searched: a grid of ln b over a factor e^±3 around ``b0``, then
+    Brent's bounded search between the grid neighbours of the best point (to 1e-9 in
+    ln b). A search of b alone cannot run off to the empty fit (A → 0, b large) that
+    a joint search may fall into. Returns (A, b); A > 0."""
 
-    def model(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(np.exp(p[0] - math.exp(p[1]) * j), dtype=np.float64)
+    if not np.array_equal(j, np.arange(1, j.size + 1, dtype=np.float64)):
+        raise ValueError("the exponential fit takes the lags 1..L")
+    yc = np.ascontiguousarray(y, dtype=np.float64)
 
-    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        return model(p) - y
+    def amp_and_cost(lb: float) -> tuple[float, float]:
+        amp, cost = _exp_fit_cost(math.exp(-math.exp(lb)), yc)
+        return float(amp), float(cost)
 
-    def jac(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        m = model(p)
-        return np.column_stack((m, -m * j * math.exp(p[1])))
-
-    p0 = np.array([math.log(max(a0, 1e-300)), math.log(min(max(b0, 1e-12), 50.0))])
-    sol = optimize.least_squares(resid, p0, jac=jac, method="lm", xtol=1e-12, ftol=1e-12)
-    return float(math.exp(sol.x[0])), float(min(max(math.exp(sol.x[1]), 1e-12), 50.0))
+    lo, hi = math.log(1e-12), math.log(50.0)
+    lb0 = min(max(math.log(max(b0, 1e-12)), lo), hi)
+    grid = np.clip(lb0 + np.linspace(-3.0, 3.0, 13), lo, hi)
+    costs = [amp_and_cost(float(v))[1] for v in grid]
+    k = int(np.argmin(costs))
+    a_lo, a_hi = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, grid.size - 1)])
+    lb = a_lo
+    if a_hi > a_lo:
+        sol = optimize.minimize_scalar(
+            lambda v: amp_and_cost(v)[1],
+            bounds=(a_lo, a_hi),
+            method="bounded",
+            options={"xatol": 1e-9},
+        )
+        lb = float(sol.x)
+    amp, _ = amp_and_cost(lb)
+    return amp, math.exp(lb)
 
 
 def fit_gauss_markov(
@@ -421,7 +459,7 @@ def fit_gauss_markov(
         jj = np.arange(1, big_l + 1, dtype=np.float64)
         yy = acov[1 : big_l + 1]
         scale = float(acov[1])
-        amp_s, b = _fit_exponential(jj, yy / scale, b, amp / scale)
+        amp_s, b = _fit_exponential(jj, yy / scale, b)
         amp = amp_s * scale
     jj = np.arange(1, lags_used + 1, dtype=np.float64)
     yy = acov[1 : lags_used + 1]
