@@ -57,6 +57,7 @@ from scipy import stats
 
 from imubounds.errors import InputError, OptionError
 from imubounds.stationary import theory
+from imubounds.stationary.consistency import consistent_bound, describe_misfit, misfit_ranges
 from imubounds.stationary.term_curve import EDF_MIN as EDF_MIN
 from imubounds.stationary.term_curve import TERMS as TERMS
 from imubounds.stationary.term_curve import (
@@ -630,6 +631,7 @@ class Selection:
     estimator: str
     notes: list[str] = field(default_factory=list)
     kind: SensorKind | None = None
+    misfit: list[dict[str, Any]] = field(default_factory=list)
     fit: NoiseTerms | None = field(default=None, compare=False, repr=False)
     slope: NoiseTerms | None = field(default=None, compare=False, repr=False)
     curve: AllanCurve | None = field(default=None, compare=False, repr=False)
@@ -727,9 +729,26 @@ class Selection:
                 "(sigma_min/0.664 on an Allan curve)"
             ),
         }
+        out["misfit"] = [dict(r) for r in self.misfit]
         if self.notes:
             out["notes"] = list(self.notes)
         return out
+
+
+def _disjoint(a: NoiseTerms, b: NoiseTerms, t: str, ub: float) -> bool:
+    """Both estimates resolved and consistent (≤ ``ub``), with disjoint CIs."""
+    ca, cb = a.ci.get(t), b.ci.get(t)
+    if ca is None or cb is None or b.status.get(t) != "resolved":
+        return False
+    vb = b.value(t)
+    if not (math.isfinite(vb) and 0 < vb <= ub * (1.0 + 1e-9)):
+        return False
+    return bool(ca[1] < cb[0] or cb[1] < ca[0])
+
+
+def _ci_text(est: NoiseTerms, t: str) -> str:
+    ci = est.ci.get(t)
+    return f"{ci[0]:.4g}-{ci[1]:.4g}" if ci is not None else "n/a"
 
 
 def select_terms(
@@ -751,26 +770,56 @@ def select_terms(
     first, second = (fit, slope) if prefer == "fit" else (slope, fit)
     out: dict[str, SelectedTerm] = {}
     notes: list[str] = []
+    misfit = misfit_ranges(c, {t: fit.value(t) for t in TERMS})
+    notes.extend(describe_misfit(r) for r in misfit)
     for t in TERMS:
         if first.status.get(t) == "not_observed":
             out[t] = SelectedTerm(None, "not_observed", first.method, note=f"blind to {t}")
             continue
         chosen = None
+        ub, tau_ub = curve_upper_bound(c, t)
+        gate, tau_gate = consistent_bound(c, t)
+        refused: list[str] = []
         for est in (first, second):
             v = est.value(t)
             if est.status.get(t) == "resolved" and math.isfinite(v) and v > 0:
+                if v > gate * (1.0 + 1e-9):  # its line alone runs above the curve's intervals
+                    refused.append(f"{v:.4g} from the {est.method}")
+                    continue
                 chosen = est
                 break
+        if t == "B" and chosen is fit and misfit and _disjoint(fit, slope, t, gate):
+            # the fit leaves the curve somewhere and its floor disagrees with the curve's
+            # minimum: the decomposition there is not to be trusted, the read-off is
+            chosen = slope
+            notes.append(
+                f"B: the fit's {fit.value(t):.4g} (CI {_ci_text(fit, t)}) disagrees with the "
+                f"read-off {slope.value(t):.4g} (CI {_ci_text(slope, t)}) while the fitted sum "
+                "leaves the curve: B from the read-off (sigma_min over its factor, an upper "
+                "estimate consistent with the curve)"
+            )
+        why = (
+            f"{t} = {' and '.join(refused)} exceeds what the curve allows ({gate:.4g}: its "
+            f"{UPPER_BOUND_LEVEL:.0%} intervals at tau = {tau_gate:.4g} s); structure the five "
+            "terms cannot follow was absorbed into it"
+            if refused
+            else ""
+        )
+        if why:
+            notes.append(why)
         if chosen is not None:
             v = chosen.value(t)
             note = "" if chosen is first else f"{t} from the {chosen.method} estimate"
+            if why:
+                note = f"{note}; {why}" if note else why
             out[t] = SelectedTerm(
                 v, "resolved", chosen.method, chosen.ci.get(t), chosen.tau_used.get(t), note
             )
             continue
-        ub, tau_ub = curve_upper_bound(c, t)
         fv = fit.value(t)
-        if math.isfinite(fv) and fv > ub:
+        if refused:  # the bound the estimates broke
+            ub, tau_ub = gate, tau_gate
+        elif math.isfinite(fv) and fv > ub:
             ub = fv
         note = (
             f"{t} is not resolved by the curve; the upper bound {ub:.4g} (from the curve's "
@@ -786,6 +835,7 @@ def select_terms(
         sigma_min=smin,
         estimator=c.estimator,
         notes=notes,
+        misfit=misfit,
         fit=fit,
         slope=slope,
         curve=curve,
