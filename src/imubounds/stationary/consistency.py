@@ -12,8 +12,9 @@ is not. Two checks catch this (used by :func:`imubounds.stationary.terms.select_
   consecutive points with EDF ≥ :data:`~imubounds.stationary.term_curve.EDF_MIN`,
   with the side (model above or below the curve), the worst ratio and the terms
   that carry the model there;
-* a term is *consistent* when its own line stays inside the curve's upper
-  intervals everywhere: ``value ≤ curve_upper_bound`` (for B on an Allan curve,
+* a term (B and K: :data:`~imubounds.stationary.terms.GATED`) is *consistent*
+  when its own line stays inside the curve's upper intervals everywhere:
+  ``value ≤ consistent_bound`` (for B on an Allan curve,
   ``B ≤ σ_hi(τ_min)/0.664``: the flicker floor alone cannot exceed the curve at
   its minimum). A resolved term above it is not used: the other estimate takes
   its place when it is consistent, else the curve's bound, as an upper bound.

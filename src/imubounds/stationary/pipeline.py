@@ -21,6 +21,8 @@ from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
 from imubounds.stationary.allan import AllanResult, allan_channels
 from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
+from imubounds.stationary.record_length import channel_record_length
+from imubounds.stationary.record_length import describe as describe_record_length
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
@@ -102,6 +104,7 @@ class ChannelResult:
     models: Any = None
     allan_plain: AllanResult | None = None
     spikes: SpikeReport | None = None
+    record_length: dict[str, Any] | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -176,6 +179,8 @@ class ChannelResult:
         }
         if self.models is not None:
             out["models"] = self.models.to_dict()
+        if self.record_length is not None:
+            out["record_length"] = self.record_length
         if self.warnings:
             out["warnings"] = list(self.warnings)
         if self.notes:
@@ -460,6 +465,8 @@ def analyse_static(
                 f"K is not resolved; imu.yaml and noise.selected carry its upper bound "
                 f"{sel.value('K'):.4g} {SI_UNITS[sensor_kind(name)]['K']}"
             )
+        rec = channel_record_length(curve, fit, sel, log.duration_s / 3600.0, settings.confidence)
+        notes.append(describe_record_length("", rec))
         sc = bounds.sigma_c(used["N"], used["B"], log.dt, t_avg)
         results[name] = ChannelResult(
             name=name,
@@ -479,8 +486,10 @@ def analyse_static(
             models=model_fits.get(name),
             allan_plain=plain.get(name),
             spikes=rep,
+            record_length=rec,
         )
     return StaticResult(log=log, settings=settings, channels=results)
+
 
 
 def _fit_models(
