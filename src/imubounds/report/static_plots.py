@@ -337,3 +337,53 @@ def save_figure(
             except RuntimeError:  # an engine that cannot come back (colorbars): keep the positions
                 pass
     return out
+
+
+def needs_stationarity_figure(result: StaticResult) -> bool:
+    """Whether any channel has a warm-up or fails the stationarity test."""
+    return any(
+        ch.stationarity is not None
+        and (ch.stationarity.warmup is not None or not ch.stationarity.stationary)
+        for ch in result.channels.values()
+    )
+
+
+def stationarity_figure(result: StaticResult) -> Figure:
+    """Per channel: the block means with the fitted warm-up (top) and the Allan
+    deviation of each window at three τ with its CI against time (bottom)."""
+    names = [n for n, ch in result.channels.items() if ch.stationarity is not None]
+    fig = Figure(figsize=(4.2 * max(len(names), 1), 6.4))
+    axes = fig.subplots(2, max(len(names), 1), squeeze=False)
+    for j, name in enumerate(names):
+        ch = result.channels[name]
+        st = ch.stationarity
+        assert st is not None
+        scale, unit = display_scale(ch.kind)
+        top, bottom = axes[0][j], axes[1][j]
+        top.plot(st.block_t / 60.0, st.block_mean * scale, ",", color="0.3")
+        w = st.warmup
+        if w is not None:
+            top.axvspan(w.start_s / 60.0, w.end_s / 60.0, color="tab:orange", alpha=0.2,
+                        label=f"warm-up to {w.end_s / 60:.3g} min")  # fmt: skip
+            top.legend(fontsize=7, loc="upper right")
+        top.set_title(f"{name}" + ("" if st.stationary else " (not stationary)"))
+        top.set_xlabel("time (min)")
+        top.set_ylabel(f"block mean ({unit})")
+        mid = (st.window_start_s + st.window_s / 2.0) / 60.0
+        picks = sorted({0, st.tau_s.size // 2, st.tau_s.size - 1})
+        for k in picks:
+            dev = st.adev[:, k] * scale
+            lo = np.clip(dev - st.ci_lower[:, k] * scale, 0, None)
+            hi = np.clip(st.ci_upper[:, k] * scale - dev, 0, None)
+            bottom.errorbar(mid, dev, yerr=[lo, hi], fmt="o-", ms=3, capsize=2,
+                            label=f"τ = {st.tau_s[k]:.3g} s")  # fmt: skip
+        bottom.set_yscale("log")
+        bottom.set_xlabel("window centre (min)")
+        bottom.set_ylabel(f"Allan deviation ({unit})")
+        bottom.legend(fontsize=7)
+        bottom.grid(True, which="major", alpha=0.3)
+    first = result.channels[names[0]].stationarity if names else None
+    win = f" (windows of {first.window_s / 60:.3g} min)" if first is not None else ""
+    fig.suptitle(f"Stationarity — {Path(result.log.source).name}{win}")
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.09, top=0.9, wspace=0.35, hspace=0.45)
+    return fig

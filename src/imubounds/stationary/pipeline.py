@@ -23,6 +23,7 @@ from imubounds.stationary.allan import AllanResult, allan_channels
 from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
 from imubounds.stationary.record_length import channel_record_length
 from imubounds.stationary.record_length import describe as describe_record_length
+from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
@@ -57,6 +58,7 @@ class StaticSettings:
     robust: bool = False
     spike_threshold: float = DEFAULT_THRESHOLD
     ar_max_order: int = 20
+    cut_warmup: bool = False
 
     def to_json(self) -> dict[str, Any]:
         taus = self.taus if isinstance(self.taus, str | int) else [float(t) for t in self.taus]
@@ -72,6 +74,7 @@ class StaticSettings:
             "robust": self.robust,
             "spike_threshold": self.spike_threshold,
             "ar_max_order": self.ar_max_order,
+            "cut_warmup": self.cut_warmup,
         }
 
 
@@ -105,6 +108,7 @@ class ChannelResult:
     allan_plain: AllanResult | None = None
     spikes: SpikeReport | None = None
     record_length: dict[str, Any] | None = None
+    stationarity: Stationarity | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -181,6 +185,8 @@ class ChannelResult:
             out["models"] = self.models.to_dict()
         if self.record_length is not None:
             out["record_length"] = self.record_length
+        if self.stationarity is not None:
+            out["stationarity"] = self.stationarity.to_dict()
         if self.warnings:
             out["warnings"] = list(self.warnings)
         if self.notes:
@@ -418,7 +424,12 @@ def analyse_static(
 
     spikes: dict[str, SpikeReport] = {}
     plain: Mapping[str, AllanResult] = {}
+    stat: dict[str, Stationarity] = {}
+    cut_s = 0.0
     if curves is None:
+        stat = {n: stationarity(log.channels[n], log.rate_hz) for n in imu_names}
+        if settings.cut_warmup:
+            log, cut_s = cut_warmup(log, stat)
         for name in imu_names:
             spikes[name] = detect_spikes(
                 np.asarray(log.channels[name]),
@@ -453,6 +464,12 @@ def analyse_static(
         msg = rep.warning(settings.robust) if rep is not None else None
         if msg:
             warnings.append(msg)
+        st = stat.get(name)
+        if st is not None:
+            unit = si_unit_of_signal(sensor_kind(name))
+            warnings.extend(f"{name}: {m}" for m in st.messages(unit, cut=cut_s > 0))
+        if cut_s > 0:
+            notes.append(f"the first {cut_s:.4g} s (warm-up) were cut before the analysis")
         used = {t: sel.value(t) for t in ("N", "B")}
         for t in ("N", "B"):
             if sel.status(t) == "upper_bound":
@@ -487,6 +504,7 @@ def analyse_static(
             allan_plain=plain.get(name),
             spikes=rep,
             record_length=rec,
+            stationarity=st,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 
