@@ -352,7 +352,7 @@ def stationarity_figure(result: StaticResult) -> Figure:
     """Per channel: the block means with the fitted warm-up (top) and the Allan
     deviation of each window at three τ with its CI against time (bottom)."""
     names = [n for n, ch in result.channels.items() if ch.stationarity is not None]
-    fig = Figure(figsize=(4.2 * max(len(names), 1), 6.4))
+    fig = Figure(figsize=(3.4 * max(len(names), 1), 6.4))
     axes = fig.subplots(2, max(len(names), 1), squeeze=False)
     for j, name in enumerate(names):
         ch = result.channels[name]

@@ -6,7 +6,9 @@
   windows' ln σ² (each spreads as ψ₁(EDF/2) for a chi-squared estimate): under
   stationarity ``Σ (ln σ²_i − mean)²/ψ₁(EDF_i/2)`` is χ² with k − 1 degrees of
   freedom; the smallest p-value over the τ, times their number (Bonferroni), is
-  the channel's p-value, and below :data:`P_NON_STATIONARY` the channel is flagged.
+  the channel's p-value, and below :data:`P_NON_STATIONARY` the channel is flagged
+  (each spread widened by :data:`STATIONARITY_TOLERANCE`: changes of σ² below 10 %
+  are not flagged, however significant).
 * **Warm-up**: the bias of a sensor just powered on settles, roughly as
   ``c + A·exp(−t/T)``. Block means of the signal are fitted by that curve (T on a
   grid, c and A linear); a warm-up is flagged when the settling is large against the
@@ -35,6 +37,10 @@ from imubounds.stationary.allan import allan
 WINDOWS = 8
 #: Channel flagged non-stationary below this (Bonferroni-corrected) p-value.
 P_NON_STATIONARY = 1e-3
+#: Relative change of σ² between windows below which no change is flagged (added in
+#: quadrature to each window's ln σ² spread): with 10⁴ degrees of freedom per window
+#: a 1 % change of the white noise is significant, and of no use to a filter.
+STATIONARITY_TOLERANCE = 0.1
 #: A warm-up is flagged when its amplitude is at least this many Allan deviations
 #: (at τ = its time constant) of the settled log.
 WARMUP_SIGMA = 5.0
@@ -125,7 +131,8 @@ def _homogeneity_p(avar: NDArray[np.float64], edf: NDArray[np.float64]) -> float
     ok = (avar > 0) & np.isfinite(avar) & (edf > 0)
     if np.count_nonzero(ok) < 2:
         return 1.0
-    lv, var = np.log(avar[ok]), special.polygamma(1, edf[ok] / 2.0)
+    lv = np.log(avar[ok])
+    var = special.polygamma(1, edf[ok] / 2.0) + STATIONARITY_TOLERANCE**2
     w = 1.0 / var
     mean = float(np.sum(w * lv) / np.sum(w))
     stat = float(np.sum(w * (lv - mean) ** 2))
