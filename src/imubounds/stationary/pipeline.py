@@ -25,6 +25,7 @@ from imubounds.stationary.record_length import channel_record_length
 from imubounds.stationary.record_length import describe as describe_record_length
 from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
+from imubounds.stationary.timing import timing_check, timing_messages
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
 FORMAT = "imubounds.stationary.terms/1"
@@ -109,6 +110,7 @@ class ChannelResult:
     spikes: SpikeReport | None = None
     record_length: dict[str, Any] | None = None
     stationarity: Stationarity | None = None
+    timing: dict[str, Any] | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -187,6 +189,8 @@ class ChannelResult:
             out["record_length"] = self.record_length
         if self.stationarity is not None:
             out["stationarity"] = self.stationarity.to_dict()
+        if self.timing is not None:
+            out["timing"] = self.timing
         if self.warnings:
             out["warnings"] = list(self.warnings)
         if self.notes:
@@ -470,6 +474,10 @@ def analyse_static(
             warnings.extend(f"{name}: {m}" for m in st.messages(unit, cut=cut_s > 0))
         if cut_s > 0:
             notes.append(f"the first {cut_s:.4g} s (warm-up) were cut before the analysis")
+        timing = None
+        if st is not None:  # the samples are in memory: so are their stamps
+            timing = timing_check(log.t, curve.tau, curve.dev, curve.ci_lower, curve.ci_upper)
+            warnings.extend(f"{name}: {m}" for m in timing_messages(timing))
         used = {t: sel.value(t) for t in ("N", "B")}
         for t in ("N", "B"):
             if sel.status(t) == "upper_bound":
@@ -505,6 +513,7 @@ def analyse_static(
             spikes=rep,
             record_length=rec,
             stationarity=st,
+            timing=timing,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 
