@@ -25,7 +25,7 @@ from imubounds.stationary.record_length import channel_record_length
 from imubounds.stationary.record_length import describe as describe_record_length
 from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
-from imubounds.stationary.timing import timing_check, timing_messages
+from imubounds.stationary.timing import stamp_stats, timing_check, timing_messages
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
 FORMAT = "imubounds.stationary.terms/1"
@@ -454,6 +454,7 @@ def analyse_static(
     run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}
     model_fits = _fit_models(log, imu_names, settings, progress, curves)
+    stamps: dict[str, Any] | None = None
     for name in imu_names:
         curve = curves[name]
         fit, slope, sel = analyse_curve(
@@ -476,7 +477,10 @@ def analyse_static(
             notes.append(f"the first {cut_s:.4g} s (warm-up) were cut before the analysis")
         timing = None
         if st is not None:  # the samples are in memory: so are their stamps
-            timing = timing_check(log.t, curve.tau, curve.dev, curve.ci_lower, curve.ci_upper)
+            stamps = stamps if stamps is not None else stamp_stats(log.t)
+            timing = timing_check(
+                log.t, curve.tau, curve.dev, curve.ci_lower, curve.ci_upper, stamps
+            )
             warnings.extend(f"{name}: {m}" for m in timing_messages(timing))
         used = {t: sel.value(t) for t in ("N", "B")}
         for t in ("N", "B"):
@@ -516,7 +520,6 @@ def analyse_static(
             timing=timing,
         )
     return StaticResult(log=log, settings=settings, channels=results)
-
 
 
 def _fit_models(

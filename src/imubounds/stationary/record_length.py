@@ -118,7 +118,7 @@ def predicted_widths(
     for h in hours:
         n = int(round(h * 3600.0 * rate_hz))
         curve = expected_curve(values, estimator, rate_hz, n, misfit)
-        fit = fit_terms(curve, confidence=confidence, robust=False)
+        fit = fit_terms(curve, confidence=confidence, robust=False, iterations=3)
         for t in PREDICTED:
             ci = fit.ci.get(t)
             v = fit.value(t)

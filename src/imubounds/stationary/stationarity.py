@@ -1,7 +1,7 @@
 """Is the log stationary? Time-resolved Allan deviation and warm-up detection.
 
-* :func:`sliding_adev` — the Allan deviation at a few τ (octaves up to a tenth of
-  a window) in consecutive windows of the log, each with its CI and EDF.
+* :func:`sliding_adev` — the Allan deviation at four τ (octaves from one sample to
+  a tenth of a window) in consecutive windows of the log, each with its CI and EDF.
 * The **stationarity test** of a channel compares, at each of those τ, the
   windows' ln σ² (each spreads as ψ₁(EDF/2) for a chi-squared estimate): under
   stationarity ``Σ (ln σ²_i − mean)²/ψ₁(EDF_i/2)`` is χ² with k − 1 degrees of
@@ -35,6 +35,8 @@ from imubounds.stationary.allan import allan
 
 #: Windows of the time-resolved Allan deviation.
 WINDOWS = 8
+#: τ per window of the time-resolved Allan deviation.
+SLIDING_TAUS = 4
 #: Channel flagged non-stationary below this (Bonferroni-corrected) p-value.
 P_NON_STATIONARY = 1e-3
 #: Relative change of σ² between windows below which no change is flagged (added in
@@ -142,10 +144,13 @@ def _homogeneity_p(avar: NDArray[np.float64], edf: NDArray[np.float64]) -> float
 def sliding_adev(
     y: NDArray[np.float64], rate_hz: float, windows: int = WINDOWS
 ) -> tuple[float, NDArray[np.float64], NDArray[np.float64], list[Any]]:
-    """Allan curves of ``windows`` consecutive windows on a common octave τ grid up to
-    a tenth of a window: (window length s, window starts s, τ s, the curves)."""
+    """Allan curves of ``windows`` consecutive windows at :data:`SLIDING_TAUS` octaves
+    spread evenly from one sample to a tenth of a window (each τ costs a pass over
+    the window): (window length s, window starts s, τ s, the curves)."""
     n = y.size // windows
-    taus = [m / rate_hz for m in 2 ** np.arange(int(math.log2(max(n // 10, 1))) + 1)]
+    top = int(math.log2(max(n // 10, 1)))
+    octaves = sorted({int(round(k * top / (SLIDING_TAUS - 1))) for k in range(SLIDING_TAUS)})
+    taus = [2**k / rate_hz for k in octaves]
     curves = [allan(y[k * n : (k + 1) * n], rate_hz, taus) for k in range(windows)]
     starts = np.arange(windows) * n / rate_hz
     return n / rate_hz, starts, np.asarray(curves[0].tau, dtype=np.float64), curves

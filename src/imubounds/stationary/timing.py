@@ -35,35 +35,51 @@ GAP_FRACTION_MAX = 0.1
 WARN_BOUND = 0.01
 
 
-def timing_check(t: Any, tau: Any, dev: Any, ci_lower: Any, ci_upper: Any) -> dict[str, Any]:
-    """The ``timing`` block of a channel: jitter, gaps and the bound b(τ) (module doc)."""
-    ts = np.asarray(t, dtype=np.float64)
-    tau_a = np.asarray(tau, dtype=np.float64)
-    dev_a = np.asarray(dev, dtype=np.float64)
-    steps = np.diff(ts)
-    out: dict[str, Any] = {"checked": bool(steps.size >= 2)}
+def stamp_stats(t: Any) -> dict[str, Any]:
+    """Median step (s), robust relative jitter, gaps and missing time of the stamps
+    (shared by the channels of a log)."""
+    steps = np.diff(np.asarray(t, dtype=np.float64))
     if steps.size < 2:
-        out["reason"] = "fewer than three time stamps"
-        return out
+        return {"n": steps.size + 1}
     med, factor = gap_threshold(steps)
     gaps = find_gaps(steps, med, factor)
     regular = steps[(steps > 0) & (steps <= factor * med)]
     q25, q75 = np.percentile(regular, [25, 75]) if regular.size else (med, med)
-    jitter = float((q75 - q25) / 1.349 / med) if med > 0 else 0.0
+    return {
+        "n": steps.size + 1,
+        "median_step_s": float(med),
+        "jitter_rel": float((q75 - q25) / 1.349 / med) if med > 0 else 0.0,
+        "gaps": int(np.size(gaps)),
+        "gap_threshold_s": float(factor * med),
+        "missing_s": float(np.sum(steps[gaps] - med)) if np.size(gaps) else 0.0,
+    }
+
+
+def timing_check(
+    t: Any, tau: Any, dev: Any, ci_lower: Any, ci_upper: Any, stamps: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The ``timing`` block of a channel: jitter, gaps and the bound b(τ) (module doc);
+    ``stamps`` from :func:`stamp_stats` of ``t`` when already computed."""
+    st = stamps if stamps is not None else stamp_stats(t)
+    tau_a = np.asarray(tau, dtype=np.float64)
+    dev_a = np.asarray(dev, dtype=np.float64)
+    out: dict[str, Any] = {"checked": "median_step_s" in st}
+    if not out["checked"]:
+        out["reason"] = "fewer than three time stamps"
+        return out
+    med, jitter, g = st["median_step_s"], st["jitter_rel"], st["gaps"]
     m = np.maximum(np.rint(tau_a / med), 1.0) if med > 0 else np.ones_like(tau_a)
     mu = np.abs(local_slopes(tau_a, dev_a)) if tau_a.size >= 2 else np.ones_like(tau_a)
     bound = mu * jitter / np.sqrt(m) + jitter**2 / 2.0
     half = np.asarray(ci_upper, dtype=np.float64) - np.asarray(ci_lower, dtype=np.float64)
     half = half / 2.0 / np.where(dev_a > 0, dev_a, 1.0)
-    n = ts.size
-    g = int(np.size(gaps))
-    frac = np.minimum(1.0, g * 2.0 * m / max(n, 1))
+    frac = np.minimum(1.0, g * 2.0 * m / max(int(st["n"]), 1))
     out.update(
         median_step_s=float(med),
         jitter_rel=jitter,
         gaps=g,
-        gap_threshold_s=float(factor * med),
-        missing_s=float(np.sum(steps[gaps] - med)) if g else 0.0,
+        gap_threshold_s=st["gap_threshold_s"],
+        missing_s=st["missing_s"],
         tau_s=[float(v) for v in tau_a],
         bound_rel=[float(v) for v in bound],
         ci_half_width_rel=[float(v) for v in half],
