@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from scipy import special
 
 from imubounds.io.log import ImuLog
-from imubounds.stationary.allan import allan
+from imubounds.stationary.allan import allan, estimator_edf
 
 #: Windows of the time-resolved Allan deviation.
 WINDOWS = 8
@@ -142,18 +142,39 @@ def _homogeneity_p(avar: NDArray[np.float64], edf: NDArray[np.float64]) -> float
 
 
 def sliding_adev(
-    y: NDArray[np.float64], rate_hz: float, windows: int = WINDOWS
-) -> tuple[float, NDArray[np.float64], NDArray[np.float64], list[Any]]:
-    """Allan curves of ``windows`` consecutive windows at :data:`SLIDING_TAUS` octaves
-    spread evenly from one sample to a tenth of a window (each τ costs a pass over
-    the window): (window length s, window starts s, τ s, the curves)."""
+    y: NDArray[np.float64], rate_hz: float, windows: int = WINDOWS, confidence: float = 0.683
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """Overlapping Allan deviation of ``windows`` consecutive windows at
+    :data:`SLIDING_TAUS` octaves spread evenly from one sample to a tenth of a window.
+
+    From one cumulative sum of the whole channel: the window's second differences of
+    the phase are those of the whole log inside it (each τ is a pass over the log);
+    the noise type of each τ (for the EDF, Greenhall) is identified on the first
+    window (:func:`~imubounds.stationary.allan.allan`). Returns (window length s,
+    window starts s, τ s, {"dev", "edf", "ci_lower", "ci_upper"} arrays (window, τ)).
+    """
     n = y.size // windows
     top = int(math.log2(max(n // 10, 1)))
     octaves = sorted({int(round(k * top / (SLIDING_TAUS - 1))) for k in range(SLIDING_TAUS)})
-    taus = [2**k / rate_hz for k in octaves]
-    curves = [allan(y[k * n : (k + 1) * n], rate_hz, taus) for k in range(windows)]
+    ms = [2**k for k in octaves]
+    alphas = allan(y[:n], rate_hz, [m / rate_hz for m in ms]).alpha
+    x = np.concatenate(([0.0], np.cumsum(y - float(np.mean(y)))))
+    dev = np.empty((windows, len(ms)))
+    edf = np.empty_like(dev)
+    for j, m in enumerate(ms):
+        d = (x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]) / m
+        c = np.concatenate(([0.0], np.cumsum(d * d)))
+        terms = n - 2 * m + 1
+        for k in range(windows):
+            s0 = k * n
+            dev[k, j] = math.sqrt((c[s0 + terms] - c[s0]) / (2.0 * terms))
+            edf[k, j] = estimator_edf("overlapping", int(alphas[j]), m, n)
+    p = 1.0 - confidence
+    lo = dev * np.sqrt(edf / special.chdtri(edf, p / 2.0))
+    hi = dev * np.sqrt(edf / special.chdtri(edf, 1.0 - p / 2.0))
     starts = np.arange(windows) * n / rate_hz
-    return n / rate_hz, starts, np.asarray(curves[0].tau, dtype=np.float64), curves
+    tau = np.asarray(ms, dtype=np.float64) / rate_hz
+    return n / rate_hz, starts, tau, {"dev": dev, "edf": edf, "ci_lower": lo, "ci_upper": hi}
 
 
 def _fit_warmup(
@@ -211,9 +232,8 @@ def detect_warmup(y: NDArray[np.float64], rate_hz: float) -> tuple[Warmup | None
 def stationarity(y: Any, rate_hz: float, windows: int = WINDOWS) -> Stationarity:
     """Time-resolved Allan deviation, stationarity test and warm-up of one channel."""
     arr = np.asarray(y, dtype=np.float64)
-    win, starts, tau, curves = sliding_adev(arr, rate_hz, windows)
-    adev = np.array([np.asarray(c.dev) for c in curves])
-    edf = np.array([np.asarray(c.edf) for c in curves])
+    win, starts, tau, cur = sliding_adev(arr, rate_hz, windows)
+    adev, edf = cur["dev"], cur["edf"]
     p_each = [_homogeneity_p(adev[:, j] ** 2, edf[:, j]) for j in range(tau.size)]
     p = min(1.0, min(p_each) * len(p_each)) if p_each else 1.0
     warm, bt, bm = detect_warmup(arr, rate_hz)
@@ -222,8 +242,8 @@ def stationarity(y: Any, rate_hz: float, windows: int = WINDOWS) -> Stationarity
         window_start_s=starts,
         tau_s=tau,
         adev=adev,
-        ci_lower=np.array([np.asarray(c.ci_lower) for c in curves]),
-        ci_upper=np.array([np.asarray(c.ci_upper) for c in curves]),
+        ci_lower=cur["ci_lower"],
+        ci_upper=cur["ci_upper"],
         p_value=p,
         stationary=p >= P_NON_STATIONARY,
         warmup=warm,
