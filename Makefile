@@ -47,6 +47,7 @@ docs: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_allan.py
+	$(PY) benchmarks/bench_static.py
 	$(PY) benchmarks/bench_interval.py
 	$(PY) benchmarks/bench_estimator.py
 
