@@ -15,6 +15,9 @@ from statsmodels.regression.linear_model import burg as sm_burg
 from statsmodels.tsa.arima_process import arma_acovf
 
 from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.stationary import ar_model as AR
+from imubounds.stationary import gauss_markov as GM
+from imubounds.stationary import model_base as MB
 from imubounds.stationary import models as M
 from imubounds.stationary.allan import allan
 
@@ -65,7 +68,7 @@ def test_avar_from_variogram_white_noise_is_r0_over_m() -> None:
     gamma = np.full(64, 2.5)
     gamma[0] = 0.0
     m = np.arange(1, 33)
-    assert np.allclose(M.avar_from_variogram(gamma, m), 2.5 / m, rtol=1e-13)
+    assert np.allclose(MB.avar_from_variogram(gamma, m), 2.5 / m, rtol=1e-13)
 
 
 @settings(max_examples=40, deadline=None)
@@ -78,11 +81,11 @@ def test_avar_from_variogram_matches_quadratic_form_for_random_ar2(
     r1: float, r2: float, m: int
 ) -> None:
     # AR(2) parametrised by reflection coefficients is always stationary
-    a = M.ar_from_pacf([1.0, r1, r2])
-    acov = M.ar_autocovariance(a, 1.3, 2 * m + 1)
+    a = AR.ar_from_pacf([1.0, r1, r2])
+    acov = AR.ar_autocovariance(a, 1.3, 2 * m + 1)
     gamma = acov[0] - acov
     expected = brute_force_avar(acov, m)
-    got = M.avar_from_variogram(gamma, [m])[0]
+    got = MB.avar_from_variogram(gamma, [m])[0]
     assert got == pytest.approx(expected, rel=1e-8, abs=1e-12 * acov[0])
 
 
@@ -97,20 +100,20 @@ def test_gm_continuous_formula_against_mpmath_and_limits() -> None:
         return float(q2 * tc**2 / t * (1 - (3 - 4 * mpmath.exp(-x) + mpmath.exp(-2 * x)) / (2 * x)))
 
     taus = np.array([1e-4, 0.0499, 0.05, 0.0501, 0.3, 1.0, 50.0, 1e3, 1e6])
-    got = M.gm_avar_continuous(taus, sigma, beta)
+    got = GM.gm_avar_continuous(taus, sigma, beta)
     for t, g in zip(taus, got, strict=True):
         assert g == pytest.approx(ref(float(t)), rel=1e-9)
     # τ ≪ Tc: like a random walk q²τ/3; τ ≫ Tc: like white noise 2σ²Tc/τ
-    assert M.gm_avar_continuous(1e-6, sigma, beta) == pytest.approx(
+    assert GM.gm_avar_continuous(1e-6, sigma, beta) == pytest.approx(
         2 * sigma**2 / tc * 1e-6 / 3, rel=1e-6
     )
-    assert M.gm_avar_continuous(1e8, sigma, beta) == pytest.approx(
+    assert GM.gm_avar_continuous(1e8, sigma, beta) == pytest.approx(
         2 * sigma**2 * tc / 1e8, rel=1e-5
     )
 
 
 def test_gm_discrete_and_continuous_curves_agree_for_tau_much_longer_than_dt() -> None:
-    gm = M.GaussMarkovModel(beta=1 / 100.0, sigma=1.0, white_density=0.2)
+    gm = GM.GaussMarkovModel(beta=1 / 100.0, sigma=1.0, white_density=0.2)
     tau = np.array([1.0, 10.0, 100.0, 1000.0, 5000.0])
     disc = gm.avar(tau, rate_hz=10.0)
     cont = gm.avar(tau)
@@ -120,7 +123,7 @@ def test_gm_discrete_and_continuous_curves_agree_for_tau_much_longer_than_dt() -
 
 def test_ar_autocovariance_matches_statsmodels() -> None:
     a = [-1.2, 0.5, -0.1]
-    ours = M.ar_autocovariance(a, 2.0, 300)
+    ours = AR.ar_autocovariance(a, 2.0, 300)
     ref = arma_acovf(np.r_[1.0, a], [1.0], nobs=300, sigma2=2.0)
     assert np.allclose(ours, ref, rtol=1e-10, atol=1e-12)
 
@@ -128,8 +131,8 @@ def test_ar_autocovariance_matches_statsmodels() -> None:
 def test_ar1_model_curve_equals_discrete_gm_curve() -> None:
     dt, beta = 0.1, 0.01
     phi = math.exp(-beta * dt)
-    ar = M.ArModel(coefficients=(-phi,), noise_variance=1 - phi**2, rate_hz=1 / dt)
-    gm = M.GaussMarkovModel(beta=beta, sigma=1.0)
+    ar = AR.ArModel(coefficients=(-phi,), noise_variance=1 - phi**2, rate_hz=1 / dt)
+    gm = GM.GaussMarkovModel(beta=beta, sigma=1.0)
     tau = np.array([0.1, 0.3, 1.0, 10.0, 100.0, 1000.0])
     assert np.allclose(ar.avar(tau), gm.avar(tau, rate_hz=10.0), rtol=1e-9)
 
@@ -143,7 +146,7 @@ CURVE_CONFIDENCE = 1 - 0.01 / 20
 
 
 def test_white_noise_theory_within_ci() -> None:
-    gm = M.GaussMarkovModel(beta=1.0, sigma=0.0, white_density=0.03)
+    gm = GM.GaussMarkovModel(beta=1.0, sigma=0.0, white_density=0.03)
     y = gm.simulate(200_000, 50.0, rng=1)
     res = allan(y, 50.0, confidence=CURVE_CONFIDENCE)
     assert ci_fraction_inside(gm.adev(res.tau, rate_hz=50.0), res) == 1.0
@@ -162,7 +165,7 @@ def test_random_walk_theory_within_ci() -> None:
 
 @pytest.mark.parametrize("seed", [3, 4])
 def test_gauss_markov_theory_within_ci(seed: int) -> None:
-    gm = M.GaussMarkovModel(beta=1 / 20.0, sigma=0.5, white_density=0.3)
+    gm = GM.GaussMarkovModel(beta=1 / 20.0, sigma=0.5, white_density=0.3)
     y = gm.simulate(300_000, 20.0, rng=seed)
     res = allan(y, 20.0, confidence=CURVE_CONFIDENCE)
     assert ci_fraction_inside(gm.adev(res.tau, rate_hz=20.0), res) == 1.0
@@ -173,7 +176,7 @@ def test_gauss_markov_theory_within_ci(seed: int) -> None:
 
 def test_gauss_markov_theory_is_the_ensemble_mean() -> None:
     # one realisation wanders inside its CIs; the mean over realisations is the theory
-    gm = M.GaussMarkovModel(beta=1 / 20.0, sigma=0.5, white_density=0.3)
+    gm = GM.GaussMarkovModel(beta=1 / 20.0, sigma=0.5, white_density=0.3)
     taus = [0.05, 0.4, 3.2, 12.8, 51.2]
     avars = [allan(gm.simulate(100_000, 20.0, rng=100 + s), 20.0, taus=taus).var for s in range(16)]
     ratio = np.mean(avars, axis=0) / gm.avar(np.array(taus), rate_hz=20.0)
@@ -182,7 +185,7 @@ def test_gauss_markov_theory_is_the_ensemble_mean() -> None:
 
 
 def test_ar_model_theory_within_ci() -> None:
-    ar = M.ArModel(coefficients=(-1.2, 0.5, -0.1), noise_variance=1.0, rate_hz=1.0)
+    ar = AR.ArModel(coefficients=(-1.2, 0.5, -0.1), noise_variance=1.0, rate_hz=1.0)
     y = ar.simulate(200_000, 1.0, rng=5)
     res = allan(y, 1.0, confidence=CURVE_CONFIDENCE)
     assert ci_fraction_inside(ar.adev(res.tau), res) == 1.0
@@ -199,10 +202,10 @@ def _sub(res: object, mask: np.ndarray) -> object:
 
 
 def test_gm_simulation_is_stationary_with_the_right_variance_and_correlation() -> None:
-    gm = M.GaussMarkovModel(beta=2.0, sigma=3.0)
+    gm = GM.GaussMarkovModel(beta=2.0, sigma=3.0)
     y = gm.simulate(400_000, 100.0, rng=7)
     assert np.std(y) == pytest.approx(3.0, rel=0.03)
-    r = M.sample_autocovariance(y, 50)
+    r = MB.sample_autocovariance(y, 50)
     assert r[50] / r[0] == pytest.approx(math.exp(-2.0 * 0.5), abs=0.03)
     # starts in the stationary distribution: first samples of many runs have std σ
     starts = np.array([gm.simulate(2, 100.0, rng=s)[0] for s in range(400)])
@@ -210,15 +213,15 @@ def test_gm_simulation_is_stationary_with_the_right_variance_and_correlation() -
 
 
 def test_simulation_is_reproducible() -> None:
-    gm = M.GaussMarkovModel(beta=0.1, sigma=1.0, white_density=0.1)
+    gm = GM.GaussMarkovModel(beta=0.1, sigma=1.0, white_density=0.1)
     assert np.array_equal(gm.simulate(1000, 10.0, 42), gm.simulate(1000, 10.0, 42))
     assert not np.array_equal(gm.simulate(1000, 10.0, 42), gm.simulate(1000, 10.0, 43))
-    ar = M.ArModel(coefficients=(-0.5,), noise_variance=1.0, rate_hz=10.0)
+    ar = AR.ArModel(coefficients=(-0.5,), noise_variance=1.0, rate_hz=10.0)
     assert np.array_equal(ar.simulate(100, 10.0, 1), ar.simulate(100, 10.0, 1))
 
 
 def test_ar_model_refuses_another_rate() -> None:
-    ar = M.ArModel(coefficients=(-0.5,), noise_variance=1.0, rate_hz=2.0)
+    ar = AR.ArModel(coefficients=(-0.5,), noise_variance=1.0, rate_hz=2.0)
     with pytest.raises(OptionError, match="2 Hz"):
         ar.simulate(10, 100.0, 0)
 
@@ -231,7 +234,7 @@ def test_burg_path_matches_statsmodels_and_textbook_burg() -> None:
     rng = np.random.default_rng(11)
     y = signal.lfilter([1.0], [1.0, -0.9, 0.4], rng.standard_normal(5000))
     for p in (1, 2, 5):
-        model = M.fit_ar_burg(y, 1.0, order=p, decimate_to_hz=None)
+        model = AR.fit_ar_burg(y, 1.0, order=p, decimate_to_hz=None)
         rho, s2 = sm_burg(y, p)
         assert np.allclose(model.coefficients, -rho, atol=1e-12)
         assert model.noise_variance == pytest.approx(s2, rel=1e-12)
@@ -243,19 +246,19 @@ def test_known_ar3_recovered_and_order_three_selected() -> None:
     a_true = np.array([-1.2, 0.5, -0.1])  # y = 1.2y1 - 0.5y2 + 0.1y3 + e (stable)
     rng = np.random.default_rng(2024)
     y = signal.lfilter([1.0], np.r_[1.0, a_true], rng.standard_normal(20_000))[1000:]
-    model = M.fit_ar_burg(y, 10.0, order_max=12, criterion="bic", decimate_to_hz=None)
+    model = AR.fit_ar_burg(y, 10.0, order_max=12, criterion="bic", decimate_to_hz=None)
     assert model.order == 3
     assert np.max(np.abs(np.array(model.coefficients) - a_true)) < 0.05
     assert model.noise_variance == pytest.approx(1.0, rel=0.05)
     assert model.criteria["bic"][3] == min(model.criteria["bic"])
-    aic = M.fit_ar_burg(y, 10.0, order_max=12, criterion="aic", decimate_to_hz=None)
+    aic = AR.fit_ar_burg(y, 10.0, order_max=12, criterion="aic", decimate_to_hz=None)
     assert aic.order >= 3
     assert aic.criterion == "aic" and len(aic.criteria["aic"]) == 13
 
 
 def _gm_plus_white(seed: int) -> tuple[np.ndarray, float]:
     rate = 10.0
-    truth = M.GaussMarkovModel(beta=1 / 100.0, sigma=1.0, white_density=5.0 / math.sqrt(rate))
+    truth = GM.GaussMarkovModel(beta=1 / 100.0, sigma=1.0, white_density=5.0 / math.sqrt(rate))
     return truth.simulate(400_000, rate, rng=seed), rate  # 40 000 s = 400 Tc
 
 
@@ -270,28 +273,28 @@ def test_gm_plus_white_correlation_time_recovered_where_plain_ar1_fails() -> Non
     assert gm.white_sigma(rate) == pytest.approx(5.0, rel=0.05)
     assert any("block averaging" in n for n in res.notes)
     # plain AR(1) on the raw samples: its φ is set by the white floor
-    ar1 = M.fit_ar_burg(y, rate, order=1, decimate_to_hz=None)
+    ar1 = AR.fit_ar_burg(y, rate, order=1, decimate_to_hz=None)
     tc_ar1 = -1.0 / (rate * math.log(-ar1.coefficients[0]))
     assert tc_ar1 < 10.0  # more than an order of magnitude off
     # and the paper's 1/e read-off is ruined by the white floor as well
-    paper = M.fit_gauss_markov(y, rate, method="paper", decimate_to_hz=None)
+    paper = GM.fit_gauss_markov(y, rate, method="paper", decimate_to_hz=None)
     assert paper.correlation_time_s < 10.0
 
 
 def test_pure_gm_drops_the_white_part() -> None:
-    truth = M.GaussMarkovModel(beta=1 / 5.0, sigma=2.0)
+    truth = GM.GaussMarkovModel(beta=1 / 5.0, sigma=2.0)
     y = truth.simulate(200_000, 10.0, rng=9)
-    gm = M.fit_gauss_markov(y, 10.0, decimate_to_hz=None)
+    gm = GM.fit_gauss_markov(y, 10.0, decimate_to_hz=None)
     assert gm.variant == "gm"
     assert gm.correlation_time_s == pytest.approx(5.0, rel=0.15)
     assert gm.sigma == pytest.approx(2.0, rel=0.1)
 
 
 def test_block_averaging_keeps_beta_and_sigma() -> None:
-    truth = M.GaussMarkovModel(beta=1 / 30.0, sigma=1.0, white_density=0.5)
+    truth = GM.GaussMarkovModel(beta=1 / 30.0, sigma=1.0, white_density=0.5)
     y = truth.simulate(600_000, 100.0, rng=10)
-    raw = M.fit_gauss_markov(y, 100.0, decimate_to_hz=10.0)
-    coarse = M.fit_gauss_markov(y, 100.0, decimate_to_hz=0.2)  # 5 s blocks
+    raw = GM.fit_gauss_markov(y, 100.0, decimate_to_hz=10.0)
+    coarse = GM.fit_gauss_markov(y, 100.0, decimate_to_hz=0.2)  # 5 s blocks
     for gm in (raw, coarse):
         assert gm.correlation_time_s == pytest.approx(30.0, rel=0.2)
         assert gm.sigma == pytest.approx(1.0, rel=0.15)
@@ -309,10 +312,10 @@ def test_models_result_to_dict_is_json_and_models_rebuild() -> None:
     assert g["beta_unit"] == "1/s" and g["correlation_time_s"] == pytest.approx(1 / g["beta"])
     assert g["unit"] == "rad/s" and "white_sigma" in g and "fit" in g
     a = d["ar"]
-    assert a["order"] == len(a["coefficients"]) and set(a["criteria"]) == set(M.CRITERIA)
+    assert a["order"] == len(a["coefficients"]) and set(a["criteria"]) == set(AR.CRITERIA)
     assert a["rate_hz"] == pytest.approx(rate / res.decimation)
-    gm2 = M.GaussMarkovModel.from_dict(g)
-    ar2 = M.ArModel.from_dict(a)
+    gm2 = GM.GaussMarkovModel.from_dict(g)
+    ar2 = AR.ArModel.from_dict(a)
     tau = np.array([1.0, 10.0, 100.0])
     assert np.allclose(gm2.adev(tau), res.gauss_markov.adev(tau))  # type: ignore[union-attr]
     assert np.allclose(ar2.adev(tau), res.ar.adev(tau))  # type: ignore[union-attr]
@@ -338,13 +341,13 @@ def test_constant_signal_is_a_clear_error() -> None:
 def test_too_short_for_the_order_or_lag_range() -> None:
     y = np.random.default_rng(1).standard_normal(100)
     with pytest.raises(AnalysisError, match="too few for AR order 20"):
-        M.fit_ar_burg(y, 10.0, order_max=20, decimate_to_hz=None)
+        AR.fit_ar_burg(y, 10.0, order_max=20, decimate_to_hz=None)
     with pytest.raises(AnalysisError, match="too short for max_lag_s"):
-        M.fit_gauss_markov(y, 10.0, max_lag_s=8.0, decimate_to_hz=None)
+        GM.fit_gauss_markov(y, 10.0, max_lag_s=8.0, decimate_to_hz=None)
     with pytest.raises(AnalysisError, match="too few"):
         M.fit_models(y[:10], 10.0)
     with pytest.raises(AnalysisError, match="only .* samples remain"):
-        M.fit_gauss_markov(
+        GM.fit_gauss_markov(
             np.random.default_rng(2).standard_normal(1000), 100.0, decimate_to_hz=1.0
         )
 
@@ -352,7 +355,7 @@ def test_too_short_for_the_order_or_lag_range() -> None:
 def test_bad_options() -> None:
     y = np.random.default_rng(1).standard_normal(1000)
     with pytest.raises(OptionError, match="criterion"):
-        M.fit_ar_burg(y, 1.0, criterion="xyz")
+        AR.fit_ar_burg(y, 1.0, criterion="xyz")
     with pytest.raises(OptionError, match="unknown model"):
         M.fit_models(y, 1.0, "gm,arma")
     with pytest.raises(OptionError, match="rate_hz"):
@@ -368,8 +371,8 @@ def test_white_noise_has_no_gauss_markov_model_but_still_an_ar() -> None:
     assert res.gauss_markov is None
     assert any("Gauss-Markov model not fitted" in n for n in res.notes)
     assert res.ar is not None and res.ar.order >= 1
-    with pytest.raises(M.ModelNotSupportedError):
-        M.fit_gauss_markov(y, 10.0)
+    with pytest.raises(MB.ModelNotSupportedError):
+        GM.fit_gauss_markov(y, 10.0)
 
 
 # ---------------------------------------------------------------------------
@@ -407,7 +410,7 @@ def test_real_adis_log_models(adis_log_path: object) -> None:
 
 @pytest.mark.parametrize("estimator", ["overlapping", "modified", "hadamard"])
 def test_a_model_of_the_process_that_made_the_log_is_adequate(estimator: str) -> None:
-    ar = M.ArModel(coefficients=(-1.5, 0.6), noise_variance=1.0, rate_hz=10.0)
+    ar = AR.ArModel(coefficients=(-1.5, 0.6), noise_variance=1.0, rate_hz=10.0)
     y = ar.simulate(200_000, 10.0, rng=4)
     curve = allan(y, 10.0, "octave", estimator)
     res = M.fit_models(y, 10.0, ("gm", "ar"), decimate_to_hz=None, curve=curve)

@@ -111,6 +111,12 @@ def register(sub: Any) -> None:
         help="largest AR order tried when looking for an AR model that follows the curve "
         "(default 20)",
     )
+    p.add_argument(
+        "--cut-warmup",
+        action="store_true",
+        help="drop the warm-up (a bias settling exponentially after power-on, detected per "
+        "channel; the latest end over the channels) before the analysis",
+    )
     p.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--no-plot", action="store_true", help="skip the figures")
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
@@ -287,6 +293,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         robust=args.robust,
         spike_threshold=args.spike_threshold,
         ar_max_order=args.ar_max_order,
+        cut_warmup=args.cut_warmup,
     )
     channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
     big = route_outofcore(
@@ -333,10 +340,19 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     outset.record(getattr(args, "argv", None), command_name="static")
     written = ["noise.json", "imu.yaml", "run.json"]
     if not args.no_plot:
-        from imubounds.report.static_plots import allan_figure, save_figure
+        from imubounds.report.static_plots import (
+            allan_figure,
+            needs_stationarity_figure,
+            save_figure,
+        )
 
         save_figure(allan_figure(result), outdir / "allan")
         written += ["allan.png", "allan.svg"]
+        if needs_stationarity_figure(result):
+            from imubounds.report.static_plots import stationarity_figure
+
+            save_figure(stationarity_figure(result), outdir / "stationarity", ("png",))
+            written.append("stationarity.png")
     for name, ch in result.channels.items():
         for w in ch.warnings:
             rep.warn(w)

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from imubounds.errors import OptionError
-from imubounds.stationary.models import GaussMarkovModel, gm_avar_continuous
+from imubounds.stationary.gauss_markov import GaussMarkovModel, gm_avar_continuous
 
 __all__ = ["B_FACTOR2", "DEFAULT_BIAS_TAU_RANGE", "flicker_gm_terms"]
 

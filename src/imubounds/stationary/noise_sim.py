@@ -43,8 +43,9 @@ from numpy.typing import ArrayLike, NDArray
 from imubounds import presets as _presets
 from imubounds.errors import InputError, OptionError
 from imubounds.io.log import IMU_CHANNELS, ImuLog
+from imubounds.stationary.ar_model import ArModel
 from imubounds.stationary.flicker import DEFAULT_BIAS_TAU_RANGE, flicker_gm_terms
-from imubounds.stationary.models import ArModel, GaussMarkovModel
+from imubounds.stationary.gauss_markov import GaussMarkovModel
 from imubounds.units import DEG, G0, SI_UNITS, sensor_kind, si_unit_of_signal
 
 TERMS: tuple[str, ...] = ("Q", "N", "B", "K", "R")

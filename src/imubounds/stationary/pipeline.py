@@ -21,7 +21,11 @@ from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
 from imubounds.stationary.allan import AllanResult, allan_channels
 from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
+from imubounds.stationary.record_length import channel_record_length
+from imubounds.stationary.record_length import describe as describe_record_length
+from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
+from imubounds.stationary.timing import stamp_stats, timing_check, timing_messages
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
 FORMAT = "imubounds.stationary.terms/1"
@@ -55,6 +59,7 @@ class StaticSettings:
     robust: bool = False
     spike_threshold: float = DEFAULT_THRESHOLD
     ar_max_order: int = 20
+    cut_warmup: bool = False
 
     def to_json(self) -> dict[str, Any]:
         taus = self.taus if isinstance(self.taus, str | int) else [float(t) for t in self.taus]
@@ -70,6 +75,7 @@ class StaticSettings:
             "robust": self.robust,
             "spike_threshold": self.spike_threshold,
             "ar_max_order": self.ar_max_order,
+            "cut_warmup": self.cut_warmup,
         }
 
 
@@ -102,6 +108,9 @@ class ChannelResult:
     models: Any = None
     allan_plain: AllanResult | None = None
     spikes: SpikeReport | None = None
+    record_length: dict[str, Any] | None = None
+    stationarity: Stationarity | None = None
+    timing: dict[str, Any] | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -176,6 +185,12 @@ class ChannelResult:
         }
         if self.models is not None:
             out["models"] = self.models.to_dict()
+        if self.record_length is not None:
+            out["record_length"] = self.record_length
+        if self.stationarity is not None:
+            out["stationarity"] = self.stationarity.to_dict()
+        if self.timing is not None:
+            out["timing"] = self.timing
         if self.warnings:
             out["warnings"] = list(self.warnings)
         if self.notes:
@@ -413,11 +428,16 @@ def analyse_static(
 
     spikes: dict[str, SpikeReport] = {}
     plain: Mapping[str, AllanResult] = {}
+    stat: dict[str, Stationarity] = {}
+    cut_s = 0.0
     if curves is None:
         from imubounds.stationary.allan import check_magnitude
 
         for name in imu_names:  # numeric edges named before any estimator meets them
             check_magnitude(np.asarray(log.channels[name]), f"{log.source}: {name}")
+        stat = {n: stationarity(log.channels[n], log.rate_hz) for n in imu_names}
+        if settings.cut_warmup:
+            log, cut_s = cut_warmup(log, stat)
         for name in imu_names:
             spikes[name] = detect_spikes(
                 np.asarray(log.channels[name]),
@@ -450,6 +470,7 @@ def analyse_static(
     run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}
     model_fits = _fit_models(log, imu_names, settings, progress, curves)
+    stamps: dict[str, Any] | None = None
     for name in imu_names:
         curve = curves[name]
         fit, slope, sel = analyse_curve(
@@ -464,6 +485,19 @@ def analyse_static(
         msg = rep.warning(settings.robust) if rep is not None else None
         if msg:
             warnings.append(msg)
+        st = stat.get(name)
+        if st is not None:
+            unit = si_unit_of_signal(sensor_kind(name))
+            warnings.extend(f"{name}: {m}" for m in st.messages(unit, cut=cut_s > 0))
+        if cut_s > 0:
+            notes.append(f"the first {cut_s:.4g} s (warm-up) were cut before the analysis")
+        timing = None
+        if st is not None:  # the samples are in memory: so are their stamps
+            stamps = stamps if stamps is not None else stamp_stats(log.t)
+            timing = timing_check(
+                log.t, curve.tau, curve.dev, curve.ci_lower, curve.ci_upper, stamps
+            )
+            warnings.extend(f"{name}: {m}" for m in timing_messages(timing))
         used = {t: sel.value(t) for t in ("N", "B")}
         for t in ("N", "B"):
             if sel.status(t) == "upper_bound":
@@ -476,6 +510,8 @@ def analyse_static(
                 f"K is not resolved; imu.yaml and noise.selected carry its upper bound "
                 f"{sel.value('K'):.4g} {SI_UNITS[sensor_kind(name)]['K']}"
             )
+        rec = channel_record_length(curve, fit, sel, log.duration_s / 3600.0, settings.confidence)
+        notes.append(describe_record_length("", rec))
         sc = bounds.sigma_c(used["N"], used["B"], log.dt, t_avg)
         results[name] = ChannelResult(
             name=name,
@@ -495,6 +531,9 @@ def analyse_static(
             models=model_fits.get(name),
             allan_plain=plain.get(name),
             spikes=rep,
+            record_length=rec,
+            stationarity=st,
+            timing=timing,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 

@@ -49,18 +49,35 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import special, stats
-from scipy.optimize import nnls
+from scipy import stats
 
-from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.errors import InputError, OptionError
 from imubounds.stationary import theory
+from imubounds.stationary.consistency import consistent_bound, describe_misfit, misfit_ranges
+from imubounds.stationary.term_curve import EDF_MIN as EDF_MIN
+from imubounds.stationary.term_curve import TERMS as TERMS
+from imubounds.stationary.term_curve import (
+    UPPER_BOUND_LEVEL,
+    _Curve,
+    _curve,
+    _curve_fields,
+    _grid_density,
+    _log_sd,
+    _nnls_weighted,
+    _robust_fit,
+    _term_fields,
+)
+from imubounds.stationary.term_curve import AllanCurve as AllanCurve
+from imubounds.stationary.term_curve import _eta_from_residuals as _eta_from_residuals
+from imubounds.stationary.term_curve import _median_small as _median_small
+from imubounds.stationary.term_curve import curve_upper_bound as curve_upper_bound
+from imubounds.stationary.term_curve import local_slopes as local_slopes
 from imubounds.units import DATASHEET_UNITS, SI_UNITS, SensorKind, Term, to_datasheet, to_ieee
 
-TERMS: tuple[Term, ...] = ("Q", "N", "B", "K", "R")
 #: √(2 ln2 / π): the flat level of the Allan deviation of flicker noise, per unit B.
 B_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
 #: The τ (s) at which IEEE 952 reads each term's line on an Allan curve
@@ -69,8 +86,6 @@ READ_TAU: dict[Term, float] = {"Q": math.sqrt(3.0), "N": 1.0, "K": 3.0, "R": mat
 #: How far (in slope units) the local slope may be from the term's expected
 #: slope before the read-off warns that other terms contribute there.
 SLOPE_TOLERANCE = 0.15
-#: Smallest EDF of a point used to locate a term, σ_min or a read-off.
-EDF_MIN = 10.0
 #: Share of the model variance a term must carry somewhere (at a point with EDF ≥
 #: EDF_MIN) to be resolved: it must dominate the curve there; B, which lives where
 #: the N and K lines cross, needs a quarter. A term hidden under another (N under a
@@ -81,32 +96,8 @@ SHARE_VISIBLE: dict[str, float] = {"Q": 0.5, "N": 0.5, "B": 0.25, "K": 0.5, "R":
 SHARE_MIN = 0.5
 #: A term stays in the fit when removing it raises chi-squared by at least this squared.
 RESOLVE_Z = 2.0
-#: Two-sided level of the per-point intervals behind an upper bound (0.99:
-#: each point's upper end is its 99.5 % one-sided bound).
-UPPER_BOUND_LEVEL = 0.99
-#: Tukey biweight tuning constant (95 % efficiency at the normal law).
-TUKEY_C = 4.685
 
 Status = Literal["resolved", "upper_bound", "not_observed"]
-
-
-class AllanCurve(Protocol):
-    """What the fits need from an Allan result (:class:`~imubounds.stationary.allan.AllanResult`).
-
-    ``estimator``, ``rate_hz`` and ``n_samples`` are read when present
-    (defaults: overlapping, continuous-time factors, no record-length bias).
-    """
-
-    @property
-    def tau(self) -> NDArray[np.float64]: ...
-    @property
-    def dev(self) -> NDArray[np.float64]: ...
-    @property
-    def ci_lower(self) -> NDArray[np.float64]: ...
-    @property
-    def ci_upper(self) -> NDArray[np.float64]: ...
-    @property
-    def edf(self) -> NDArray[np.float64]: ...
 
 
 @dataclass(frozen=True)
@@ -270,235 +261,6 @@ def avar_terms(
     return (
         3.0 * Q * Q / t**2 + N * N / t + (B_FACTOR * B) ** 2 + K * K * t / 3.0 + R * R * t**2 / 2.0
     )
-
-
-# --------------------------------------------------------------------------
-# the curve
-# --------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Curve:
-    tau: NDArray[np.float64]
-    dev: NDArray[np.float64]
-    lo: NDArray[np.float64]
-    hi: NDArray[np.float64]
-    edf: NDArray[np.float64]
-    estimator: str
-    rate_hz: float | None
-    n_samples: int | None
-    basis: NDArray[np.float64]  # (k, 5) responses per unit term²
-
-    @property
-    def avar(self) -> NDArray[np.float64]:
-        return self.dev**2
-
-    def observable(self) -> list[bool]:
-        return [theory.observable(t, self.estimator) and bool(np.any(self.basis[:, j] > 0))
-                for j, t in enumerate(TERMS)]  # fmt: skip
-
-
-def _curve(curve: AllanCurve) -> _Curve:
-    tau = np.asarray(curve.tau, dtype=np.float64)
-    dev = np.asarray(curve.dev, dtype=np.float64)
-    lo = np.asarray(curve.ci_lower, dtype=np.float64)
-    hi = np.asarray(curve.ci_upper, dtype=np.float64)
-    edf = np.asarray(curve.edf, dtype=np.float64)
-    ok = np.isfinite(tau) & np.isfinite(dev) & (dev > 0) & (tau > 0)
-    if np.count_nonzero(ok) < 2:
-        raise AnalysisError(
-            "the Allan curve has fewer than 2 usable points; use a longer log or a denser tau grid"
-        )
-    estimator = str(getattr(curve, "estimator", "overlapping"))
-    rate = getattr(curve, "rate_hz", None)
-    n = getattr(curve, "n_samples", None)
-    rate_f = float(rate) if rate is not None else None
-    n_i = int(n) if n is not None else None
-    tau = tau[ok]
-    return _Curve(
-        tau=tau,
-        dev=dev[ok],
-        lo=lo[ok],
-        hi=hi[ok],
-        edf=np.where(np.isfinite(edf[ok]) & (edf[ok] > 0), edf[ok], 1.0),
-        estimator=estimator,
-        rate_hz=rate_f,
-        n_samples=n_i,
-        basis=theory.basis(tau, estimator, rate_hz=rate_f, n_samples=n_i),
-    )
-
-
-def _curve_fields(c: _Curve) -> dict[str, Any]:
-    return {"estimator": c.estimator, "rate_hz": c.rate_hz, "n_samples": c.n_samples}
-
-
-def _term_fields(values: Mapping[str, float]) -> dict[str, Any]:
-    return {t: float(values[t]) for t in TERMS}
-
-
-def local_slopes(tau: ArrayLike, dev: ArrayLike) -> NDArray[np.float64]:
-    """Local log-log slope d log σ / d log τ at each point (central differences)."""
-    lt = np.log(np.asarray(tau, dtype=np.float64))
-    ld = np.log(np.asarray(dev, dtype=np.float64))
-    if lt.size < 2:
-        return np.zeros_like(lt)
-    return np.gradient(ld, lt)
-
-
-def _log_sd(edf: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Standard deviation of ln(σ²_est) for a chi-squared estimate with ``edf`` dof."""
-    return np.sqrt(np.asarray(special.polygamma(1, np.maximum(edf, 0.5) / 2.0), dtype=np.float64))
-
-
-def _upper_points(c: _Curve, level: float = UPPER_BOUND_LEVEL) -> NDArray[np.float64]:
-    """Per-point upper ends of σ at ``level`` (two-sided) from each point's EDF."""
-    p = 1.0 - level
-    return np.asarray(c.dev * np.sqrt(c.edf / stats.chi2.ppf(p / 2.0, c.edf)), dtype=np.float64)
-
-
-def curve_upper_bound(curve: AllanCurve | _Curve, term: str) -> tuple[float, float]:
-    """Upper bound of one term from the curve's intervals, and the τ (s) that sets it.
-
-    ``min_τ σ_hi(τ)/√f_term(τ)`` over the points with EDF ≥ :data:`EDF_MIN`
-    (all points when none has it), σ_hi the 99 % upper end
-    (:data:`UPPER_BOUND_LEVEL`): every other term only adds variance, so the
-    term cannot exceed this wherever the interval holds. Points with fewer
-    degrees of freedom are left out: their chi-squared intervals are too
-    uncertain to bound anything (a two-term point can sit at 3 % of its
-    expectation). ``(inf, nan)`` when the estimator is blind to the term.
-    """
-    c = curve if isinstance(curve, _Curve) else _curve(curve)
-    j = TERMS.index(term)
-    f = c.basis[:, j]
-    if not np.any(f > 0):
-        return math.inf, math.nan
-    ok = (f > 0) & (c.edf >= EDF_MIN)
-    if not np.any(ok):  # a very short log: every point, however few its dof
-        ok = f > 0
-    up = _upper_points(c)
-    cand = up[ok] / np.sqrt(f[ok])
-    i = int(np.argmin(cand))
-    return float(cand[i]), float(c.tau[ok][i])
-
-
-# --------------------------------------------------------------------------
-# robust weighted fit
-# --------------------------------------------------------------------------
-def _nnls_weighted(
-    A: NDArray[np.float64], b: NDArray[np.float64], sw: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """NNLS of ``(A x - b)·sw`` with column scaling; returns x ≥ 0."""
-    Aw = A * sw[:, None]
-    bw = b * sw
-    scale = np.linalg.norm(Aw, axis=0)
-    scale[scale == 0] = 1.0
-    x, _ = nnls(Aw / scale, bw, maxiter=50 * A.shape[1])
-    return np.asarray(x / scale, dtype=np.float64)
-
-
-def _tukey(r: NDArray[np.float64]) -> NDArray[np.float64]:
-    u = r / TUKEY_C
-    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
-
-
-def _eta_from_residuals(
-    lr: NDArray[np.float64], sd: NDArray[np.float64], w: NDArray[np.float64]
-) -> float:
-    """Relative misfit η with median |lr/√(sd² + η²)| = 0.6745 over the kept points."""
-    keep = w > 0
-    if np.count_nonzero(keep) < 3:
-        return 0.0
-    a = np.abs(lr[keep])
-    s = sd[keep]
-    if _median_small(a / s) <= _Q75:
-        return 0.0
-    s2 = s * s
-    lo, hi = 0.0, float(np.max(a)) * 10.0 + 1e-12
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        if _median_small(a / np.sqrt(s2 + mid * mid)) > _Q75:
-            lo = mid
-        else:
-            hi = mid
-    return hi
-
-
-#: The upper quartile of the standard normal (median |z| of a Gaussian).
-_Q75 = float(stats.norm.ppf(0.75))
-
-
-def _median_small(v: NDArray[np.float64]) -> float:
-    """``np.median`` of a short finite 1-d array, bit for bit, without its overhead
-    (a sort in place: the mean of the two middle values, or the middle one). The
-    bisection above calls it 80 times per fit iteration: with ``np.median`` it was a
-    third of a static unit's time."""
-    v.sort()
-    n = v.size
-    if n == 0 or np.isnan(v[-1]):  # NaN sorts last; np.median gives NaN
-        return math.nan
-    h = n // 2
-    return float(v[h]) if n % 2 else float((v[h - 1] + v[h]) / 2.0)
-
-
-def _grid_density(tau: NDArray[np.float64]) -> float:
-    """Points per octave of the τ grid (neighbouring points share data beyond one)."""
-    if tau.size < 2:
-        return 1.0
-    octaves = math.log2(float(tau[-1] / tau[0]))
-    return max(1.0, (tau.size - 1) / octaves) if octaves > 0 else 1.0
-
-
-#: At most this fraction of the points may be rejected by the robust weights; when
-#: more disagree with the model, the misfit is global and η grows instead.
-MAX_REJECTED = 0.25
-
-
-def _smoothed(avar: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Three-point running median of a curve (ends kept): a start that one notch cannot move."""
-    if avar.size < 3:
-        return avar
-    mid = np.median(np.stack((avar[:-2], avar[1:-1], avar[2:])), axis=0)
-    return np.concatenate(([avar[0]], mid, [avar[-1]]))
-
-
-def _robust_fit(
-    A: NDArray[np.float64],
-    avar: NDArray[np.float64],
-    sd_stat: NDArray[np.float64],
-    robust: bool,
-    iterations: int,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """Iteratively reweighted NNLS: coefficients, robust weights and the misfit η.
-
-    Starts from weights of a smoothed curve, iterates model-based weights
-    (plain IRLS), then Tukey weights; never rejects more than
-    :data:`MAX_REJECTED` of the points (η grows instead).
-    """
-    coef = _nnls_weighted(A, avar, 1.0 / (_smoothed(avar) * sd_stat))
-    w = np.ones(avar.size)
-    eta = 0.0
-    n_iter = max(1, iterations)
-    for it in range(n_iter):
-        model = A @ coef
-        model = np.where(np.isfinite(model) & (model > 0), model, avar * 1e-12)
-        lr = np.log(avar / model)
-        use_robust = robust and it >= n_iter // 3
-        eta = _eta_from_residuals(lr, sd_stat, w if use_robust else np.ones_like(w))
-        if use_robust:
-            cap = int(MAX_REJECTED * avar.size)
-            a = np.sort(np.abs(lr) / TUKEY_C)[::-1]  # |lr| / c per point, largest first
-            if cap < a.size and a[cap] > 0:
-                # the (cap+1)-th largest residual must stay inside the Tukey window
-                need = a[cap] ** 2 - float(np.min(sd_stat)) ** 2
-                eta = max(eta, math.sqrt(need) if need > 0 else 0.0)
-        sd = np.sqrt(sd_stat**2 + eta**2)
-        w = _tukey(lr / sd) if use_robust else np.ones(avar.size)
-        if np.count_nonzero(w > 0) < A.shape[1] + 1:
-            w = np.ones(avar.size)
-        new = _nnls_weighted(A, avar, np.sqrt(w) / (model * sd))
-        done = it >= n_iter // 3 and np.allclose(new, coef, rtol=1e-7, atol=1e-300)
-        coef = new
-        if done:
-            break
-    return coef, w, eta
 
 
 def fit_terms(
@@ -869,6 +631,7 @@ class Selection:
     estimator: str
     notes: list[str] = field(default_factory=list)
     kind: SensorKind | None = None
+    misfit: list[dict[str, Any]] = field(default_factory=list)
     fit: NoiseTerms | None = field(default=None, compare=False, repr=False)
     slope: NoiseTerms | None = field(default=None, compare=False, repr=False)
     curve: AllanCurve | None = field(default=None, compare=False, repr=False)
@@ -966,9 +729,33 @@ class Selection:
                 "(sigma_min/0.664 on an Allan curve)"
             ),
         }
+        out["misfit"] = [dict(r) for r in self.misfit]
         if self.notes:
             out["notes"] = list(self.notes)
         return out
+
+
+#: Terms whose resolved value must stay inside the curve's intervals everywhere
+#: (stationary.consistency). N is not among them: a sensor's anti-alias filter lowers
+#: the first octaves below the white-noise line (the ADIS16405 by x0.8 at 0.01 s)
+#: without making N wrong where it lives; the misfit range reports it.
+GATED: tuple[str, ...] = ("B", "K")
+
+
+def _disjoint(a: NoiseTerms, b: NoiseTerms, t: str, ub: float) -> bool:
+    """Both estimates resolved and consistent (≤ ``ub``), with disjoint CIs."""
+    ca, cb = a.ci.get(t), b.ci.get(t)
+    if ca is None or cb is None or b.status.get(t) != "resolved":
+        return False
+    vb = b.value(t)
+    if not (math.isfinite(vb) and 0 < vb <= ub * (1.0 + 1e-9)):
+        return False
+    return bool(ca[1] < cb[0] or cb[1] < ca[0])
+
+
+def _ci_text(est: NoiseTerms, t: str) -> str:
+    ci = est.ci.get(t)
+    return f"{ci[0]:.4g}-{ci[1]:.4g}" if ci is not None else "n/a"
 
 
 def select_terms(
@@ -990,26 +777,56 @@ def select_terms(
     first, second = (fit, slope) if prefer == "fit" else (slope, fit)
     out: dict[str, SelectedTerm] = {}
     notes: list[str] = []
+    misfit = misfit_ranges(c, {t: fit.value(t) for t in TERMS})
+    notes.extend(describe_misfit(r) for r in misfit)
     for t in TERMS:
         if first.status.get(t) == "not_observed":
             out[t] = SelectedTerm(None, "not_observed", first.method, note=f"blind to {t}")
             continue
         chosen = None
+        ub, tau_ub = curve_upper_bound(c, t)
+        gate, tau_gate = consistent_bound(c, t)
+        refused: list[str] = []
         for est in (first, second):
             v = est.value(t)
             if est.status.get(t) == "resolved" and math.isfinite(v) and v > 0:
+                if t in GATED and v > gate * (1.0 + 1e-9):  # its line alone exceeds the curve
+                    refused.append(f"{v:.4g} from the {est.method}")
+                    continue
                 chosen = est
                 break
+        if t == "B" and chosen is fit and misfit and _disjoint(fit, slope, t, gate):
+            # the fit leaves the curve somewhere and its floor disagrees with the curve's
+            # minimum: the decomposition there is not to be trusted, the read-off is
+            chosen = slope
+            notes.append(
+                f"B: the fit's {fit.value(t):.4g} (CI {_ci_text(fit, t)}) disagrees with the "
+                f"read-off {slope.value(t):.4g} (CI {_ci_text(slope, t)}) while the fitted sum "
+                "leaves the curve: B from the read-off (sigma_min over its factor, an upper "
+                "estimate consistent with the curve)"
+            )
+        why = (
+            f"{t} = {' and '.join(refused)} exceeds what the curve allows ({gate:.4g}: its "
+            f"{UPPER_BOUND_LEVEL:.0%} intervals at tau = {tau_gate:.4g} s); structure the five "
+            "terms cannot follow was absorbed into it"
+            if refused
+            else ""
+        )
+        if why:
+            notes.append(why)
         if chosen is not None:
             v = chosen.value(t)
             note = "" if chosen is first else f"{t} from the {chosen.method} estimate"
+            if why:
+                note = f"{note}; {why}" if note else why
             out[t] = SelectedTerm(
                 v, "resolved", chosen.method, chosen.ci.get(t), chosen.tau_used.get(t), note
             )
             continue
-        ub, tau_ub = curve_upper_bound(c, t)
         fv = fit.value(t)
-        if math.isfinite(fv) and fv > ub:
+        if refused:  # the bound the estimates broke
+            ub, tau_ub = gate, tau_gate
+        elif math.isfinite(fv) and fv > ub:
             ub = fv
         note = (
             f"{t} is not resolved by the curve; the upper bound {ub:.4g} (from the curve's "
@@ -1025,6 +842,7 @@ def select_terms(
         sigma_min=smin,
         estimator=c.estimator,
         notes=notes,
+        misfit=misfit,
         fit=fit,
         slope=slope,
         curve=curve,

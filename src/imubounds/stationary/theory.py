@@ -150,31 +150,36 @@ def filter_weights(estimator: str, m: int) -> NDArray[np.float64]:
     return c / (math.sqrt(2.0) * m * m)
 
 
-@lru_cache(maxsize=8)
-def _flicker_table(fam: str) -> NDArray[np.float64]:
-    """Exact sampled-flicker response for m = 1..FLICKER_EXACT_M (index m-1)."""
+@lru_cache(maxsize=4096)
+def _flicker_exact(fam: str, m: int) -> float:
+    """Exact sampled-flicker response at the integer cluster size m (≤ FLICKER_EXACT_M)."""
     est = {"allan": "overlapping", "modified": "modified", "hadamard": "hadamard"}[fam]
-    out = np.empty(FLICKER_EXACT_M)
-    for m in range(1, FLICKER_EXACT_M + 1):
-        w = filter_weights(est, m)
-        pad = 1 << max(12, int(math.ceil(math.log2(128 * max(m, 1) * 3))))
-        h2 = np.abs(np.fft.rfft(w, pad)) ** 2
-        u = np.arange(h2.size, dtype=np.float64) / pad
-        g = np.zeros_like(h2)
-        g[1:] = h2[1:] / u[1:]
-        out[m - 1] = float(np.trapezoid(g, u)) / math.pi
-    return out
+    w = filter_weights(est, m)
+    pad = 1 << max(12, int(math.ceil(math.log2(128 * max(m, 1) * 3))))
+    h2 = np.abs(np.fft.rfft(w, pad)) ** 2
+    u = np.arange(h2.size, dtype=np.float64) / pad
+    g = np.zeros_like(h2)
+    g[1:] = h2[1:] / u[1:]
+    return float(np.trapezoid(g, u)) / math.pi
 
 
 def _flicker(fam: str, m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Flicker response per unit B²: exact (log-linear between the integer cluster
+    sizes around m, each computed once when first needed) below FLICKER_EXACT_M."""
     base = "allan" if fam == "total" else fam
     out = np.full(m.shape, B_VAR_FACTOR[base])
     small = np.isfinite(m) & (m < FLICKER_EXACT_M)
     if np.any(small):
-        table = _flicker_table(base)
         mm = np.clip(m[small], 1.0, float(FLICKER_EXACT_M))
-        grid = np.arange(1, FLICKER_EXACT_M + 1, dtype=np.float64)
-        out[small] = np.interp(np.log(mm), np.log(grid), table)
+        lo = np.floor(mm).astype(np.int64)
+        hi = np.minimum(lo + 1, FLICKER_EXACT_M)
+        vals = {int(k): _flicker_exact(base, int(k)) for k in np.unique(np.concatenate((lo, hi)))}
+        f_lo = np.array([vals[int(k)] for k in lo])
+        f_hi = np.array([vals[int(k)] for k in hi])
+        x_lo, x_hi = np.log(lo.astype(np.float64)), np.log(hi.astype(np.float64))
+        span = np.where(hi > lo, x_hi - x_lo, 1.0)
+        frac = np.where(hi > lo, (np.log(mm) - x_lo) / span, 0.0)
+        out[small] = f_lo + frac * (f_hi - f_lo)
     return out
 
 
@@ -453,6 +458,29 @@ def variance_from_sums(s: NDArray[np.float64], m: ArrayLike, estimator: str) -> 
 
     var_sum = -0.5 * (6.0 * t_zero - 8.0 * t_shift(mm) + 2.0 * t_shift(2 * mm))
     return np.asarray(var_sum / (2.0 * mf**4), dtype=np.float64)
+
+
+def variance_at_sums(
+    sums: Callable[[NDArray[np.int64]], NDArray[np.float64]], m: ArrayLike, estimator: str
+) -> NDArray[np.float64]:
+    """:func:`variance_from_sums` for the Allan and Hadamard families from
+    ``sums(k) = S(k)`` evaluated only at the cluster sizes needed (m, 2m, 3m): for a
+    process whose S(k) has a closed form
+    (:func:`~imubounds.stationary.gauss_markov.gm_sum_variance`)."""
+    fam = _family(estimator)
+    if fam not in ("allan", "total", "hadamard"):
+        raise OptionError(
+            f"variance_at_sums covers the Allan and Hadamard families, not {estimator!r}"
+        )
+    mm = np.atleast_1d(np.asarray(m, dtype=np.int64))
+    if mm.size and np.any(mm < 1):
+        raise OptionError("cluster sizes must be >= 1")
+    mf = mm.astype(np.float64)
+    s1, s2 = sums(mm), sums(2 * mm)
+    if fam == "hadamard":
+        s3 = sums(3 * mm)
+        return np.asarray((15.0 * s1 - 6.0 * s2 + s3) / (6.0 * mf * mf), dtype=np.float64)
+    return np.asarray((4.0 * s1 - s2) / (2.0 * mf * mf), dtype=np.float64)
 
 
 def stationary_variance(
