@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator import smoother as SM
+from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
     DEFAULT_ALPHA,
@@ -163,6 +164,8 @@ class Context:
     plans: dict[str, ChannelPlan] = field(default_factory=dict)
     level_index: dict[tuple[str, int], int] = field(default_factory=dict)
     level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
+    #: failed checks of assumptions found while building the inputs (violations.py)
+    violations: list[Any] = field(default_factory=list)
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -276,6 +279,17 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         assumptions=assumed + vnotes,
         notes=list(aiding.notes),
     )
+    cc = heading.course_check if heading is not None else None
+    if heading is not None and cc is not None and cc.get("passed") is False:
+        span = (float(te[0] + imu.t0), float(te[-1] + imu.t0))
+        ctx.violations.append(
+            V.Violation(
+                "heading",
+                *span,
+                V.TEST_HEADING_COURSE,
+                "; ".join(n for n in heading.notes if n.startswith("check failed")) or str(cc),
+            )
+        )
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
     return ctx
@@ -612,6 +626,10 @@ class FullRun:
     beta_windows: np.ndarray
     links: dict[str, np.ndarray] | None
     notes: list[str]
+    #: (stream, test, detail, evidence span or None) of every failed check of the run
+    check_failures: list[tuple[str, str, str, tuple[float, float] | None]] = field(
+        default_factory=list
+    )
 
 
 def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
@@ -621,6 +639,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
     margins: dict[str, ChannelMargins] = {}
     notes: list[str] = []
+    fails: list[tuple[str, str, str, tuple[float, float] | None]] = []
     for ch in order:
         margins[ch] = mb.evaluate(ctx.plans[ch])
         if ch == "gyro_z" and margins[ch].verdict == "exceeds":
@@ -632,12 +651,16 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     margins = {ch: margins[ch] for ch in ctx.plans}
     bv = mb.body_velocity()
     if bv is not None and bv["dropped"]:
-        notes.append(
+        msg = (
             f"{bv['dropped']} velocity epoch(s) contradict the vehicle bounds and are not "
             "used by the windows"
         )
+        notes.append(msg)
+        fails.append(("velocity", V.TEST_VEHICLE, msg, None))
     beta0, bnotes = _beta_from_windows(ctx, margins)
     notes += bnotes
+    for bn in bnotes:
+        fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
     prior, meas, has = _smoother_inputs(ctx)
     vl = ctx.vehicle.lateral_bound
@@ -669,7 +692,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
                 "neighbours (the miss is beyond that threshold)",
             ),
         )
-    return FullRun(ctx, margins, res, beta0, links, notes)
+    return FullRun(ctx, margins, res, beta0, links, notes, fails)
 
 
 def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:

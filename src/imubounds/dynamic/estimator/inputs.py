@@ -961,6 +961,8 @@ class HeadingInput:
     independent_of_gnss: bool = True
     independent_of_imu: bool = True
     notes: list[str] = field(default_factory=list)
+    #: the signed check against the GNSS course (compass._check_against_course)
+    course_check: dict[str, Any] | None = None
 
 
 def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
@@ -1033,6 +1035,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
         independent_of_gnss=bool(ch.independent_of_gnss),
         independent_of_imu=bool(ch.independent_of_imu),
         notes=list(ch.notes) + list(ch.assumed),
+        course_check=ch.detail.get("gnss_course_check"),
     )
 
 
