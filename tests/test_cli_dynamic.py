@@ -30,7 +30,7 @@ def layout_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _schema(doc: dict, modes: set[str]) -> None:
-    assert doc["schema_version"] == "imubounds-dynamic/2"
+    assert doc["schema_version"] == "imubounds-dynamic/3"
     assert set(doc["modes"]) == modes
     for name, m in doc["modes"].items():
         assert {"margins", "verdict", "budget"} <= set(m)

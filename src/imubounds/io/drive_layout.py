@@ -166,6 +166,10 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "gnss.cep_m": (0.0, False, None),
     "gnss.default_hdop": (0.0, False, None),
     "gnss.vel_sigma_mps": (0.0, False, None),
+    "gnss.time_offset_s": (-60.0, True, 60.0),
+    "gnss.time_offset_bound_s": (0.0, True, 60.0),
+    "heading.time_offset_s": (-60.0, True, 60.0),
+    "heading.time_offset_bound_s": (0.0, True, 60.0),
     "velocity.bound_mps": (0.0, True, None),
     "velocity.scale": (0.0, True, 1.0),
     "heading.deviation_deg": (0.0, True, 180.0),
@@ -187,6 +191,8 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "imu.gyro_turn_on_dps": (0.0, True, None),
     "imu.scale_factor": (0.0, True, 1.0),
     "imu.misalignment_deg": (0.0, True, 90.0),
+    "imu.accel_rrw": (0.0, True, None),
+    "imu.gyro_rrw": (0.0, True, None),
 }
 _PATH_KEYS = ("imu.noise_json", "heading.calibration")
 _INFO_KEYS = ("converted_from", "notes")

@@ -166,6 +166,8 @@ class Context:
     level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
     #: failed checks of assumptions found while building the inputs (violations.py)
     violations: list[Any] = field(default_factory=list)
+    #: clock offsets of the aiding streams (aiding/timing.py)
+    timing: dict[str, Any] = field(default_factory=dict)
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -201,7 +203,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     base = Path(drive.source) if Path(str(drive.source)).is_dir() else None
     noise_terms, assumed = resolve_noise(drive.settings, noise, o, base)
     imu = ImuSeries.from_drive(drive, o["imu_stamp"], vehicle)
-    heading = heading_input(drive, o)
+    drive, heading, timing = _clock_offsets(drive, o)
     te, n_fix, n_vel, n_head = _epochs(drive, heading, imu.t0, o)
     te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
     if te.size < 2:
@@ -261,6 +263,11 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 extra += float(np.max(np.abs(imu.sig[other].y))) + E0[other]
         E0[ch] += cn.misalignment_rad * extra
     aiding = build_aiding(drive, imu.t0, vehicle, alpha, o, heading)
+    k_t = float(-ndtri(alpha.share() / 2 / max(1, len(timing))))
+    for est in timing.values():
+        if est.method != "drive.yaml":
+            est.finalize(k_t)
+    _budget_timing(aiding, vehicle, timing)
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -278,6 +285,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         te=te,
         assumptions=assumed + vnotes,
         notes=list(aiding.notes),
+        timing=timing,
     )
     cc = heading.course_check if heading is not None else None
     if heading is not None and cc is not None and cc.get("passed") is False:
@@ -293,6 +301,57 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
     return ctx
+
+
+def _clock_offsets(drive: Any, o: dict[str, Any]) -> tuple[Any, HeadingInput | None, Any]:
+    """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
+    ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
+    stamps, the heading input, and every stream's offset (stated, or estimated from the
+    data as a diagnostic: :mod:`imubounds.dynamic.aiding.timing`)."""
+    from imubounds.dynamic.aiding import timing as TM
+
+    st = drive.settings
+    timing: dict[str, Any] = {}
+    est: TM.OffsetEstimate | None
+    if drive.gnss is not None:
+        b = st.gnss.time_offset_bound_s
+        if st.gnss.time_offset_s or b is not None:
+            est = TM.OffsetEstimate.stated(float(st.gnss.time_offset_s), float(b or 0.0))
+            drive = TM.shifted(drive, "gnss", est)
+        else:
+            est = TM.estimate_gnss(drive, o["imu_stamp"])
+        if est is not None:
+            timing["gnss"] = est
+    heading = heading_input(drive, o)
+    if heading is not None and heading.t.size:
+        hs = st.heading
+        b = hs.time_offset_bound_s
+        if hs.time_offset_s or b is not None:
+            est = TM.OffsetEstimate.stated(float(hs.time_offset_s), float(b or 0.0))
+            heading = TM.shifted(heading, None, est)
+        else:
+            est = TM.estimate_heading(drive, o["imu_stamp"], heading)
+        if est is not None:
+            timing["heading"] = est
+    return drive, heading, timing
+
+
+def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
+    """What remains of an applied clock offset, times the stream's rate bound, added to
+    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt."""
+    g = timing.get("gnss")
+    if g is not None and g.remainder_s > 0 and ag.has_gnss:
+        dtr = g.remainder_s
+        ag.gnss_h = ag.gnss_h + dtr * veh.max_speed
+        ag.gnss_det += dtr * veh.max_speed
+        if ag.has_gvel:
+            ag.gvel_hi = ag.gvel_hi + dtr * veh.max_accel
+            ag.gvel_h += dtr * veh.max_accel
+            ag.gvel_det += dtr * veh.max_accel
+    h = timing.get("heading")
+    if h is not None and h.remainder_s > 0 and ag.has_heading:
+        ag.head_h = ag.head_h + h.remainder_s * veh.max_rate
+        ag.head_det += h.remainder_s * veh.max_rate
 
 
 def _plan_windows(ctx: Context) -> None:

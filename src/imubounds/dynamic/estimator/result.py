@@ -189,6 +189,12 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         else (float(ctx.te[0] + ctx.imu.t0), float(ctx.te[-1] + ctx.imu.t0))
     )
     viol = collect(run, span)
+    checks: dict[str, Any] = {}
+    if sm is not None:
+        from imubounds.dynamic.estimator.residual_checks import residual_checks
+
+        rv, checks = residual_checks(ctx, sm, ctx.alpha.alpha, span)
+        viol += rv
     out: dict[str, Any] = {
         "mode": "full",
         "guaranteed": not viol,
@@ -196,6 +202,8 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             GUARANTEE_FULL.format(p=p) if not viol else WITHDRAWN_FULL.format(n=len(viol), p=p)
         ),
         "violations": [v.to_dict() for v in viol],
+        "residual_checks": checks,
+        "timing": {k: v.to_dict() for k, v in ctx.timing.items()},
         "alpha": ctx.alpha.to_dict(),
         "assumptions": _assumptions(ctx),
         "notes": ctx.notes + run.notes,
@@ -240,6 +248,10 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     for ch in CHANNELS:
         cn = ctx.noise[ch]
         wander = ctx.k_ps * cn.flicker_sigma() + ctx.D_KR[ch]
+        if cn.drift_bound is not None:
+            # a stated bound on the in-run wander holds even where the noise model
+            # (flicker, K) understates it: the larger of the two
+            wander = max(wander, float(cn.drift_bound))
         if sm is not None and ch in rows:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
@@ -314,6 +326,13 @@ def _assumptions(ctx: Any) -> list[str]:
         a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_bound:g} m/s")
     if not ctx.aiding.has_gnss:
         a.append("no GNSS: positions are relative to the start point (0, 0)")
+    else:
+        a.append(
+            "GNSS errors: isotropic Gaussian, independent from fix to fix, horizontal "
+            "position error per axis sigma = DRMS / sqrt 2 (radius from the Rayleigh law), "
+            "velocity error per component sigma = gnss.vel_sigma_mps; the residual checks "
+            "test the runs and the tails of this model (residual_checks)"
+        )
     if ctx.aiding.head_from_course:
         a.append(
             "the vehicle does not reverse (horizontal velocity pointing forward): heading "
