@@ -37,9 +37,11 @@ from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator.violations import Violation
 
 RUN_LENGTHS = (1, 4, 16, 64)
+STEP_LENGTHS = (4, 8, 16, 32)
 TAIL_K = 3.5
 TEST_RUNS = "residuals of runs of measurements against the smoothed states"
 TEST_TAILS = "tails of the residuals (Gaussian error model)"
+TEST_STEP = "GNSS position step against the integrated GNSS velocity"
 
 
 @dataclass
@@ -80,7 +82,8 @@ def _families(ctx: Any, sm: Any) -> list[Family]:
 
     def centre_half(i: np.ndarray, v: int) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = X[i, v, 0], X[i, v, 1]
-        return 0.5 * (lo + hi), 0.5 * (hi - lo)
+        with np.errstate(invalid="ignore"):  # unbounded intervals: dropped below
+            return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
     if ag.has_gnss and ag.gnss_sig.size == ag.gnss_t.size:
         i, ok = at(ag.gnss_t)
@@ -116,10 +119,102 @@ def _families(ctx: Any, sm: Any) -> list[Family]:
     return [f for f in fams if f.t.size >= 2]
 
 
+def step_check(
+    ctx: Any, a_fam: float, t_span: tuple[float, float]
+) -> tuple[list[Violation], dict[str, Any]]:
+    """A step in the GNSS positions (multipath moving a run of fixes) against the GNSS
+    velocity integrated by the trapezoid rule: ``q_i = p_i - P_i`` (P the integral) is
+    constant but for noise, so the difference of the means of ``q`` over ``m`` fixes
+    before and after each split must stay within ``det + k sigma``: ``det`` the
+    trapezoid's error bound (max jerk x dt^3 / 12 per pair over the 2m pairs), sigma
+    from the positions' and the velocities' stated Gaussian errors (the velocity's
+    coefficient bounded by dt). Runs of consecutive fixes only (gaps > 2.5 x the median
+    interval split them)."""
+    from scipy.stats import norm
+
+    ag = ctx.aiding
+    if not (ag.has_gnss and ag.has_gvel) or ag.gvel_sig.size != ag.gnss_t.size:
+        return [], {}
+    t = ag.gnss_t
+    okv = ag.gvel_ok
+    dt = np.diff(t)
+    if dt.size < 8:
+        return [], {}
+    med = float(np.median(dt))
+    jerk = ctx.vehicle.max_jerk
+    # segments of consecutive fixes with velocities
+    brk = np.flatnonzero((dt > 2.5 * med) | ~okv[1:] | ~okv[:-1])
+    bounds = np.concatenate([[0], brk + 1, [t.size]])
+    steps: dict[str, list[float]] = {str(m): [] for m in STEP_LENGTHS}
+    cand = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        n = b - a
+        if n < 2 * STEP_LENGTHS[0]:
+            continue
+        tt = t[a:b]
+        d = np.diff(tt)
+        for ax, (p, v) in enumerate(((ag.gnss_e, ag.gvel_e), (ag.gnss_n, ag.gvel_n))):
+            pp, vv = p[a:b], v[a:b]
+            P = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * d)])
+            q = pp - P
+            cq = np.concatenate([[0.0], np.cumsum(q)])
+            cs = np.concatenate([[0.0], np.cumsum(ag.gnss_sig[a:b] ** 2)])
+            cv = np.concatenate([[0.0], np.cumsum((ag.gvel_sig[a:b] * np.r_[d, d[-1]]) ** 2)])
+            cd = np.concatenate([[0.0], np.cumsum(jerk * d**3 / 12.0)])
+            for m in STEP_LENGTHS:
+                if 2 * m > n:
+                    break
+                i = np.arange(m, n - m + 1, max(1, m // 2))
+                D = (cq[i + m] - cq[i]) / m - (cq[i] - cq[i - m]) / m
+                var = (cs[i + m] - cs[i - m]) / m**2 + (cv[i + m] - cv[i - m])
+                det = cd[np.minimum(i + m - 1, n - 1)] - cd[i - m]
+                cand.append((a, ax, m, i, D, var, det))
+    n_tests = sum(c[3].size for c in cand)
+    if not n_tests:
+        return [], {}
+    k = float(norm.isf(a_fam / (2 * n_tests)))
+    worst: tuple[float, int, int, int, float, float] | None = None
+    for a, ax, m, i, D, var, det in cand:
+        lim = det + k * np.sqrt(var)
+        steps[str(m)].extend(lim.tolist())
+        ex = np.abs(D) - lim
+        j = int(np.argmax(ex))
+        if ex[j] > 0 and (worst is None or ex[j] / lim[j] > worst[0]):
+            worst = (float(ex[j] / lim[j]), a + int(i[j]), m, ax, float(D[j]), float(lim[j]))
+    t0 = ctx.imu.t0
+    summary = {
+        "unit": "m",
+        "level": a_fam,
+        "k": k,
+        "steps_unnoticed": {m: float(np.median(v)) for m, v in steps.items() if v},
+        "steps_rule": "median over the splits of det + k sigma for m fixes before and after "
+        "a split: a position step of a run at least m fixes long and smaller than this "
+        "goes unnoticed by this test",
+    }
+    viol = []
+    if worst is not None:
+        _, i0, m, ax, D, lim = worst
+        ta, tb = float(t[i0 - m] + t0), float(t[min(i0 + m - 1, t.size - 1)] + t0)
+        viol.append(
+            Violation(
+                "gnss position",
+                *t_span,
+                TEST_STEP,
+                f"at t = {t[i0] + t0:.2f} s the mean position of the {m} fixes after moves "
+                f"{D:+.3g} m {['east', 'north'][ax]} against the {m} before, relative to the "
+                f"integrated GNSS velocity, beyond the {lim:.3g} m the error model allows "
+                "(multipath or a position step)",
+                (ta, tb),
+            )
+        )
+    return viol, summary
+
+
 def residual_checks(
     ctx: Any, sm: Any, alpha: float, t_span: tuple[float, float]
 ) -> tuple[list[Violation], dict[str, Any]]:
-    """Violations of the residual checks and their summary (dynamic.json ``checks``)."""
+    """Violations of the residual checks and their summary (dynamic.json
+    ``residual_checks``)."""
     from scipy.stats import binom, norm
 
     fams = _families(ctx, sm)
@@ -128,7 +223,13 @@ def residual_checks(
     summary: dict[str, Any] = {}
     if not fams:
         return viol, summary
-    a_fam = alpha / (2 * len(fams))  # runs and tails of every family
+    has_step = ctx.aiding.has_gnss and ctx.aiding.has_gvel
+    a_fam = alpha / (2 * len(fams) + int(has_step))  # runs and tails of every family
+    if has_step:
+        sv, ss = step_check(ctx, a_fam, t_span)
+        viol += sv
+        if ss:
+            summary["gnss position step"] = ss
     for f in fams:
         n, axes = f.r.shape
         wins = _windows(n)

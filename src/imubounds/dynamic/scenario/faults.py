@@ -105,12 +105,18 @@ def imu_stamp_start(drive: Any) -> Any:
 
 #: name -> (function, keyword arguments) of the fault suite's cases
 FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
+    "gnss_lag_0.1": (gnss_lag, {"lag_s": 0.1}),
     "gnss_lag_0.3": (gnss_lag, {"lag_s": 0.3}),
+    "gnss_lag_0.5": (gnss_lag, {"lag_s": 0.5}),
+    "compass_lag_0.1": (heading_lag, {"lag_s": 0.1}),
     "compass_lag_0.3": (heading_lag, {"lag_s": 0.3}),
+    "compass_lag_0.5": (heading_lag, {"lag_s": 0.5}),
     "compass_offset_3": (heading_offset, {"offset_deg": 3.0}),
     "compass_offset_8": (heading_offset, {"offset_deg": 8.0}),
     "compass_two_cycle_2": (heading_two_cycle, {"amplitude_deg": 2.0}),
+    "multipath_5m": (multipath, {"step_m": 5.0, "t0_s": 100.0}),
     "multipath_8m": (multipath, {"step_m": 8.0, "t0_s": 100.0}),
+    "multipath_12m": (multipath, {"step_m": 12.0, "t0_s": 100.0}),
     "student_t": (student_t, {"dof": 3.0}),
     "lever_arm_1.5": (lever_arm, {"length_m": 1.5}),
     "imu_stamp_start": (imu_stamp_start, {}),
