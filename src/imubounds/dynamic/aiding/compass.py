@@ -666,6 +666,8 @@ COURSE_CHECK_BINS = 12
 #: the check against the GNSS course uses epochs at least this fast (m/s) and this many
 #: times the lateral speed bound (the sideslip bound asin(lateral / speed) stays small)
 COURSE_CHECK_MIN_SPEED = 5.0
+#: fixes spanned by one chord of the course from positions (no receiver velocity)
+COURSE_CHORD = 5
 
 
 def course_noise(
@@ -673,9 +675,9 @@ def course_noise(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """(t, course rad clockwise from north, 1-sigma of the course rad, a lower bound of
     the speed m/s at 3 sigma) of the GNSS while faster than ``min_speed``: from the
-    receiver's velocity (sigma = vel sigma / speed) or from consecutive fixes (sigma =
-    sqrt(2) x position sigma per axis / distance), the GNSS errors being isotropic
-    Gaussian (drive.yaml gnss: cep_m, vel_sigma_mps)."""
+    receiver's velocity (sigma = vel sigma / speed) or from chords of
+    :data:`COURSE_CHORD` fixes (sigma = sqrt(2) x position sigma per axis / length),
+    the GNSS errors being isotropic Gaussian (drive.yaml gnss: cep_m, vel_sigma_mps)."""
     from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 
     g = drive.gnss
@@ -703,19 +705,26 @@ def course_noise(
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
     hd = np.where(np.isfinite(hd) & (hd > 0), hd, float(st.default_hdop))
     s_ax = hd * float(st.cep_m) / math.sqrt(2.0 * math.log(2.0))
-    de, dn = np.diff(e), np.diff(n)
+    # chords of COURSE_CHORD fixes (not overlapping): the chord of an arc points along
+    # its tangent at the middle, and its noise is COURSE_CHORD times smaller
+    c = COURSE_CHORD
+    i0 = np.arange(0, e.size - c, c)
+    i1 = i0 + c
+    de, dn = e[i1] - e[i0], n[i1] - n[i0]
+    dt = t[i1] - t[i0]
     dist = np.hypot(de, dn)
+    med = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        speed = dist / np.diff(t)
-    keep = np.isfinite(speed) & (speed >= min_speed)
+        speed = dist / dt
+    keep = np.isfinite(speed) & (speed >= min_speed) & (dt <= 1.5 * c * med)
     if keep.sum() < 3:
         return None
-    s_d = np.hypot(s_ax[1:], s_ax[:-1])[keep]
+    s_d = np.hypot(s_ax[i0], s_ax[i1])[keep]
     return (
-        0.5 * (t[1:] + t[:-1])[keep],
+        0.5 * (t[i0] + t[i1])[keep],
         np.arctan2(de, dn)[keep] % TWO_PI,
         s_d / dist[keep],
-        speed[keep] - 3.0 * s_d / np.diff(t)[keep],
+        speed[keep] - 3.0 * s_d / dt[keep],
     )
 
 

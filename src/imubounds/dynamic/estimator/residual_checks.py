@@ -42,6 +42,9 @@ TAIL_K = 3.5
 TEST_RUNS = "residuals of runs of measurements against the smoothed states"
 TEST_TAILS = "tails of the residuals (Gaussian error model)"
 TEST_STEP = "GNSS position step against the integrated GNSS velocity"
+TEST_FIX = "GNSS fix against its neighbours and the integrated GNSS velocity"
+#: neighbours on each side of a fix in the single-fix test
+NB = 4
 
 
 @dataclass
@@ -147,6 +150,7 @@ def step_check(
     bounds = np.concatenate([[0], brk + 1, [t.size]])
     steps: dict[str, list[float]] = {str(m): [] for m in STEP_LENGTHS}
     cand = []
+    single: list[tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray]] = []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         n = b - a
         if n < 2 * STEP_LENGTHS[0]:
@@ -169,9 +173,21 @@ def step_check(
                 var = (cs[i + m] - cs[i - m]) / m**2 + (cv[i + m] - cv[i - m])
                 det = cd[np.minimum(i + m - 1, n - 1)] - cd[i - m]
                 cand.append((a, ax, m, i, D, var, det))
+            # each fix against the mean of its NB neighbours on each side
+            M = NB
+            if n >= 2 * M + 1:
+                jn = np.arange(M, n - M)
+                r = q[jn] - (cq[jn + M + 1] - cq[jn - M] - q[jn]) / (2 * M)
+                sj2 = ag.gnss_sig[a:b][jn] ** 2
+                var = sj2 + (cs[jn + M + 1] - cs[jn - M] - sj2) / (2 * M) ** 2 + (
+                    cv[jn + M + 1] - cv[jn - M]
+                )
+                det = cd[jn + M] - cd[jn - M]
+                single.append((a + jn, ax, r, np.sqrt(var), det))
     n_tests = sum(c[3].size for c in cand)
     if not n_tests:
         return [], {}
+    a_fam = a_fam / 3  # steps, single fixes, tails
     k = float(norm.isf(a_fam / (2 * n_tests)))
     worst: tuple[float, int, int, int, float, float] | None = None
     for a, ax, m, i, D, var, det in cand:
@@ -192,6 +208,46 @@ def step_check(
         "goes unnoticed by this test",
     }
     viol = []
+    if single:
+        from scipy.stats import binom
+
+        idx = np.concatenate([x[0] for x in single])
+        r = np.concatenate([x[2] for x in single])
+        sd = np.concatenate([x[3] for x in single])
+        det = np.concatenate([x[4] for x in single])
+        k1 = float(norm.isf(a_fam / (2 * r.size)))
+        ex = np.abs(r) - det - k1 * sd
+        j = int(np.argmax(ex))
+        summary["single_fix_unnoticed_m"] = float(np.median(det + k1 * sd))
+        if ex[j] > 0:
+            tj = float(t[idx[j]] + t0)
+            viol.append(
+                Violation(
+                    "gnss position",
+                    *t_span,
+                    TEST_FIX,
+                    f"the fix at t = {tj:.2f} s is {r[j]:+.3g} m off the mean of its "
+                    f"{2 * NB} neighbours (relative to the integrated GNSS velocity), beyond "
+                    f"the {float(det[j] + k1 * sd[j]):.3g} m the error model allows",
+                    (tj, tj),
+                )
+            )
+        p_tail = 2 * float(norm.sf(TAIL_K))
+        n_tail = int(np.sum(np.maximum(np.abs(r) - det, 0.0) / sd > TAIL_K))
+        q_tail = int(binom.isf(a_fam, r.size, p_tail))
+        summary["tail_count"], summary["tail_limit"] = n_tail, q_tail
+        if n_tail > q_tail:
+            viol.append(
+                Violation(
+                    "gnss position",
+                    *t_span,
+                    TEST_TAILS,
+                    f"{n_tail} of {r.size} fix residual(s) against their neighbours beyond "
+                    f"{TAIL_K:g} sigma, more than the {q_tail} the Gaussian error model "
+                    "allows: the GNSS errors have heavier tails than stated",
+                    (float(t[0] + t0), float(t[-1] + t0)),
+                )
+            )
     if worst is not None:
         _, i0, m, ax, D, lim = worst
         ta, tb = float(t[i0 - m] + t0), float(t[min(i0 + m - 1, t.size - 1)] + t0)
