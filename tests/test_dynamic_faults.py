@@ -173,7 +173,8 @@ def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, caps
     h["heading_deg"] = (h["heading_deg"] + 8.0) % 360.0
     h.to_csv(trip / "heading.csv", index=False)
     out = tmp_path / "out"
-    assert main(["dynamic", str(trip), "-o", str(out), "--no-report"]) == 0
+    args = ["dynamic", str(trip), "-o", str(out), "--mode", "full", "--no-report", "--no-plot"]
+    assert main(args) == 0
     text = capsys.readouterr()
     lines = (text.out + text.err).splitlines()
     i = next(k for k, x in enumerate(lines) if "NOT GUARANTEED" in x)

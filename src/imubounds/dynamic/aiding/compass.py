@@ -666,6 +666,9 @@ COURSE_CHECK_BINS = 12
 #: the check against the GNSS course uses epochs at least this fast (m/s) and this many
 #: times the lateral speed bound (the sideslip bound asin(lateral / speed) stays small)
 COURSE_CHECK_MIN_SPEED = 5.0
+#: share of the trip's alpha given to the check against the GNSS course (the residual
+#: checks get another quarter; dynamic-method.md 5b)
+COURSE_CHECK_SHARE = 0.25
 #: fixes spanned by one chord of the course from positions (no receiver velocity)
 COURSE_CHORD = 5
 
@@ -737,7 +740,8 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     asin(lateral bound / speed) at the speed's 3-sigma lower bound, isotropic Gaussian
     GNSS errors), the mean of ``d`` over all the epochs and over each of
     :data:`COURSE_CHECK_BINS` heading bins lies within the deviation bound + the mean
-    sideslip bound + k sigma_mean, k two-sided at level ``alpha`` split over the
+    sideslip bound + k sigma_mean, k two-sided at level ``alpha`` x
+    :data:`COURSE_CHECK_SHARE` split over the
     1 + bins tests. A larger signed mean is a constant offset (mount, declination) or a
     deviation shape the bound does not cover: ``detail['gnss_course_check']['passed']``
     is False and the check says which.
@@ -768,7 +772,8 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     slip = np.arcsin(np.minimum(1.0, lat / np.maximum(v_lo, 1e-9)))
     from scipy.stats import norm
 
-    k = float(norm.isf(alpha / (2.0 * (1 + COURSE_CHECK_BINS))))
+    level = alpha * COURSE_CHECK_SHARE
+    k = float(norm.isf(level / (2.0 * (1 + COURSE_CHECK_BINS))))
     dev = ch.deviation_bound_rad
 
     def test(sel: np.ndarray) -> tuple[float, float]:
@@ -799,7 +804,7 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
         "rule": (
             f"signed mean of heading - GNSS course (speed >= {vmin:g} m/s) within deviation "
             f"bound + sideslip bound + k sigma of the mean, k = {k:.3g} (two-sided, level "
-            f"{alpha:g} over 1 + {COURSE_CHECK_BINS} heading bins)"
+            f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins)"
         ),
     }
     if abs(m_all) > lim_all:

@@ -1007,6 +1007,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
             calibration=cal,
             declination_deg=opts.get("declination_deg"),
             deviation_deg=opts.get("heading_deviation_deg"),
+            alpha=float(opts.get("alpha") or 0.01),
         )
     except (InputError, AnalysisError) as exc:
         explicit = (

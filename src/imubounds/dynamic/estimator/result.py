@@ -192,8 +192,9 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     checks: dict[str, Any] = {}
     if sm is not None:
         from imubounds.dynamic.estimator.residual_checks import residual_checks
+        from imubounds.dynamic.estimator.violations import CHECK_SHARE
 
-        rv, checks = residual_checks(ctx, sm, ctx.alpha.alpha, span)
+        rv, checks = residual_checks(ctx, sm, ctx.alpha.alpha * CHECK_SHARE, span)
         viol += rv
     out: dict[str, Any] = {
         "mode": "full",
