@@ -669,6 +669,9 @@ COURSE_CHECK_MIN_SPEED = 5.0
 #: share of the trip's alpha given to the check against the GNSS course (the residual
 #: checks get another quarter; dynamic-method.md 5b)
 COURSE_CHECK_SHARE = 0.25
+#: turns for the signed test of the check against the GNSS course: |yaw rate| at least
+#: this (deg/s) and half the trip's 99th percentile
+TURN_MIN_DPS = 2.0
 #: fixes spanned by one chord of the course from positions (no receiver velocity)
 COURSE_CHORD = 5
 
@@ -739,12 +742,13 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     within its deviation bound plus white Gaussian noise, the sideslip within
     asin(lateral bound / speed) at the speed's 3-sigma lower bound, isotropic Gaussian
     GNSS errors), the mean of ``d`` over all the epochs and over each of
-    :data:`COURSE_CHECK_BINS` heading bins lies within the deviation bound + the mean
+    :data:`COURSE_CHECK_BINS` heading bins, and of ``d`` x sign(yaw rate) over the turns
+    (a clock offset between the streams), lies within the deviation bound + the mean
     sideslip bound + k sigma_mean, k two-sided at level ``alpha`` x
-    :data:`COURSE_CHECK_SHARE` split over the
-    1 + bins tests. A larger signed mean is a constant offset (mount, declination) or a
-    deviation shape the bound does not cover: ``detail['gnss_course_check']['passed']``
-    is False and the check says which.
+    :data:`COURSE_CHECK_SHARE` split over the 2 + bins tests. A larger signed mean is a
+    constant offset (mount, declination), a deviation shape the bound does not cover or
+    a clock offset: ``detail['gnss_course_check']['passed']`` is False and the check
+    says which.
     """
     veh = drive.settings.vehicle
     lat = veh.lateral_speed_bound_mps
@@ -773,16 +777,30 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     from scipy.stats import norm
 
     level = alpha * COURSE_CHECK_SHARE
-    k = float(norm.isf(level / (2.0 * (1 + COURSE_CHECK_BINS))))
+    k = float(norm.isf(level / (2.0 * (2 + COURSE_CHECK_BINS))))
     dev = ch.deviation_bound_rad
 
-    def test(sel: np.ndarray) -> tuple[float, float]:
-        m = float(np.mean(d[sel]))
+    def test(sel: np.ndarray, sign: np.ndarray | None = None) -> tuple[float, float]:
+        x = d[sel] if sign is None else d[sel] * sign[sel]
+        m = float(np.mean(x))
         noise = k * math.sqrt(float(np.sum(sig2[sel]))) / int(sel.sum())
         lim = dev + float(np.mean(slip[sel])) + noise
         return m, lim
 
     m_all, lim_all = test(np.ones(d.size, dtype=bool))
+    # in the turns, signed by the turn: a clock offset between the two streams shows
+    # as offset x yaw rate (the yaw rate from the IMU's gyro, independent of d's noise)
+    turn: dict[str, float] | None = None
+    imu = drive.imu
+    if imu is not None and np.isfinite(imu.gyro[:, 2]).all() and imu.t.size > 1:
+        r = np.interp(tc, imu.t, imu.gyro[:, 2])
+        thr = max(math.radians(TURN_MIN_DPS), 0.5 * float(np.percentile(np.abs(r), 99)))
+        sel_t = np.abs(r) >= thr
+        if sel_t.sum() >= 5:
+            m_t, lim_t = test(sel_t, np.sign(r))
+            turn = {"mean_diff_deg": math.degrees(m_t), "limit_deg": math.degrees(lim_t),
+                    "n": int(sel_t.sum()), "mean_rate_dps": math.degrees(
+                        float(np.mean(np.abs(r[sel_t]))))}
     worst: list[tuple[float, float, float]] = []
     bins = np.floor(np.mod(h, TWO_PI) / (TWO_PI / COURSE_CHECK_BINS)).astype(int)
     for b in range(COURSE_CHECK_BINS):
@@ -791,7 +809,8 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             m, lim = test(sel)
             if abs(m) > lim:
                 worst.append((b * 360.0 / COURSE_CHECK_BINS, m, lim))
-    passed = abs(m_all) <= lim_all and not worst
+    turn_failed = turn is not None and abs(turn["mean_diff_deg"]) > turn["limit_deg"]
+    passed = abs(m_all) <= lim_all and not worst and not turn_failed
     ch.detail["gnss_course_check"] = {
         "n": int(d.size),
         "mean_diff_deg": math.degrees(m_all),
@@ -800,11 +819,13 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             {"heading_from_deg": a, "mean_diff_deg": math.degrees(m), "limit_deg": math.degrees(li)}
             for a, m, li in worst
         ],
+        "turns": turn,
         "passed": passed,
         "rule": (
             f"signed mean of heading - GNSS course (speed >= {vmin:g} m/s) within deviation "
             f"bound + sideslip bound + k sigma of the mean, k = {k:.3g} (two-sided, level "
-            f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins)"
+            f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins + the turns signed by the "
+            "yaw rate)"
         ),
     }
     if abs(m_all) > lim_all:
@@ -813,6 +834,15 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             f"{math.degrees(m_all):+.2f} deg, beyond the {math.degrees(lim_all):.2f} deg its "
             "bounds allow: a constant heading offset (declination, mount, "
             "heading.alignment_deg)"
+        )
+    elif turn_failed and turn is not None:
+        lag = turn["mean_diff_deg"] / max(turn["mean_rate_dps"], 1e-9)
+        ch.notes.append(
+            f"check failed: in the turns the corrected heading differs from the GNSS course "
+            f"by a mean {turn['mean_diff_deg']:+.2f} deg signed by the turn, beyond the "
+            f"{turn['limit_deg']:.2f} deg its bounds allow: a clock offset between the "
+            f"heading and the GNSS (about {lag:+.2f} s at the mean turn rate "
+            f"{turn['mean_rate_dps']:.1f} deg/s), or a deviation the bound does not cover"
         )
     elif worst:
         ch.notes.append(
