@@ -174,6 +174,12 @@ def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, caps
     h = pd.read_csv(trip / "heading.csv")
     h["heading_deg"] = (h["heading_deg"] + 8.0) % 360.0
     h.to_csv(trip / "heading.csv", index=False)
+    # drive.yaml's clock keys are read and applied (the stamps are right: offset 0)
+    import yaml
+
+    doc = yaml.safe_load((trip / "drive.yaml").read_text())
+    doc["gnss"].update(time_offset_s=0.0, time_offset_bound_s=0.01)
+    (trip / "drive.yaml").write_text(yaml.safe_dump(doc))
     out = tmp_path / "out"
     args = ["dynamic", str(trip), "-o", str(out), "--mode", "full", "--no-report", "--no-plot"]
     assert main(args) == 0
@@ -181,5 +187,10 @@ def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, caps
     lines = (text.out + text.err).splitlines()
     i = next(k for k, x in enumerate(lines) if "NOT GUARANTEED" in x)
     assert all("consistent" not in x and "exceeds" not in x for x in lines[:i])
+    import json
+
+    full = json.loads((out / "dynamic.json").read_text())["modes"]["full"]
+    assert full["timing"]["gnss"]["method"] == "drive.yaml"
+    assert full["timing"]["gnss"]["interval_s"] == pytest.approx([-0.01, 0.01])
     st = pd.read_csv(out / "states.csv")
     assert "guaranteed" in st.columns and (st["guaranteed"] == 0).all()
