@@ -8,8 +8,9 @@ declination drift, fitted) plus noise:
 
     da_i = b dt_i + G(t_{i+1} - L) - G(t_i - L) + e_i,     G(t) = int_0^t r dt'
 
-:func:`estimate_offset` takes the ``L`` of least squares on a grid of 2.5 ms over
-``[-max_abs, max_abs]`` (refined by a parabola), and its standard deviation from the
+:func:`estimate_offset` takes the ``L`` of least squares on a grid of 20 ms over
+``[-max_abs, max_abs]``, then of 2.5 ms within 0.1 s of its minimum (refined by a
+parabola; streams faster than 1 Hz thinned to 1 s steps), and its standard deviation from the
 linearised variance ``s^2 / sum J_i^2`` (``J_i = dG_i/dL``, ``s^2`` the larger of the
 stated and the fitted residual variance, doubled for the correlation of adjacent
 increments) or, when larger, from a delete-a-block jackknife over 8 blocks of the trip
@@ -31,6 +32,10 @@ import numpy as np
 GRID_STEP_S = 0.0025
 MAX_OFFSET_S = 1.0
 JACKKNIFE_BLOCKS = 8
+COARSE_STEP_S = 0.02
+FINE_HALF_S = 0.1
+#: a faster stream is thinned to epochs this far apart (s)
+MIN_STEP_S = 1.0
 
 
 @dataclass
@@ -126,6 +131,14 @@ def estimate_offset(
     t, a, sig, dd = t[inside], a[inside], sig[inside], dd[inside]
     if t.size < 10:
         return None
+    med = float(np.median(np.diff(t)))
+    if med < MIN_STEP_S:
+        # a fast stream: epochs MIN_STEP_S apart (the increments' noise does not shrink
+        # with the step, their signal does: longer steps tell the offset better)
+        keep = np.arange(0, t.size, int(round(MIN_STEP_S / med)))
+        t, a, sig, dd = t[keep], a[keep], sig[keep], dd[keep]
+        if t.size < 10:
+            return None
     dt = np.diff(t)
     med = float(np.median(dt))
     ok = (dt > 0) & (dt <= 2.5 * med)
@@ -163,7 +176,10 @@ def estimate_offset(
                 L += 0.5 * GRID_STEP_S * (c0 - c2) / den
         return L
 
-    grid = np.arange(-max_abs, max_abs + GRID_STEP_S / 2, GRID_STEP_S)
+    # coarse grid over +-max_abs, then the fine grid around its minimum
+    coarse = np.arange(-max_abs, max_abs + COARSE_STEP_S / 2, COARSE_STEP_S)
+    c0 = float(coarse[int(np.argmin(sse(coarse)))])
+    grid = np.arange(c0 - FINE_HALF_S, c0 + FINE_HALF_S + GRID_STEP_S / 2, GRID_STEP_S)
     terms = sse_all(grid)  # (grid, pairs)
     L = argmin(terms.sum(axis=1))
     # delete-a-block jackknife: the IMU's errors are coloured (flicker), which the
