@@ -82,7 +82,8 @@ def run(case: str, seed: int) -> dict[str, Any]:
 def main() -> None:
     from imubounds.dynamic.scenario.faults import FAULTS
 
-    cases = sys.argv[1].split(",") if len(sys.argv) > 1 else ["clean", *FAULTS, "consumer_30min"]
+    every = ["clean", *FAULTS, "consumer_30min"]
+    cases = sys.argv[1].split(",") if len(sys.argv) > 1 and sys.argv[1] else every
     seeds = [int(s) for s in sys.argv[2].split(",")] if len(sys.argv) > 2 else [1, 2, 3]
     for c in cases:
         for s in seeds:
