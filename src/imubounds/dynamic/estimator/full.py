@@ -348,6 +348,9 @@ def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
             ag.gvel_hi = ag.gvel_hi + dtr * veh.max_accel
             ag.gvel_h += dtr * veh.max_accel
             ag.gvel_det += dtr * veh.max_accel
+        if ag.has_heading and ag.head_from_course:
+            # the heading from the GNSS course turns with the vehicle: + r_max dt
+            ag.head_h = ag.head_h + dtr * veh.max_rate
     h = timing.get("heading")
     if h is not None and h.remainder_s > 0 and ag.has_heading:
         ag.head_h = ag.head_h + h.remainder_s * veh.max_rate

@@ -99,8 +99,9 @@ def collect(run: Any, t_span: tuple[float, float]) -> list[Violation]:
                     a,
                     b,
                     TEST_VERDICT,
-                    f"{ch}: some window's error lies outside the stationary band: the "
-                    "budget the intervals are built from does not hold for this channel",
+                    f"{ch}: some window's error lies outside the stationary band (the "
+                    "verdict stands: it is the finding); the budget the states, links and "
+                    "bias intervals are built from does not hold for this channel",
                 )
             )
     for v in getattr(run.ctx, "violations", []):
