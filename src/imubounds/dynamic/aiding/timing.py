@@ -8,13 +8,14 @@ declination drift, fitted) plus noise:
 
     da_i = b dt_i + G(t_{i+1} - L) - G(t_i - L) + e_i,     G(t) = int_0^t r dt'
 
-:func:`estimate_offset` takes the ``L`` of least squares on a grid of 20 ms over
-``[-max_abs, max_abs]``, then of 2.5 ms within 0.1 s of its minimum (refined by a
+:func:`estimate_offset` takes the ``L`` of least squares on a grid of 50 ms over
+``[-max_abs, max_abs]``, then of 2.5 ms within 0.06 s of its minimum (refined by a
 parabola; streams faster than 1 Hz thinned to 1 s steps), and its standard deviation from the
 linearised variance ``s^2 / sum J_i^2`` (``J_i = dG_i/dL``, ``s^2`` the larger of the
 stated and the fitted residual variance, doubled for the correlation of adjacent
 increments) or, when larger, from a delete-a-block jackknife over 8 blocks of the trip
-(the IMU's coloured errors); the interval is ``offset +- (k sd + det + grid step)``, det
+(the IMU's coloured errors; the blocks' minima are searched within the fine window, so
+a wider spread is clipped and the sd is then a lower bound); the interval is ``offset +- (k sd + det + grid step)``, det
 the effect of the stream's bounded deterministic error (sideslip, compass deviation).
 True time = stamp - ``offset_s``. An estimate is reported, not applied
 (:meth:`OffsetEstimate.finalize`); an offset stated in drive.yaml is applied and its
@@ -32,8 +33,8 @@ import numpy as np
 GRID_STEP_S = 0.0025
 MAX_OFFSET_S = 1.0
 JACKKNIFE_BLOCKS = 8
-COARSE_STEP_S = 0.02
-FINE_HALF_S = 0.1
+COARSE_STEP_S = 0.05
+FINE_HALF_S = 0.06
 #: a faster stream is thinned to epochs this far apart (s)
 MIN_STEP_S = 1.0
 
