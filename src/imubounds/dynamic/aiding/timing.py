@@ -16,8 +16,8 @@ stated and the fitted residual variance, doubled for the correlation of adjacent
 increments) or, when larger, from a delete-a-block jackknife over 8 blocks of the trip
 (the IMU's coloured errors; the blocks' minima are searched within the fine window, so
 a wider spread is clipped and the sd is then a lower bound); the interval is
-``offset +- (k sd + det + grid step)``, det the effect of the stream's bounded deterministic error (sideslip, compass deviation).
-True time = stamp - ``offset_s``. An estimate is reported, not applied
+``offset +- (k sd + det + grid step)``, det the effect of the stream's bounded
+deterministic error (sideslip, compass deviation). True time = stamp - ``offset_s``. An estimate is reported, not applied
 (:meth:`OffsetEstimate.finalize`); an offset stated in drive.yaml is applied and its
 bound budgeted.
 """
