@@ -17,9 +17,9 @@ increments) or, when larger, from a delete-a-block jackknife over 8 blocks of th
 (the IMU's coloured errors; the blocks' minima are searched within the fine window, so
 a wider spread is clipped and the sd is then a lower bound); the interval is
 ``offset +- (k sd + det + grid step)``, det the effect of the stream's bounded
-deterministic error (sideslip, compass deviation). True time = stamp - ``offset_s``. An estimate is reported, not applied
-(:meth:`OffsetEstimate.finalize`); an offset stated in drive.yaml is applied and its
-bound budgeted.
+deterministic error (sideslip, compass deviation). True time = stamp - ``offset_s``.
+An estimate is reported, not applied (:meth:`OffsetEstimate.finalize`); an offset
+stated in drive.yaml is applied and its bound budgeted.
 """
 
 from __future__ import annotations
