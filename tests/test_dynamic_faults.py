@@ -194,3 +194,14 @@ def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, caps
     assert full["timing"]["gnss"]["interval_s"] == pytest.approx([-0.01, 0.01])
     st = pd.read_csv(out / "states.csv")
     assert "guaranteed" in st.columns and (st["guaranteed"] == 0).all()
+
+
+@pytest.mark.parametrize("lag", [0.0, 0.3])
+def test_relative_clock_offset_of_the_heading(base: Any, lag: float) -> None:
+    """The heading's offset relative to the GNSS, from the turns: a compass 0.3 s late is
+    estimated within 0.05 s, and the interval holds the injected lag."""
+    d = dynamic_margins(F.heading_lag(base, lag) if lag else base).to_dict()
+    rel = d["timing"]["heading_vs_gnss"]
+    assert rel["applied"] is False and rel["offset_s"] == 0.0
+    assert abs(rel["estimate_s"] - lag) <= 0.05, rel
+    assert rel["interval_s"][0] <= lag <= rel["interval_s"][1]

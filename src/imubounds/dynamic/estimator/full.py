@@ -333,7 +333,31 @@ def _clock_offsets(drive: Any, o: dict[str, Any]) -> tuple[Any, HeadingInput | N
             est = TM.estimate_heading(drive, o["imu_stamp"], heading)
         if est is not None:
             timing["heading"] = est
+        rel = _relative_offset(heading)
+        if rel is not None:
+            timing["heading_vs_gnss"] = rel
     return drive, heading, timing
+
+
+def _relative_offset(heading: HeadingInput) -> Any:
+    """The heading's clock offset relative to the GNSS, from the signed turn test of the
+    check against the GNSS course (``compass._check_against_course``): in the turns
+    ``d x sign(r) = offset x |r|`` within the check's limit, so the offset is the mean
+    over the mean turn rate, its interval the limit over that rate. Reported (a
+    diagnostic), not applied."""
+    from imubounds.dynamic.aiding import timing as TM
+
+    cc = heading.course_check or {}
+    tu = cc.get("turns")
+    if not tu or not tu.get("mean_rate_dps"):
+        return None
+    rate = float(tu["mean_rate_dps"])
+    off, half = float(tu["mean_diff_deg"]) / rate, float(tu["limit_deg"]) / rate
+    return TM.OffsetEstimate(
+        off, 0.0, "heading minus GNSS course in the turns over the mean turn rate "
+        "(heading relative to the GNSS)", False, int(tu["n"]), half, off - half, off + half,
+        "relative to the GNSS, not the IMU: reported, not applied",
+    )
 
 
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
