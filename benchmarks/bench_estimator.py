@@ -8,8 +8,12 @@ suite's generator ``tests/trips.py``. Times are wall-clock seconds of the analys
 alone (the drive is built first), best of ``--repeat`` after one warm-up run that
 compiles or loads the numba caches; on a shared machine they vary with the load.
 
-Usage: ``python benchmarks/bench_estimator.py [--hours H] [--repeat R]``. The last line
-is ``full_seconds <t> paper_seconds <t> ratio <full/paper>``.
+Usage: ``python benchmarks/bench_estimator.py [--hours H] [--repeat R] [--baseline SRC]``.
+The last line is ``full_seconds <t> paper_seconds <t> ratio <full/paper>``; with
+``--baseline SRC`` (the ``src`` directory of the previous version, e.g. a checkout of
+main) the same trip is analysed by that version in a subprocess in the same run and the
+line ``baseline_full_seconds <t> ratio_to_baseline <this/previous>`` follows. Peak
+memory (max RSS of the process, MiB) is printed too.
 """
 
 from __future__ import annotations
@@ -54,6 +58,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--baseline", default=None, help="src directory of the previous version")
+    ap.add_argument("--full-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     from imubounds.dynamic.estimator import dynamic_margins
 
@@ -62,6 +68,9 @@ def main() -> None:
     print(f"trip: {src}, {args.hours:g} h, {drive.imu.t.size} IMU samples, "
           f"{drive.gnss.t.size} GNSS fixes (built in {time.perf_counter() - t0:.1f} s)")
     t_full, full = best_of(lambda: dynamic_margins(drive).to_dict(), args.repeat)
+    if args.full_only:
+        print(f"full_seconds {t_full:.2f} peak_rss_mib {_peak_mib():.0f}")
+        return
     t_paper, _ = best_of(lambda: dynamic_margins(drive, mode="paper").to_dict(), args.repeat)
     sm = full["smoother"]
     n_win = sum(r["n_windows"] for rows in full["margins"].values() for r in rows)
@@ -69,7 +78,26 @@ def main() -> None:
           f"(tol {sm['tolerance']:g}), {n_win} windows over "
           f"{len(next(iter(full['margins'].values())))} tau levels, "
           f"{full['empty_intersections']['count']} empty intersections")
+    print(f"peak_rss_mib {_peak_mib():.0f}")
     print(f"full_seconds {t_full:.2f} paper_seconds {t_paper:.2f} ratio {t_full / t_paper:.1f}")
+    if args.baseline:
+        import os
+        import subprocess
+
+        env = {**os.environ, "PYTHONPATH": str(Path(args.baseline).resolve())}
+        cmd = [sys.executable, __file__, "--hours", str(args.hours), "--repeat",
+               str(args.repeat), "--full-only"]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+        last = out.strip().splitlines()[-1].split()
+        t_base = float(last[1])
+        print(f"baseline_full_seconds {t_base:.2f} baseline_peak_rss_mib {last[3]} "
+              f"ratio_to_baseline {t_full / t_base:.2f}")
+
+
+def _peak_mib() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ TRIP_VERDICTS = {"full": "consistent", "paper": "exceeds"}
 def _schema(doc: dict, modes: set[str], verdicts: dict[str, str] | None = None) -> None:
     """The document's shape; with ``verdicts`` (mode -> expected verdict), every channel's
     verdict in that mode."""
-    assert doc["schema_version"] == "imubounds-dynamic/2"
+    assert doc["schema_version"] == "imubounds-dynamic/3"
     assert set(doc["modes"]) == modes
     for name, m in doc["modes"].items():
         assert {"margins", "verdict", "budget"} <= set(m)

@@ -7,7 +7,9 @@ misalignment), GNSS outliers in the ``outliers`` variant, and the estimator's de
 options. The simulator's :class:`~imubounds.dynamic.scenario.Record` says which inputs
 fell outside the bounds its ``drive.yaml`` states. Every trip whose record is clean must
 be enclosed at every step for every quantity (position, heading, u, v, speed, each
-channel's bias, and each window mean of the true signal), and at least 99 % of all trips.
+channel's bias, and each window mean of the true signal), and at least 99 % of all trips;
+a trip whose truth leaves its intervals must say ``guaranteed: false`` (issue 27), and a
+clean trip may raise a false violation only as often as the checks' level allows.
 
 The IMU runs at 50 Hz (the truth at the same rate, so that every window mean can be
 checked) to keep the 200 trips within a few minutes on two cores.
@@ -24,14 +26,16 @@ from tests.test_dynamic_full import enclosed_everywhere
 TRIPS_PER_VARIANT = 25  # 8 x 25 = 200 trips
 
 
-def run_trip(variant: str, seed: int) -> tuple[bool, list[str], str]:
+def run_trip(variant: str, seed: int) -> tuple[bool, list[str], str, bool]:
+    """(record clean, quantities whose truth left the intervals, record summary,
+    guaranteed)."""
     extra = {"scale_error": 0.002, "misalignment_deg": 0.1} if seed % 3 == 0 else {}
     res = make_trip(variant, seed=seed, rate_hz=50.0, truth_rate_hz=50.0, **extra)
     d = dynamic_margins(res.drive).to_dict()
-    assert d["guaranteed"] is True
+    assert d["guaranteed"] is (not d["violations"])
     # the window means are checked against the true signal, for every analysed channel
     assert set(d["margins"]) <= set(d["margins_truth"]), sorted(d["margins_truth"])
-    return res.record.clean, enclosed_everywhere(d), res.record.summary()
+    return res.record.clean, enclosed_everywhere(d), res.record.summary(), d["guaranteed"]
 
 
 def test_variants_are_the_issue_list() -> None:
@@ -53,17 +57,25 @@ def test_soundness_200_trips(variant: str) -> None:
     enclosed)."""
     failures = []
     unclean_failures = []
+    false_violations = []
     n_clean = 0
     for seed in range(TRIPS_PER_VARIANT):
-        clean, bad, rec = run_trip(variant, 1000 + seed)
+        clean, bad, rec, guaranteed = run_trip(variant, 1000 + seed)
         n_clean += clean
         if bad and clean:
             failures.append(f"seed {1000 + seed}: truth outside {bad} (record clean)")
-        elif bad:
+        elif bad and guaranteed:
             unclean_failures.append(f"seed {1000 + seed}: truth outside {bad}; {rec}")
+        if clean and not guaranteed:
+            false_violations.append(seed)
     assert not failures, failures
+    # a trip whose truth leaves the intervals withdraws its guarantee (issue 27) but
+    # for at most one silent miss of the outlier variant
     allowed = 1 if variant == "outliers" else 0
     assert len(unclean_failures) <= allowed, unclean_failures
+    # the checks' level is alpha = 0.01 per trip: more than 2 of 25 clean trips with a
+    # false violation has probability < 0.3 %
+    assert len(false_violations) <= 2, false_violations
     if variant != "outliers":
         # the stated bounds hold at the whole-trip level (99 %): most trips are clean
         assert n_clean >= TRIPS_PER_VARIANT - 3, n_clean

@@ -323,6 +323,14 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         s = r.summary
         tag = "guaranteed" if s.get("guaranteed") else "NOT guaranteed"
         say(f"  mode {mode} ({tag}):")
+        viol = s.get("violations") or []
+        if viol:
+            say(f"    NOT GUARANTEED: {len(viol)} assumption check(s) failed (violations in "
+                "dynamic.json, column guaranteed of states.csv):")
+            for v in viol[:5]:
+                say(f"      {v['stream']}: {v['test']}: {v['detail']}")
+            if len(viol) > 5:
+                say(f"      ... and {len(viol) - 5} more")
         for ch, v in s.get("verdict", {}).items():
             rows = s.get("margins", {}).get(ch) or []
             best = [x for x in rows if x.get("halfwidth_median") is not None]

@@ -236,6 +236,11 @@ class GnssSettings:
     cep_m: float = 3.0
     default_hdop: float = 1.0
     vel_sigma_mps: float = 0.1
+    #: clock offset of the GNSS stamps against the IMU (true time = stamp - offset, s)
+    #: and a bound on what remains of it (s); the dynamic estimator applies and budgets
+    #: them (docs/dynamic-method.md, timing)
+    time_offset_s: float = 0.0
+    time_offset_bound_s: float | None = None
 
 
 @dataclass
@@ -277,6 +282,9 @@ class HeadingSettings:
     fit: str = "auto"
     alignment_deg: float = 0.0
     use: str = "auto"
+    #: clock offset of the heading stamps (true time = stamp - offset, s) and its bound
+    time_offset_s: float = 0.0
+    time_offset_bound_s: float | None = None
 
 
 @dataclass
@@ -335,6 +343,9 @@ class ImuSettings:
     gyro_bias_drift_dps: float | None = None
     bias_drift_window_s: float | None = None
     sample_time: str | None = None
+    #: rate random walk K: ``accel_rrw`` m/s^2/sqrt(s), ``gyro_rrw`` deg/s/sqrt(s)
+    accel_rrw: float | None = None
+    gyro_rrw: float | None = None
 
 
 @dataclass

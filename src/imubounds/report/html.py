@@ -390,8 +390,20 @@ def _change_cell(r: dict[str, Any], f: float) -> str:
 
 
 def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
+    viol = mode.get("violations") or []
+    head = (
+        "<h3 id='full'>Mode full — guaranteed</h3>"
+        if not viol
+        else "<h3 id='full'>Mode full — NOT guaranteed: "
+        f"{len(viol)} assumption check(s) failed</h3>"
+        + _table(
+            ["stream", "from (s)", "to (s)", "test", "detail"],
+            [[_e(v["stream"]), _num(v["t_start_s"]), _num(v["t_end_s"]), _e(v["test"]),
+              _e(v["detail"])] for v in viol[:50]],
+        )
+    )
     parts = [
-        "<h3 id='full'>Mode full — guaranteed</h3>",
+        head,
         f"<p>{_e(mode.get('statement', ''))}.</p>",
         "<h3 id='verdict'>Verdicts: the IMU error during the trip vs the stationary band</h3>",
         _verdict_items(mode),

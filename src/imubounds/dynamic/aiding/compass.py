@@ -661,22 +661,193 @@ def _imu_turn_deg(drive: Any, t0: float, t1: float) -> float | None:
     return float(np.degrees(np.ptp(psi)))
 
 
+#: heading bins of the check against the GNSS course (the deviation's shape)
+COURSE_CHECK_BINS = 12
+#: the check against the GNSS course uses epochs at least this fast (m/s) and this many
+#: times the lateral speed bound (the sideslip bound asin(lateral / speed) stays small)
+COURSE_CHECK_MIN_SPEED = 5.0
+#: share of the trip's alpha given to the check against the GNSS course (the residual
+#: checks get another quarter; dynamic-method.md 5b)
+COURSE_CHECK_SHARE = 0.25
+#: turns for the signed test of the check against the GNSS course: |yaw rate| at least
+#: this (deg/s) and half the trip's 99th percentile
+TURN_MIN_DPS = 2.0
+#: fixes spanned by one chord of the course from positions (no receiver velocity)
+COURSE_CHORD = 5
+
+
+def course_noise(
+    drive: Any, min_speed: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(t, course rad clockwise from north, 1-sigma of the course rad, a lower bound of
+    the speed m/s at 3 sigma) of the GNSS while faster than ``min_speed``: from the
+    receiver's velocity (sigma = vel sigma / speed) or from chords of
+    :data:`COURSE_CHORD` fixes (sigma = sqrt(2) x position sigma per axis / length),
+    the GNSS errors being isotropic Gaussian (drive.yaml gnss: cep_m, vel_sigma_mps)."""
+    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+
+    g = drive.gnss
+    if g is None:
+        return None
+    st = drive.settings.gnss
+    ok = g.usable()
+    ne = g.velocity_ne()
+    if ne is not None:
+        vn, ve = ne
+        sp = np.hypot(vn, ve)
+        keep = ok & np.isfinite(sp) & (sp >= min_speed)
+        if keep.sum() >= 3:
+            sv = float(st.vel_sigma_mps)
+            return (
+                g.t[keep],
+                np.mod(np.arctan2(ve[keep], vn[keep]), TWO_PI),
+                sv / sp[keep],
+                sp[keep] - 3.0 * sv,
+            )
+    if ok.sum() < 3:
+        return None
+    e, n, _ = geodetic_to_enu(g.lat_deg[ok], g.lon_deg[ok])
+    t = g.t[ok]
+    hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
+    hd = np.where(np.isfinite(hd) & (hd > 0), hd, float(st.default_hdop))
+    s_ax = hd * float(st.cep_m) / math.sqrt(2.0 * math.log(2.0))
+    # chords of COURSE_CHORD fixes (not overlapping): the chord of an arc points along
+    # its tangent at the middle, and its noise is COURSE_CHORD times smaller
+    c = COURSE_CHORD
+    i0 = np.arange(0, e.size - c, c)
+    i1 = i0 + c
+    de, dn = e[i1] - e[i0], n[i1] - n[i0]
+    dt = t[i1] - t[i0]
+    dist = np.hypot(de, dn)
+    med = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = dist / dt
+    keep = np.isfinite(speed) & (speed >= min_speed) & (dt <= 1.5 * c * med)
+    if keep.sum() < 3:
+        return None
+    s_d = np.hypot(s_ax[i0], s_ax[i1])[keep]
+    return (
+        0.5 * (t[i0] + t[i1])[keep],
+        np.arctan2(de, dn)[keep] % TWO_PI,
+        s_d / dist[keep],
+        speed[keep] - 3.0 * s_d / dt[keep],
+    )
+
+
 def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_speed: float) -> None:
-    """Compare (never fit) the corrected heading with the GNSS course; note a disagreement."""
-    gc = _gnss_course(drive, min_speed)
+    """Compare (never fit) the corrected heading with the GNSS course, signed.
+
+    ``d = heading - course`` at the GNSS epochs faster than :data:`COURSE_CHECK_MIN_SPEED`
+    (and 5 x the lateral speed bound). With the stated assumptions (a compass error
+    within its deviation bound plus white Gaussian noise, the sideslip within
+    asin(lateral bound / speed) at the speed's 3-sigma lower bound, isotropic Gaussian
+    GNSS errors), the mean of ``d`` over all the epochs and over each of
+    :data:`COURSE_CHECK_BINS` heading bins, and of ``d`` x sign(yaw rate) over the turns
+    (a clock offset between the streams), lies within the deviation bound + the mean
+    sideslip bound + k sigma_mean, k two-sided at level ``alpha`` x
+    :data:`COURSE_CHECK_SHARE` split over the 2 + bins tests. A larger signed mean is a
+    constant offset (mount, declination), a deviation shape the bound does not cover or
+    a clock offset: ``detail['gnss_course_check']['passed']`` is False and the check
+    says which.
+    """
+    veh = drive.settings.vehicle
+    lat = veh.lateral_speed_bound_mps
+    vmin = max(min_speed, COURSE_CHECK_MIN_SPEED, 5.0 * (lat or 0.0))
+    gc = course_noise(drive, vmin)
     if gc is None:
         return
-    inside = (gc[0] >= ch.t[0]) & (gc[0] <= ch.t[-1])
-    if inside.sum() < 3:
+    tc, course, sig_c, v_lo = gc
+    inside = (tc >= ch.t[0]) & (tc <= ch.t[-1])
+    if inside.sum() < 10:
         return
-    h = _interp_heading(ch.t, gc[0][inside], ch.heading_rad)
-    d = np.degrees(np.abs(np.asarray(wrap_pi(h - gc[1][inside]))))
-    med = float(np.median(d))
-    ch.detail["gnss_course_check"] = {"median_abs_diff_deg": med, "n": int(d.size)}
-    limit = math.degrees(ch.halfwidth_rad(k_sigma(alpha, ch.t.size))) + 5.0
-    if med > limit:
+    tc, course, sig_c, v_lo = tc[inside], course[inside], sig_c[inside], v_lo[inside]
+    h = _interp_heading(ch.t, tc, ch.heading_rad)
+    d = np.asarray(wrap_pi(h - course), dtype=float)
+    if lat is None:
+        ch.detail["gnss_course_check"] = {
+            "n": int(d.size),
+            "mean_diff_deg": math.degrees(float(np.mean(d))),
+            "passed": None,
+            "rule": "not tested: no lateral speed bound (the sideslip is not bounded)",
+        }
+        return
+    sig2 = sig_c**2 + ch.noise_sigma_rad**2
+    # the course's own noise is large at a single epoch: the test is on means
+    slip = np.arcsin(np.minimum(1.0, lat / np.maximum(v_lo, 1e-9)))
+    from scipy.stats import norm
+
+    level = alpha * COURSE_CHECK_SHARE
+    k = float(norm.isf(level / (2.0 * (2 + COURSE_CHECK_BINS))))
+    dev = ch.deviation_bound_rad
+
+    def test(sel: np.ndarray, sign: np.ndarray | None = None) -> tuple[float, float]:
+        x = d[sel] if sign is None else d[sel] * sign[sel]
+        m = float(np.mean(x))
+        noise = k * math.sqrt(float(np.sum(sig2[sel]))) / int(sel.sum())
+        lim = dev + float(np.mean(slip[sel])) + noise
+        return m, lim
+
+    m_all, lim_all = test(np.ones(d.size, dtype=bool))
+    # in the turns, signed by the turn: a clock offset between the two streams shows
+    # as offset x yaw rate (the yaw rate from the IMU's gyro, independent of d's noise)
+    turn: dict[str, float] | None = None
+    imu = drive.imu
+    if imu is not None and np.isfinite(imu.gyro[:, 2]).all() and imu.t.size > 1:
+        r = np.interp(tc, imu.t, imu.gyro[:, 2])
+        thr = max(math.radians(TURN_MIN_DPS), 0.5 * float(np.percentile(np.abs(r), 99)))
+        sel_t = np.abs(r) >= thr
+        if sel_t.sum() >= 5:
+            m_t, lim_t = test(sel_t, np.sign(r))
+            turn = {"mean_diff_deg": math.degrees(m_t), "limit_deg": math.degrees(lim_t),
+                    "n": int(sel_t.sum()), "mean_rate_dps": math.degrees(
+                        float(np.mean(np.abs(r[sel_t]))))}
+    worst: list[tuple[float, float, float]] = []
+    bins = np.floor(np.mod(h, TWO_PI) / (TWO_PI / COURSE_CHECK_BINS)).astype(int)
+    for b in range(COURSE_CHECK_BINS):
+        sel = bins == b
+        if sel.sum() >= 3:
+            m, lim = test(sel)
+            if abs(m) > lim:
+                worst.append((b * 360.0 / COURSE_CHECK_BINS, m, lim))
+    turn_failed = turn is not None and abs(turn["mean_diff_deg"]) > turn["limit_deg"]
+    passed = abs(m_all) <= lim_all and not worst and not turn_failed
+    ch.detail["gnss_course_check"] = {
+        "n": int(d.size),
+        "mean_diff_deg": math.degrees(m_all),
+        "limit_deg": math.degrees(lim_all),
+        "bins_failed": [
+            {"heading_from_deg": a, "mean_diff_deg": math.degrees(m), "limit_deg": math.degrees(li)}
+            for a, m, li in worst
+        ],
+        "turns": turn,
+        "passed": passed,
+        "rule": (
+            f"signed mean of heading - GNSS course (speed >= {vmin:g} m/s) within deviation "
+            f"bound + sideslip bound + k sigma of the mean, k = {k:.3g} (two-sided, level "
+            f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins + the turns signed by the "
+            "yaw rate)"
+        ),
+    }
+    if abs(m_all) > lim_all:
         ch.notes.append(
-            f"check: the corrected heading differs from the GNSS course by a median {med:.1f} "
-            f"deg, more than its bound plus 5 deg of sideslip ({limit:.1f} deg): check the "
-            "declination, the mount and heading.alignment_deg"
+            f"check failed: the corrected heading differs from the GNSS course by a mean "
+            f"{math.degrees(m_all):+.2f} deg, beyond the {math.degrees(lim_all):.2f} deg its "
+            "bounds allow: a constant heading offset (declination, mount, "
+            "heading.alignment_deg)"
+        )
+    elif turn_failed and turn is not None:
+        lag = turn["mean_diff_deg"] / max(turn["mean_rate_dps"], 1e-9)
+        ch.notes.append(
+            f"check failed: in the turns the corrected heading differs from the GNSS course "
+            f"by a mean {turn['mean_diff_deg']:+.2f} deg signed by the turn, beyond the "
+            f"{turn['limit_deg']:.2f} deg its bounds allow: a clock offset between the "
+            f"heading and the GNSS (about {lag:+.2f} s at the mean turn rate "
+            f"{turn['mean_rate_dps']:.1f} deg/s), or a deviation the bound does not cover"
+        )
+    elif worst:
+        ch.notes.append(
+            f"check failed: in {len(worst)} heading bin(s) the corrected heading differs "
+            f"from the GNSS course by more than its bounds allow (worst mean "
+            f"{math.degrees(max(abs(w[1]) for w in worst)):.2f} deg): the compass deviation "
+            "is larger than heading.deviation_deg or has more cycles than the calibration"
         )

@@ -273,12 +273,17 @@ def resolve_noise(
                 val, src = njson[ch][term], nsrc
             elif term in ("N", "B") and ds_key[0 if term == "N" else 1] in yaml_ds:
                 val, src = yaml_ds[ds_key[0 if term == "N" else 1]], "drive.yaml"
+            elif term == "K" and getattr(imu_s, f"{kind}_rrw", None) is not None:
+                val = float(getattr(imu_s, f"{kind}_rrw")) * (1.0 if kind == "accel" else DEG)
+                src = f"drive.yaml imu.{kind}_rrw"
             elif term in pre:
                 val, src = float(pre[term]), f"preset {preset.key} ({preset_src})"
             if val is None:
                 val, src = 0.0, "default"
                 if term in ("N", "B"):
                     assumed.append(f"{ch}: no {term} figure anywhere; taken as 0")
+                elif term == "K":
+                    src = "default (no figure: taken as 0)"
             setattr(cn, term, float(val))
             srcs[term] = src
         # turn-on bias (1-sigma)
@@ -315,7 +320,7 @@ def resolve_noise(
             cn.scale, srcs["scale"] = float(overrides["scale"]), "option"
         elif yv is not None:
             cn.scale, srcs["scale"] = float(yv), "drive.yaml"
-        elif "scale_factor" in pre:
+        elif "scale_factor" in pre and preset_src != "default":
             cn.scale, srcs["scale"] = float(pre["scale_factor"]), f"preset {preset.key}"
         else:
             srcs["scale"] = "default"
@@ -325,7 +330,7 @@ def resolve_noise(
             srcs["misalignment_rad"] = "option"
         elif yv is not None:
             cn.misalignment_rad, srcs["misalignment_rad"] = float(yv) * DEG, "drive.yaml"
-        elif "misalignment_rad" in pre:
+        elif "misalignment_rad" in pre and preset_src != "default":
             cn.misalignment_rad = float(pre["misalignment_rad"])
             srcs["misalignment_rad"] = f"preset {preset.key}"
         else:
@@ -344,6 +349,15 @@ def resolve_noise(
     if any(cn.sources["misalignment_rad"] == "default" for cn in out.values()):
         assumed.append(
             f"axis misalignment within +-{DEFAULT_MISALIGNMENT_RAD / DEG:g} deg (no figure given)"
+        )
+    no_k = [ch for ch, cn in out.items() if cn.sources["K"].startswith("default")]
+    if no_k:
+        assumed.append(
+            "rate random walk K taken as 0 for "
+            + ", ".join(no_k)
+            + " (no figure in noise.json, drive.yaml imu.accel_rrw / imu.gyro_rrw or the "
+            "preset): the bias wander beyond the flicker model is bounded only by a stated "
+            "imu.*_bias_drift_* bound, where given"
         )
     return out, assumed
 

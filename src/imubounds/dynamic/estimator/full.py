@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator import smoother as SM
+from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
     DEFAULT_ALPHA,
@@ -164,6 +165,10 @@ class Context:
     plans: dict[str, ChannelPlan] = field(default_factory=dict)
     level_index: dict[tuple[str, int], int] = field(default_factory=dict)
     level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
+    #: failed checks of assumptions found while building the inputs (violations.py)
+    violations: list[Any] = field(default_factory=list)
+    #: clock offsets of the aiding streams (aiding/timing.py)
+    timing: dict[str, Any] = field(default_factory=dict)
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -199,7 +204,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     base = Path(drive.source) if Path(str(drive.source)).is_dir() else None
     noise_terms, assumed = resolve_noise(drive.settings, noise, o, base)
     imu = ImuSeries.from_drive(drive, o["imu_stamp"], vehicle)
-    heading = heading_input(drive, o)
+    drive, heading, timing = _clock_offsets(drive, o)
     te, n_fix, n_vel, n_head = _epochs(drive, heading, imu.t0, o)
     te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
     if te.size < 2:
@@ -259,6 +264,11 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 extra += float(np.max(np.abs(imu.sig[other].y))) + E0[other]
         E0[ch] += cn.misalignment_rad * extra
     aiding = build_aiding(drive, imu.t0, vehicle, alpha, o, heading)
+    k_t = float(-ndtri(alpha.share() / 2 / max(1, len(timing))))
+    for est in timing.values():
+        if est.method != "drive.yaml":
+            est.finalize(k_t)
+    _budget_timing(aiding, vehicle, timing)
     imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
@@ -277,10 +287,100 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         te=te,
         assumptions=assumed + vnotes,
         notes=list(aiding.notes) + vnotes_data,
+        timing=timing,
     )
+    cc = heading.course_check if heading is not None else None
+    if heading is not None and cc is not None and cc.get("passed") is False:
+        span = (float(te[0] + imu.t0), float(te[-1] + imu.t0))
+        ctx.violations.append(
+            V.Violation(
+                "heading",
+                *span,
+                V.TEST_HEADING_COURSE,
+                "; ".join(n for n in heading.notes if n.startswith("check failed")) or str(cc),
+            )
+        )
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
     return ctx
+
+
+def _clock_offsets(drive: Any, o: dict[str, Any]) -> tuple[Any, HeadingInput | None, Any]:
+    """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
+    ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
+    stamps, the heading input, and every stream's offset (stated, or estimated from the
+    data as a diagnostic: :mod:`imubounds.dynamic.aiding.timing`)."""
+    from imubounds.dynamic.aiding import timing as TM
+
+    st = drive.settings
+    timing: dict[str, Any] = {}
+    est: TM.OffsetEstimate | None
+    if drive.gnss is not None:
+        b = st.gnss.time_offset_bound_s
+        if st.gnss.time_offset_s or b is not None:
+            est = TM.OffsetEstimate.stated(float(st.gnss.time_offset_s), float(b or 0.0))
+            drive = TM.shifted(drive, "gnss", est)
+        else:
+            est = TM.estimate_gnss(drive, o["imu_stamp"])
+        if est is not None:
+            timing["gnss"] = est
+    heading = heading_input(drive, o)
+    if heading is not None and heading.t.size:
+        hs = st.heading
+        b = hs.time_offset_bound_s
+        if hs.time_offset_s or b is not None:
+            est = TM.OffsetEstimate.stated(float(hs.time_offset_s), float(b or 0.0))
+            heading = TM.shifted(heading, None, est)
+        else:
+            est = TM.estimate_heading(drive, o["imu_stamp"], heading)
+        if est is not None:
+            timing["heading"] = est
+        rel = _relative_offset(heading)
+        if rel is not None:
+            timing["heading_vs_gnss"] = rel
+    return drive, heading, timing
+
+
+def _relative_offset(heading: HeadingInput) -> Any:
+    """The heading's clock offset relative to the GNSS, from the signed turn test of the
+    check against the GNSS course (``compass._check_against_course``): in the turns
+    ``d x sign(r) = offset x |r|`` within the check's limit, so the offset is the mean
+    over the mean turn rate, its interval the limit over that rate. Reported (a
+    diagnostic), not applied."""
+    from imubounds.dynamic.aiding import timing as TM
+
+    cc = heading.course_check or {}
+    tu = cc.get("turns")
+    if not tu or not tu.get("mean_rate_dps"):
+        return None
+    rate = float(tu["mean_rate_dps"])
+    off, half = float(tu["mean_diff_deg"]) / rate, float(tu["limit_deg"]) / rate
+    return TM.OffsetEstimate(
+        off, 0.0, "heading minus GNSS course in the turns over the mean turn rate "
+        "(heading relative to the GNSS)", False, int(tu["n"]), half, off - half, off + half,
+        "relative to the GNSS, not the IMU: reported, not applied",
+    )
+
+
+def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
+    """What remains of an applied clock offset, times the stream's rate bound, added to
+    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt."""
+    g = timing.get("gnss")
+    if g is not None and g.remainder_s > 0 and ag.has_gnss:
+        dtr = g.remainder_s
+        ag.gnss_h = ag.gnss_h + dtr * veh.max_speed
+        ag.gnss_det += dtr * veh.max_speed
+        if ag.has_gvel:
+            ag.gvel_hi = ag.gvel_hi + dtr * veh.max_accel
+            ag.gvel_h += dtr * veh.max_accel
+            ag.gvel_det += dtr * veh.max_accel
+        if ag.has_heading and ag.head_from_course:
+            # the heading from the GNSS course turns with the vehicle: + r_max dt
+            ag.head_h = ag.head_h + dtr * veh.max_rate
+    h = timing.get("heading")
+    if h is not None and h.remainder_s > 0 and ag.has_heading:
+        ag.head_h = ag.head_h + h.remainder_s * veh.max_rate
+        ag.head_det += h.remainder_s * veh.max_rate
 
 
 def _plan_windows(ctx: Context) -> None:
@@ -614,6 +714,10 @@ class FullRun:
     beta_windows: np.ndarray
     links: dict[str, np.ndarray] | None
     notes: list[str]
+    #: (stream, test, detail, evidence span or None) of every failed check of the run
+    check_failures: list[tuple[str, str, str, tuple[float, float] | None]] = field(
+        default_factory=list
+    )
 
 
 def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
@@ -623,6 +727,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
     margins: dict[str, ChannelMargins] = {}
     notes: list[str] = []
+    fails: list[tuple[str, str, str, tuple[float, float] | None]] = []
     for ch in order:
         margins[ch] = mb.evaluate(ctx.plans[ch])
         if ch == "gyro_z" and margins[ch].raw_verdict == "exceeds":
@@ -634,12 +739,16 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     margins = {ch: margins[ch] for ch in ctx.plans}
     bv = mb.body_velocity()
     if bv is not None and bv["dropped"]:
-        notes.append(
+        msg = (
             f"{bv['dropped']} velocity epoch(s) contradict the vehicle bounds and are not "
             "used by the windows"
         )
+        notes.append(msg)
+        fails.append(("velocity", V.TEST_VEHICLE, msg, None))
     beta0, bnotes = _beta_from_windows(ctx, margins)
     notes += bnotes
+    for bn in bnotes:
+        fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
     prior, meas, has = _smoother_inputs(ctx)
     vl = ctx.vehicle.lateral_bound
@@ -671,7 +780,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
                 "neighbours (the miss is beyond that threshold)",
             ),
         )
-    return FullRun(ctx, margins, res, beta0, links, notes)
+    return FullRun(ctx, margins, res, beta0, links, notes, fails)
 
 
 def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:

@@ -465,6 +465,14 @@ class Aiding:
     budget: dict[str, list[Term]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     gnss_rejected: list[tuple[float, float]] = field(default_factory=list)
+    #: error model of the residual checks (residual_checks.py): per-axis Gaussian sigma
+    #: and deterministic bound of each GNSS fix (m), velocity (m/s) and heading (rad)
+    gnss_sig: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gnss_det: float = 0.0
+    gvel_sig: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gvel_det: float = 0.0
+    head_sig: float = 0.0
+    head_det: float = 0.0
 
     @property
     def has_gnss(self) -> bool:
@@ -748,6 +756,8 @@ def build_aiding(
             lever = getattr(st, "lever_arm_m", None)
             lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
             ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
+            ag.gnss_sig = drms / math.sqrt(2.0)
+            ag.gnss_det = lev
             src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
             ag.budget["gnss_position"] = [
                 Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
@@ -784,7 +794,7 @@ def build_aiding(
                     for i, miss in zip(np.flatnonzero(out), misses, strict=True)
                 ]
                 keep = ~out
-                for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h"):
+                for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig"):
                     setattr(ag, name, getattr(ag, name)[keep])
                 ok_idx = np.flatnonzero(ok)[keep]
                 ok = np.zeros_like(ok)
@@ -811,6 +821,8 @@ def build_aiding(
                     lv_v = lev * vehicle.max_rate
                     ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
                     ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
+                    ag.gvel_sig = sig_i
+                    ag.gvel_det = lv_v
                     ag.budget["gnss_velocity"] = [
                         Term(
                             "velocity sigma per component",
@@ -846,6 +858,8 @@ def build_aiding(
         ag.head_c = cen
         half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
         ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
+        ag.head_sig = heading.noise_sigma_rad * heading.noise_gain
+        ag.head_det = heading.deviation_bound_rad
         ag.head_source = heading.source
         ag.head_independent_of_imu = heading.independent_of_imu
         ag.budget["heading"] = [
@@ -961,6 +975,8 @@ class HeadingInput:
     independent_of_gnss: bool = True
     independent_of_imu: bool = True
     notes: list[str] = field(default_factory=list)
+    #: the signed check against the GNSS course (compass._check_against_course)
+    course_check: dict[str, Any] | None = None
 
 
 def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
@@ -991,6 +1007,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
             calibration=cal,
             declination_deg=opts.get("declination_deg"),
             deviation_deg=opts.get("heading_deviation_deg"),
+            alpha=float(opts.get("alpha") or 0.01),
         )
     except (InputError, AnalysisError) as exc:
         explicit = (
@@ -1033,6 +1050,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
         independent_of_gnss=bool(ch.independent_of_gnss),
         independent_of_imu=bool(ch.independent_of_imu),
         notes=list(ch.notes) + list(ch.assumed),
+        course_check=ch.detail.get("gnss_course_check"),
     )
 
 

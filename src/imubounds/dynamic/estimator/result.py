@@ -16,13 +16,19 @@ import numpy as np
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator.budget import CHANNELS, UNITS
 
-SCHEMA_VERSION = "imubounds-dynamic/2"
+SCHEMA_VERSION = "imubounds-dynamic/3"
 PAPER_CHANNELS = ("accel_x", "accel_y", "gyro_z")
 
 GUARANTEE_FULL = (
     "guaranteed: with probability at least {p:.4g} over the whole trip (every stated "
     "probabilistic bound holds at once, Bonferroni), every interval below contains the "
     "true value, provided the deterministic assumptions listed hold"
+)
+WITHDRAWN_FULL = (
+    "NOT guaranteed: {n} check(s) of the stated assumptions failed (see violations); over "
+    "their spans the intervals below are the estimator's output under assumptions the data "
+    "contradict, not a guarantee (with every assumption true they would hold with "
+    "probability at least {p:.4g})"
 )
 NOT_GUARANTEED = (
     "not guaranteed: the paper's method (per-step k*sigma_c bounds, per-step GPS boxes); "
@@ -144,11 +150,16 @@ class DynamicResult:
                 "no state intervals: they come from mode full's whole-trip smoother"
             )
         sm = run.smoother
-        df = pd.DataFrame({"time_s": sm.te + run.ctx.imu.t0})
+        from imubounds.dynamic.estimator.violations import epoch_mask
+
+        t_abs = sm.te + run.ctx.imu.t0
+        df = pd.DataFrame({"time_s": t_abs})
         for name, ((lo, hi), unit) in state_intervals(run.ctx, sm).items():
             u = unit.replace("/", "p")
             df[f"{name}_lo_{u}"] = lo
             df[f"{name}_hi_{u}"] = hi
+        viol = self.summary.get("violations", [])
+        df["guaranteed"] = (~epoch_mask(viol, t_abs)).astype(int)
         return df
 
     def plot(self, ax: Any = None) -> Any:
@@ -166,15 +177,34 @@ class DynamicResult:
 def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     """dynamic.json block of mode full from a :class:`~imubounds.dynamic.estimator.full.FullRun`."""
     from imubounds.dynamic.estimator.full import noise_budget_rows
+    from imubounds.dynamic.estimator.violations import collect
 
     ctx = run.ctx
     ag = ctx.aiding
     sm = run.smoother
     p = 1.0 - ctx.alpha.alpha
+    span = (
+        (float(sm.te[0] + ctx.imu.t0), float(sm.te[-1] + ctx.imu.t0))
+        if sm is not None and sm.te.size
+        else (float(ctx.te[0] + ctx.imu.t0), float(ctx.te[-1] + ctx.imu.t0))
+    )
+    viol = collect(run, span)
+    checks: dict[str, Any] = {}
+    if sm is not None:
+        from imubounds.dynamic.estimator.residual_checks import residual_checks
+        from imubounds.dynamic.estimator.violations import CHECK_SHARE
+
+        rv, checks = residual_checks(ctx, sm, ctx.alpha.alpha * CHECK_SHARE, span)
+        viol += rv
     out: dict[str, Any] = {
         "mode": "full",
-        "guaranteed": True,
-        "statement": GUARANTEE_FULL.format(p=p),
+        "guaranteed": not viol,
+        "statement": (
+            GUARANTEE_FULL.format(p=p) if not viol else WITHDRAWN_FULL.format(n=len(viol), p=p)
+        ),
+        "violations": [v.to_dict() for v in viol],
+        "residual_checks": checks,
+        "timing": {k: v.to_dict() for k, v in ctx.timing.items()},
         "alpha": ctx.alpha.to_dict(),
         "assumptions": _assumptions(ctx),
         "notes": ctx.notes + run.notes,
@@ -219,6 +249,10 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     for ch in CHANNELS:
         cn = ctx.noise[ch]
         wander = ctx.k_ps * cn.flicker_sigma() + ctx.D_KR[ch]
+        if cn.drift_bound is not None:
+            # a stated bound on the in-run wander holds even where the noise model
+            # (flicker, K) understates it: the larger of the two
+            wander = max(wander, float(cn.drift_bound))
         if sm is not None and ch in rows:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
@@ -295,6 +329,13 @@ def _assumptions(ctx: Any) -> list[str]:
         a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_bound:g} m/s")
     if not ctx.aiding.has_gnss:
         a.append("no GNSS: positions are relative to the start point (0, 0)")
+    else:
+        a.append(
+            "GNSS errors: isotropic Gaussian, independent from fix to fix, horizontal "
+            "position error per axis sigma = DRMS / sqrt 2 (radius from the Rayleigh law), "
+            "velocity error per component sigma = gnss.vel_sigma_mps; the residual checks "
+            "test the runs and the tails of this model (residual_checks)"
+        )
     if ctx.aiding.head_from_course:
         a.append(
             "the vehicle does not reverse (horizontal velocity pointing forward): heading "

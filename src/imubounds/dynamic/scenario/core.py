@@ -163,8 +163,10 @@ def _settings(
         accel_turn_on_mps2=fig.turn_on_bound["accel"],
         gyro_turn_on_dps=fig.turn_on_bound["gyro"] / DEG,
         scale_factor=fig.scale_bound,
+        # the simulator states every bound it drew against: no misalignment simulated
+        # is a bound of 0 (not the estimator's 0.5 deg default for an unknown IMU)
         misalignment_deg=(
-            None if fig.misalignment_bound_rad is None else fig.misalignment_bound_rad / DEG
+            0.0 if fig.misalignment_bound_rad is None else fig.misalignment_bound_rad / DEG
         ),
         accel_bias_drift_mps2=fig.drift_bound["accel"],
         gyro_bias_drift_dps=fig.drift_bound["gyro"] / DEG,

@@ -1,0 +1,356 @@
+"""Residual checks of the aiding against the smoothed states (issue 27, items 3 and 5).
+
+After the smoother, every aiding measurement ``z_i`` (a GNSS fix's east and north, a
+GNSS velocity's components, a compass heading) is compared with the centre ``c_i`` of
+the smoothed interval of the same state, of half-width ``w_i``. If every assumption
+holds the truth ``x_i`` lies in the interval, so the residual ``r_i = z_i - c_i`` is the
+measurement's error ``e_i`` plus at most ``w_i``: ``|r_i - e_i| <= w_i``. The error is
+a deterministic part ``|d_i| <= D`` (lever arm, compass deviation bound) plus white
+Gaussian noise of the stated sigma ``s_i`` (the GNSS model: isotropic Gaussian, per-axis
+sigma DRMS / sqrt 2; the compass: its noise sigma). Two tests follow, each sound under
+the assumptions (a false alarm only with the stated probability):
+
+* **runs**: over every run of ``m`` consecutive measurements (m = 1, 4, 16, 64; runs
+  overlapping by half), ``|mean r| <= mean w + D + k sqrt(sum s_i^2) / m``, k two-sided
+  with Bonferroni over every run and axis. A step that the IMU sees (multipath moving a
+  run of fixes, a clock lag shifting the fixes along the track or the heading in the
+  turns) moves the mean of the run while the IMU holds the smoothed interval.
+* **tails**: the number of measurements with ``max(|r_i| - w_i - D, 0) > 3.5 s_i`` is
+  at most its binomial quantile under the Gaussian model (P = 4.65e-4 per axis): heavy-
+  tailed errors (Student-t) exceed it.
+
+Each check's level is its share of the checks' level (``alpha`` of the run, split
+equally over the families run): a clean trip raises a false violation with probability
+at most that. The smallest step of each run length that the runs test would flag is
+reported (``steps_unnoticed``): a smaller one goes unnoticed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from imubounds.dynamic.estimator import smoother as SM
+from imubounds.dynamic.estimator.violations import Violation
+
+RUN_LENGTHS = (1, 4, 16, 64)
+STEP_LENGTHS = (4, 8, 16, 32)
+TAIL_K = 3.5
+TEST_RUNS = "residuals of runs of measurements against the smoothed states"
+TEST_TAILS = "tails of the residuals (Gaussian error model)"
+TEST_STEP = "GNSS position step against the integrated GNSS velocity"
+TEST_FIX = "GNSS fix against its neighbours and the integrated GNSS velocity"
+#: neighbours on each side of a fix in the single-fix test
+NB = 4
+
+
+@dataclass
+class Family:
+    """One measured quantity's residuals: ``r`` (n, axes), ``w`` (n, axes), ``s`` (n,)."""
+
+    stream: str
+    unit: str
+    t: np.ndarray
+    r: np.ndarray
+    w: np.ndarray
+    s: np.ndarray
+    det: float
+    scale: float = 1.0  # for messages (deg for headings)
+    out_unit: str = ""
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def _windows(n: int) -> list[tuple[int, np.ndarray]]:
+    out = []
+    for m in RUN_LENGTHS:
+        if m > n:
+            break
+        step = max(1, m // 2)
+        starts = np.arange(0, n - m + 1, step)
+        out.append((m, starts))
+    return out
+
+
+def _families(ctx: Any, sm: Any) -> list[Family]:
+    ag = ctx.aiding
+    te, X = sm.te, sm.X
+    fams: list[Family] = []
+
+    def at(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i = np.searchsorted(te, t).clip(0, te.size - 1)
+        return i, te[i] == t
+
+    def centre_half(i: np.ndarray, v: int) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = X[i, v, 0], X[i, v, 1]
+        with np.errstate(invalid="ignore"):  # unbounded intervals: dropped below
+            return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    if ag.has_gnss and ag.gnss_sig.size == ag.gnss_t.size:
+        i, ok = at(ag.gnss_t)
+        ce, we = centre_half(i, SM.E)
+        cn, wn = centre_half(i, SM.N)
+        r = np.stack([ag.gnss_e - ce, ag.gnss_n - cn], -1)
+        w = np.stack([we, wn], -1)
+        ok &= np.all(np.isfinite(w), axis=1)
+        fams.append(
+            Family("gnss position", "m", ag.gnss_t[ok], r[ok], w[ok], ag.gnss_sig[ok],
+                   ag.gnss_det, 1.0, "m")
+        )
+        if ag.has_gvel and ag.gvel_sig.size == ag.gnss_t.size:
+            okv = ag.gvel_ok & ok
+            ce, we = centre_half(i, SM.VE)
+            cn, wn = centre_half(i, SM.VN)
+            r = np.stack([ag.gvel_e - ce, ag.gvel_n - cn], -1)
+            w = np.stack([we, wn], -1)
+            okv &= np.all(np.isfinite(w), axis=1)
+            fams.append(
+                Family("gnss velocity", "m/s", ag.gnss_t[okv], r[okv], w[okv],
+                       ag.gvel_sig[okv], ag.gvel_det, 1.0, "m/s")
+            )
+    if ag.has_heading and not ag.head_from_course and ag.head_sig > 0:
+        i, ok = at(ag.head_t)
+        c, w = centre_half(i, SM.PSI)
+        r = np.mod(ag.head_c - c + math.pi, 2 * math.pi) - math.pi
+        ok &= np.isfinite(w)
+        fams.append(
+            Family("heading", "rad", ag.head_t[ok], r[ok, None], w[ok, None],
+                   np.full(int(ok.sum()), ag.head_sig), ag.head_det, 180 / math.pi, "deg")
+        )
+    return [f for f in fams if f.t.size >= 2]
+
+
+def step_check(
+    ctx: Any, a_fam: float, t_span: tuple[float, float]
+) -> tuple[list[Violation], dict[str, Any]]:
+    """A step in the GNSS positions (multipath moving a run of fixes) against the GNSS
+    velocity integrated by the trapezoid rule: ``q_i = p_i - P_i`` (P the integral) is
+    constant but for noise, so the difference of the means of ``q`` over ``m`` fixes
+    before and after each split must stay within ``det + k sigma``: ``det`` the
+    trapezoid's error bound (max jerk x dt^3 / 12 per pair over the 2m pairs), sigma
+    from the positions' and the velocities' stated Gaussian errors (the velocity's
+    coefficient bounded by dt). Runs of consecutive fixes only (gaps > 2.5 x the median
+    interval split them)."""
+    from scipy.stats import norm
+
+    ag = ctx.aiding
+    if not (ag.has_gnss and ag.has_gvel) or ag.gvel_sig.size != ag.gnss_t.size:
+        return [], {}
+    t = ag.gnss_t
+    okv = ag.gvel_ok
+    dt = np.diff(t)
+    if dt.size < 8:
+        return [], {}
+    med = float(np.median(dt))
+    jerk = ctx.vehicle.max_jerk
+    # segments of consecutive fixes with velocities
+    brk = np.flatnonzero((dt > 2.5 * med) | ~okv[1:] | ~okv[:-1])
+    bounds = np.concatenate([[0], brk + 1, [t.size]])
+    steps: dict[str, list[float]] = {str(m): [] for m in STEP_LENGTHS}
+    cand = []
+    single: list[tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray]] = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        n = b - a
+        if n < 2 * STEP_LENGTHS[0]:
+            continue
+        tt = t[a:b]
+        d = np.diff(tt)
+        for ax, (p, v) in enumerate(((ag.gnss_e, ag.gvel_e), (ag.gnss_n, ag.gvel_n))):
+            pp, vv = p[a:b], v[a:b]
+            P = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * d)])
+            q = pp - P
+            cq = np.concatenate([[0.0], np.cumsum(q)])
+            cs = np.concatenate([[0.0], np.cumsum(ag.gnss_sig[a:b] ** 2)])
+            cv = np.concatenate([[0.0], np.cumsum((ag.gvel_sig[a:b] * np.r_[d, d[-1]]) ** 2)])
+            cd = np.concatenate([[0.0], np.cumsum(jerk * d**3 / 12.0)])
+            for m in STEP_LENGTHS:
+                if 2 * m > n:
+                    break
+                i = np.arange(m, n - m + 1, max(1, m // 2))
+                D = (cq[i + m] - cq[i]) / m - (cq[i] - cq[i - m]) / m
+                var = (cs[i + m] - cs[i - m]) / m**2 + (cv[i + m] - cv[i - m])
+                det = cd[np.minimum(i + m - 1, n - 1)] - cd[i - m]
+                cand.append((a, ax, m, i, D, var, det))
+            # each fix against the mean of its NB neighbours on each side
+            M = NB
+            if n >= 2 * M + 1:
+                jn = np.arange(M, n - M)
+                r = q[jn] - (cq[jn + M + 1] - cq[jn - M] - q[jn]) / (2 * M)
+                sj2 = ag.gnss_sig[a:b][jn] ** 2
+                var = sj2 + (cs[jn + M + 1] - cs[jn - M] - sj2) / (2 * M) ** 2 + (
+                    cv[jn + M + 1] - cv[jn - M]
+                )
+                det = cd[jn + M] - cd[jn - M]
+                single.append((a + jn, ax, r, np.sqrt(var), det))
+    n_tests = sum(c[3].size for c in cand)
+    if not n_tests:
+        return [], {}
+    a_fam = a_fam / 3  # steps, single fixes, tails
+    k = float(norm.isf(a_fam / (2 * n_tests)))
+    worst: tuple[float, int, int, int, float, float] | None = None
+    for a, ax, m, i, D, var, det in cand:
+        lim = det + k * np.sqrt(var)
+        steps[str(m)].extend(lim.tolist())
+        ex = np.abs(D) - lim
+        j = int(np.argmax(ex))
+        if ex[j] > 0 and (worst is None or ex[j] / lim[j] > worst[0]):
+            worst = (float(ex[j] / lim[j]), a + int(i[j]), m, ax, float(D[j]), float(lim[j]))
+    t0 = ctx.imu.t0
+    summary = {
+        "unit": "m",
+        "level": a_fam,
+        "k": k,
+        "steps_unnoticed": {m: float(np.median(v)) for m, v in steps.items() if v},
+        "steps_rule": "median over the splits of det + k sigma for m fixes before and after "
+        "a split: a position step of a run at least m fixes long and smaller than this "
+        "goes unnoticed by this test",
+    }
+    viol = []
+    if single:
+        from scipy.stats import binom
+
+        idx = np.concatenate([x[0] for x in single])
+        r = np.concatenate([x[2] for x in single])
+        sd = np.concatenate([x[3] for x in single])
+        det = np.concatenate([x[4] for x in single])
+        k1 = float(norm.isf(a_fam / (2 * r.size)))
+        ex = np.abs(r) - det - k1 * sd
+        j = int(np.argmax(ex))
+        summary["single_fix_unnoticed_m"] = float(np.median(det + k1 * sd))
+        if ex[j] > 0:
+            tj = float(t[idx[j]] + t0)
+            viol.append(
+                Violation(
+                    "gnss position",
+                    *t_span,
+                    TEST_FIX,
+                    f"the fix at t = {tj:.2f} s is {r[j]:+.3g} m off the mean of its "
+                    f"{2 * NB} neighbours (relative to the integrated GNSS velocity), beyond "
+                    f"the {float(det[j] + k1 * sd[j]):.3g} m the error model allows",
+                    (tj, tj),
+                )
+            )
+        p_tail = 2 * float(norm.sf(TAIL_K))
+        n_tail = int(np.sum(np.maximum(np.abs(r) - det, 0.0) / sd > TAIL_K))
+        q_tail = int(binom.isf(a_fam, r.size, p_tail))
+        summary["tail_count"], summary["tail_limit"] = n_tail, q_tail
+        if n_tail > q_tail:
+            viol.append(
+                Violation(
+                    "gnss position",
+                    *t_span,
+                    TEST_TAILS,
+                    f"{n_tail} of {r.size} fix residual(s) against their neighbours beyond "
+                    f"{TAIL_K:g} sigma, more than the {q_tail} the Gaussian error model "
+                    "allows: the GNSS errors have heavier tails than stated",
+                    (float(t[0] + t0), float(t[-1] + t0)),
+                )
+            )
+    if worst is not None:
+        _, i0, m, ax, D, lim = worst
+        ta, tb = float(t[i0 - m] + t0), float(t[min(i0 + m - 1, t.size - 1)] + t0)
+        viol.append(
+            Violation(
+                "gnss position",
+                *t_span,
+                TEST_STEP,
+                f"at t = {t[i0] + t0:.2f} s the mean position of the {m} fixes after moves "
+                f"{D:+.3g} m {['east', 'north'][ax]} against the {m} before, relative to the "
+                f"integrated GNSS velocity, beyond the {lim:.3g} m the error model allows "
+                "(multipath or a position step)",
+                (ta, tb),
+            )
+        )
+    return viol, summary
+
+
+def residual_checks(
+    ctx: Any, sm: Any, alpha: float, t_span: tuple[float, float]
+) -> tuple[list[Violation], dict[str, Any]]:
+    """Violations of the residual checks and their summary (dynamic.json
+    ``residual_checks``)."""
+    from scipy.stats import binom, norm
+
+    fams = _families(ctx, sm)
+    t0 = ctx.imu.t0
+    viol: list[Violation] = []
+    summary: dict[str, Any] = {}
+    if not fams:
+        return viol, summary
+    has_step = ctx.aiding.has_gnss and ctx.aiding.has_gvel
+    a_fam = alpha / (2 * len(fams) + int(has_step))  # runs and tails of every family
+    if has_step:
+        sv, ss = step_check(ctx, a_fam, t_span)
+        viol += sv
+        if ss:
+            summary["gnss position step"] = ss
+    for f in fams:
+        n, axes = f.r.shape
+        wins = _windows(n)
+        n_tests = sum(st.size for _, st in wins) * axes
+        k = float(norm.isf(a_fam / (2 * max(n_tests, 1))))
+        cr = np.vstack([np.zeros((1, axes)), np.cumsum(f.r, 0)])
+        cw = np.vstack([np.zeros((1, axes)), np.cumsum(f.w, 0)])
+        cs = np.concatenate([[0.0], np.cumsum(f.s**2)])
+        worst: tuple[float, int, int, int] | None = None  # excess, m, start, axis
+        steps: dict[str, float] = {}
+        for m, st in wins:
+            mr = (cr[st + m] - cr[st]) / m
+            mw = (cw[st + m] - cw[st]) / m
+            lim = mw + f.det + (k * np.sqrt(cs[st + m] - cs[st]) / m)[:, None]
+            ex = np.abs(mr) - lim
+            steps[str(m)] = float(np.median(lim)) * f.scale
+            j = np.unravel_index(int(np.argmax(ex)), ex.shape)
+            if ex[j] > 0 and (worst is None or ex[j] / lim[j] > worst[0]):
+                worst = (float(ex[j] / lim[j]), m, int(st[j[0]]), int(j[1]))
+        # tails
+        p_tail = 2 * float(norm.sf(TAIL_K))
+        z = np.maximum(np.abs(f.r) - f.w - f.det, 0.0) / f.s[:, None]
+        n_tail = int(np.sum(z > TAIL_K))
+        q_tail = int(binom.isf(a_fam, n * axes, p_tail)) if n * axes else 0
+        summary[f.stream] = {
+            "unit": f.out_unit,
+            "n": n,
+            "level": 2 * a_fam,
+            "runs_k": k,
+            "steps_unnoticed": steps,
+            "steps_rule": "median over the runs of m measurements of mean half-width + "
+            "deterministic bound + k sigma / sqrt(m): a step of a run this long and "
+            "smaller goes unnoticed",
+            "tail_count": n_tail,
+            "tail_limit": q_tail,
+        }
+        if worst is not None:
+            _, m, s0, ax = worst
+            ta, tb = float(f.t[s0] + t0), float(f.t[s0 + m - 1] + t0)
+            mr = float((cr[s0 + m, ax] - cr[s0, ax]) / m)
+            mw = float((cw[s0 + m, ax] - cw[s0, ax]) / m)
+            lim = mw + f.det + k * math.sqrt(cs[s0 + m] - cs[s0]) / m
+            axis = ["east", "north"][ax] if axes == 2 else ""
+            viol.append(
+                Violation(
+                    f.stream,
+                    *t_span,
+                    TEST_RUNS,
+                    f"{m} measurement(s) at {ta:.2f}..{tb:.2f} s: mean residual "
+                    f"{axis + ' ' if axis else ''}{mr * f.scale:+.3g} {f.out_unit} against the "
+                    f"smoothed states, beyond the {lim * f.scale:.3g} {f.out_unit} the "
+                    "assumptions allow (a step, a clock lag or an error larger than stated)",
+                    (ta, tb),
+                )
+            )
+        if n_tail > q_tail:
+            viol.append(
+                Violation(
+                    f.stream,
+                    *t_span,
+                    TEST_TAILS,
+                    f"{n_tail} of {n} residual(s) beyond {TAIL_K:g} sigma outside the smoothed "
+                    f"interval, more than the {q_tail} the Gaussian error model allows: the "
+                    "errors have heavier tails than stated",
+                    (float(f.t[0] + t0), float(f.t[-1] + t0)),
+                )
+            )
+    return viol, summary

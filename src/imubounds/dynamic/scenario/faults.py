@@ -1,0 +1,123 @@
+"""Real-sensor faults injected into a simulated drive (issue 27's fault suite).
+
+Each function returns a copy of the :class:`~imubounds.io.drive.Drive` with one stream
+perturbed the way a real sensor is, as if its file had been edited (``time_s`` shifted,
+``heading_deg`` offset, fixes moved): the drive's truth and settings are unchanged, so
+the perturbation breaks one stated assumption and the estimator must either still
+enclose the truth or withdraw its guarantee. :data:`FAULTS` names them for the tests.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+
+def _copy(drive: Any) -> Any:
+    return copy.deepcopy(drive)
+
+
+def gnss_lag(drive: Any, lag_s: float) -> Any:
+    """GNSS time stamps ``lag_s`` late (stamp = true time + lag)."""
+    d = _copy(drive)
+    d.gnss.t = d.gnss.t + lag_s
+    return d
+
+
+def heading_lag(drive: Any, lag_s: float) -> Any:
+    """Compass time stamps ``lag_s`` late."""
+    d = _copy(drive)
+    d.heading.t = d.heading.t + lag_s
+    return d
+
+
+def heading_offset(drive: Any, offset_deg: float) -> Any:
+    """A constant compass offset (mount, declination) of ``offset_deg``."""
+    d = _copy(drive)
+    d.heading.heading_rad = np.mod(d.heading.heading_rad + math.radians(offset_deg), 2 * math.pi)
+    return d
+
+
+def heading_two_cycle(drive: Any, amplitude_deg: float) -> Any:
+    """A two-cycle compass deviation ``amplitude_deg * sin(2 heading)``."""
+    d = _copy(drive)
+    h = d.heading.heading_rad
+    d.heading.heading_rad = np.mod(h + math.radians(amplitude_deg) * np.sin(2 * h), 2 * math.pi)
+    return d
+
+
+def _shift_fixes(d: Any, sel: np.ndarray, de: np.ndarray, dn: np.ndarray) -> None:
+    lat = np.radians(d.gnss.lat_deg[sel])
+    r = 6378137.0
+    d.gnss.lat_deg[sel] = d.gnss.lat_deg[sel] + np.degrees(dn / r)
+    d.gnss.lon_deg[sel] = d.gnss.lon_deg[sel] + np.degrees(de / (r * np.cos(lat)))
+
+
+def multipath(drive: Any, step_m: float, t0_s: float, duration_s: float = 60.0) -> Any:
+    """GNSS fixes between ``t0_s`` and ``t0_s + duration_s`` moved ``step_m`` east."""
+    d = _copy(drive)
+    d.gnss.lat_deg = d.gnss.lat_deg.copy()
+    d.gnss.lon_deg = d.gnss.lon_deg.copy()
+    sel = (d.gnss.t >= t0_s) & (d.gnss.t < t0_s + duration_s)
+    _shift_fixes(d, sel, np.full(int(sel.sum()), step_m), np.zeros(int(sel.sum())))
+    return d
+
+
+def student_t(drive: Any, dof: float = 3.0, seed: int = 0) -> Any:
+    """Heavy-tailed GNSS position errors: Student-t noise of ``dof`` degrees of freedom
+    scaled to the stated per-axis sigma, added to the fixes."""
+    d = _copy(drive)
+    rng = np.random.default_rng(seed)
+    n = d.gnss.t.size
+    s = d.settings.gnss.cep_m / math.sqrt(2 * math.log(2.0))
+    scale = s * math.sqrt((dof - 2) / dof) if dof > 2 else s
+    d.gnss.lat_deg = d.gnss.lat_deg.copy()
+    d.gnss.lon_deg = d.gnss.lon_deg.copy()
+    _shift_fixes(
+        d, np.ones(n, bool), scale * rng.standard_t(dof, n), scale * rng.standard_t(dof, n)
+    )
+    return d
+
+
+def lever_arm(drive: Any, length_m: float = 1.5) -> Any:
+    """An undeclared antenna lever arm of ``length_m`` forward of the IMU: the fixes
+    move by ``length_m`` along the true heading."""
+    d = _copy(drive)
+    tr = d.truth
+    hd = np.interp(d.gnss.t, tr.t, np.unwrap(np.asarray(tr.heading_rad, float)))
+    d.gnss.lat_deg = d.gnss.lat_deg.copy()
+    d.gnss.lon_deg = d.gnss.lon_deg.copy()
+    _shift_fixes(d, np.ones(d.gnss.t.size, bool), length_m * np.sin(hd), length_m * np.cos(hd))
+    return d
+
+
+def imu_stamp_start(drive: Any) -> Any:
+    """IMU stamps at the start of the sample period while drive.yaml says the end."""
+    d = _copy(drive)
+    dt = float(np.median(np.diff(d.imu.t)))
+    d.imu.t = d.imu.t - dt
+    return d
+
+
+#: name -> (function, keyword arguments) of the fault suite's cases
+FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
+    "gnss_lag_0.1": (gnss_lag, {"lag_s": 0.1}),
+    "gnss_lag_0.3": (gnss_lag, {"lag_s": 0.3}),
+    "gnss_lag_0.5": (gnss_lag, {"lag_s": 0.5}),
+    "compass_lag_0.1": (heading_lag, {"lag_s": 0.1}),
+    "compass_lag_0.3": (heading_lag, {"lag_s": 0.3}),
+    "compass_lag_0.5": (heading_lag, {"lag_s": 0.5}),
+    "compass_offset_3": (heading_offset, {"offset_deg": 3.0}),
+    "compass_offset_8": (heading_offset, {"offset_deg": 8.0}),
+    "compass_two_cycle_2": (heading_two_cycle, {"amplitude_deg": 2.0}),
+    "multipath_5m": (multipath, {"step_m": 5.0, "t0_s": 100.0}),
+    "multipath_8m": (multipath, {"step_m": 8.0, "t0_s": 100.0}),
+    "multipath_12m": (multipath, {"step_m": 12.0, "t0_s": 100.0}),
+    "student_t": (student_t, {"dof": 3.0}),
+    "lever_arm_1.5": (lever_arm, {"length_m": 1.5}),
+    "imu_stamp_start": (imu_stamp_start, {}),
+}

@@ -1,0 +1,207 @@
+"""Issue 27: dynamic guarantees that survive real sensors.
+
+The fault suite runs mode full on the product's simulator (:func:`make_trip`) with one
+stream perturbed the way a real sensor is (:mod:`imubounds.dynamic.scenario.faults`).
+Each case must end with the truth inside at every epoch, or with ``guaranteed: false``
+and violations whose spans cover every epoch that misses. The truth is checked here,
+independently of the estimator's own enclosure code: the simulator's truth is moved
+into the estimator's ENU frame with pymap3d and compared with states.csv's intervals.
+A larger sweep (more seeds, lags, steps, a 30-min consumer-grade IMU) is run by hand
+(see the issue-27 note) to keep this file within its CI budget.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from imubounds.dynamic.estimator import dynamic_margins
+from imubounds.dynamic.estimator.budget import DEFAULT_MISALIGNMENT_RAD, resolve_noise
+from imubounds.dynamic.scenario import faults as F
+from imubounds.dynamic.scenario import make_trip
+from imubounds.io.drive import DriveSettings, ImuSettings
+
+TRIP = {"duration_s": 240.0, "distance_m": 2800.0, "rate_hz": 50.0}
+AIDING = ("gnss", "gnss-vel", "compass")
+
+
+def truth_misses(res: Any, drive: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(epochs whose true position or heading is outside states.csv's intervals,
+    epochs marked guaranteed), computed from the simulator's truth only."""
+    import pymap3d
+
+    st = res.states_frame()
+    t = st["time_s"].to_numpy()
+    tr = drive.truth
+    tt = np.asarray(tr.t, float)
+    e0, n0 = np.asarray(tr.east_m, float), np.asarray(tr.north_m, float)
+    lat, lon, alt = pymap3d.enu2geodetic(e0, n0, np.zeros_like(e0), *tr.origin)
+    e, n, _ = pymap3d.geodetic2enu(lat, lon, alt, *res.full.ctx.aiding.origin)
+    E, N = np.interp(t, tt, e), np.interp(t, tt, n)
+    psi = np.interp(t, tt, np.unwrap(0.5 * math.pi - np.asarray(tr.heading_rad, float)))
+    lo, hi = st["heading_lo_rad"].to_numpy(), st["heading_hi_rad"].to_numpy()
+    p2 = psi + 2 * math.pi * np.round((0.5 * (lo + hi) - psi) / (2 * math.pi))
+    inside = (
+        (st["east_lo_m"].to_numpy() <= E) & (E <= st["east_hi_m"].to_numpy())
+        & (st["north_lo_m"].to_numpy() <= N) & (N <= st["north_hi_m"].to_numpy())
+        & (lo <= p2) & (p2 <= hi)
+    )  # fmt: skip
+    valid = (t >= tt[0]) & (t <= tt[-1])
+    return valid & ~inside, st["guaranteed"].to_numpy() == 1
+
+
+@pytest.fixture(scope="module")
+def base() -> Any:
+    res = make_trip("paper", seed=7, aiding=AIDING, **TRIP)
+    assert res.record.clean, res.record.summary()
+    return res.drive
+
+
+def test_clean_trip_is_guaranteed_and_states_everything(base: Any) -> None:
+    r = dynamic_margins(base)
+    d = r.to_dict()
+    assert d["guaranteed"] is True and d["violations"] == []
+    assert d["statement"].startswith("guaranteed")
+    bad, guar = truth_misses(r, base)
+    assert not bad.any() and guar.all()
+    # the GNSS error model and K are stated (issue 27, item 4)
+    assert any("isotropic Gaussian" in a for a in d["assumptions"])
+    assert any("rate random walk K taken as 0" in a for a in d["assumptions"])
+    # the heading check against the course is silent and signed
+    for key in ("gnss", "heading"):
+        tm = d["timing"][key]
+        assert {"offset_s", "interval_s", "method", "applied"} <= set(tm)
+        assert tm["interval_s"][0] <= tm["estimate_s"] <= tm["interval_s"][1]
+    assert set(d["residual_checks"]) >= {"gnss position", "gnss velocity", "heading"}
+    for v in d["residual_checks"].values():
+        assert all(x > 0 for x in v["steps_unnoticed"].values())
+
+
+# case -> the violation's test the fault must raise (None: enclosed or withdrawn)
+CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
+    "compass offset +3 deg": (F.heading_offset, {"offset_deg": 3.0}, "heading sensor"),
+    "compass offset -3 deg": (F.heading_offset, {"offset_deg": -3.0}, "heading sensor"),
+    "compass offset 8 deg": (F.heading_offset, {"offset_deg": 8.0}, "heading sensor"),
+    "multipath 8 m": (F.multipath, {"step_m": 8.0, "t0_s": 100.0}, "GNSS position step"),
+    "multipath 12 m": (F.multipath, {"step_m": 12.0, "t0_s": 60.0}, "GNSS position step"),
+    "GNSS lag 0.3 s": (F.gnss_lag, {"lag_s": 0.3}, "heading sensor"),
+    "GNSS lag 0.5 s": (F.gnss_lag, {"lag_s": 0.5}, None),
+    "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, "heading sensor"),
+    "compass lag 0.5 s": (F.heading_lag, {"lag_s": 0.5}, None),
+    "Student-t GNSS": (F.student_t, {"dof": 3.0, "seed": 7}, None),
+    "lever arm 1.5 m": (F.lever_arm, {"length_m": 1.5}, None),
+    "IMU stamps at the start": (F.imu_stamp_start, {}, None),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_fault_is_enclosed_or_withdrawn(base: Any, case: str) -> None:
+    fn, kw, must = CASES[case]
+    drive = fn(base, **kw)
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any(), (
+        f"{case}: truth outside at {int((bad & guar).sum())} guaranteed epoch(s); "
+        f"violations {[v['test'] for v in d['violations']]}"
+    )
+    assert d["guaranteed"] is (not d["violations"])
+    if must is not None:
+        assert not d["guaranteed"] and any(v["test"].startswith(must) for v in d["violations"])
+    for v in d["violations"]:
+        assert set(v) >= {"stream", "t_start_s", "t_end_s", "test", "detail"}
+        assert v["t_start_s"] <= v["t_end_s"] and v["detail"]
+
+
+def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> None:
+    """Positions only (the course from consecutive fixes, whose own noise is large at
+    1 Hz): the check passes on the clean trip, fails at +-3 deg, and says which way."""
+    drive = make_trip("gnss-pos", seed=5, aiding=("gnss", "compass"), **TRIP).drive
+    cc = dynamic_margins(drive).full.ctx.heading.course_check
+    assert cc["passed"] is True, cc
+    for off in (3.0, -3.0):
+        d = dynamic_margins(F.heading_offset(drive, off)).to_dict()
+        cc = next(v for v in d["violations"] if v["stream"] == "heading")
+        assert f"{off:+.0f}." in cc["detail"] or f"{off:+.1f}" in cc["detail"], cc
+
+
+def test_stated_clock_offset_is_applied_and_budgeted(base: Any) -> None:
+    """drive.yaml gnss.time_offset_s / time_offset_bound_s: the stamps are shifted, the
+    bound budgeted (the GNSS radius grows by bound x max speed), the truth inside."""
+    lagged = F.gnss_lag(base, 0.4)
+    g = dataclasses.replace(lagged.settings.gnss, time_offset_s=0.4, time_offset_bound_s=0.02)
+    drive = dataclasses.replace(lagged, settings=dataclasses.replace(lagged.settings, gnss=g))
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    tm = d["timing"]["gnss"]
+    assert tm["applied"] is True and tm["method"] == "drive.yaml"
+    assert tm["offset_s"] == pytest.approx(0.4) and tm["interval_s"] == pytest.approx([0.38, 0.42])
+    r0 = dynamic_margins(base)
+    grow = np.median(r.full.ctx.aiding.gnss_h) - np.median(r0.full.ctx.aiding.gnss_h)
+    assert grow == pytest.approx(0.02 * r.full.ctx.vehicle.max_speed, rel=0.05)
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any()
+
+
+def test_budget_defaults_stated_and_rrw_from_drive_yaml() -> None:
+    """No preset: the docs' 0.5 deg misalignment, K = 0 listed as assumed; drive.yaml
+    imu.gyro_rrw gives K with its source."""
+    st = DriveSettings(imu=ImuSettings(accel_nd=0.002, accel_bs=0.02, gyro_nd=0.05, gyro_bs=1.0))
+    noise, assumed = resolve_noise(st, None, {})
+    assert noise["gyro_z"].misalignment_rad == pytest.approx(DEFAULT_MISALIGNMENT_RAD)
+    assert noise["gyro_z"].K == 0 and any("rate random walk K taken as 0" in a for a in assumed)
+    st.imu.gyro_rrw = 0.01
+    noise, assumed = resolve_noise(st, None, {})
+    assert noise["gyro_z"].K == pytest.approx(math.radians(0.01))
+    assert noise["gyro_z"].sources["K"] == "drive.yaml imu.gyro_rrw"
+    assert not any("K taken as 0 for gyro" in a for a in assumed)
+
+
+def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, capsys: Any) -> None:
+    import pandas as pd
+
+    from imubounds.cli import main
+
+    trip = tmp_path / "trip"
+    assert main(["simulate", "-o", str(trip), "--seed", "3", "--duration", "200",
+                 "--distance", "2300", "--rate", "50", "--aiding", "gnss,gnss-vel,compass",
+                 "-q"]) == 0  # fmt: skip
+    h = pd.read_csv(trip / "heading.csv")
+    h["heading_deg"] = (h["heading_deg"] + 8.0) % 360.0
+    h.to_csv(trip / "heading.csv", index=False)
+    # drive.yaml's clock keys are read and applied (the stamps are right: offset 0)
+    import yaml
+
+    doc = yaml.safe_load((trip / "drive.yaml").read_text())
+    doc["gnss"].update(time_offset_s=0.0, time_offset_bound_s=0.01)
+    (trip / "drive.yaml").write_text(yaml.safe_dump(doc))
+    out = tmp_path / "out"
+    args = ["dynamic", str(trip), "-o", str(out), "--mode", "full", "--no-report", "--no-plot"]
+    assert main(args) == 0
+    text = capsys.readouterr()
+    lines = (text.out + text.err).splitlines()
+    i = next(k for k, x in enumerate(lines) if "NOT GUARANTEED" in x)
+    assert all("consistent" not in x and "exceeds" not in x for x in lines[:i])
+    import json
+
+    full = json.loads((out / "dynamic.json").read_text())["modes"]["full"]
+    assert full["timing"]["gnss"]["method"] == "drive.yaml"
+    assert full["timing"]["gnss"]["interval_s"] == pytest.approx([-0.01, 0.01])
+    st = pd.read_csv(out / "states.csv")
+    assert "guaranteed" in st.columns and (st["guaranteed"] == 0).all()
+
+
+@pytest.mark.parametrize("lag", [0.0, 0.3])
+def test_relative_clock_offset_of_the_heading(base: Any, lag: float) -> None:
+    """The heading's offset relative to the GNSS, from the turns: a compass 0.3 s late is
+    estimated within 0.05 s, and the interval holds the injected lag."""
+    d = dynamic_margins(F.heading_lag(base, lag) if lag else base).to_dict()
+    rel = d["timing"]["heading_vs_gnss"]
+    assert rel["applied"] is False and rel["offset_s"] == 0.0
+    assert abs(rel["estimate_s"] - lag) <= 0.05, rel
+    assert rel["interval_s"][0] <= lag <= rel["interval_s"][1]
