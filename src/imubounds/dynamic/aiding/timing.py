@@ -241,7 +241,7 @@ def estimate_gnss(drive: Any, stamp: str) -> OffsetEstimate | None:
 
 def estimate_heading(drive: Any, stamp: str, heading: Any) -> OffsetEstimate | None:
     """The heading sensor's clock offset against the IMU's gyro z, from the corrected
-    heading (a :class:`~imubounds.dynamic.estimator.inputs.HeadingInput`); its deviation
+    heading (a :class:`~imubounds.dynamic.estimator.heading_input.HeadingInput`); its deviation
     bound is the deterministic error. None for an AHRS yaw (it uses the same gyro)."""
     ia = _imu_angle(drive, stamp)
     h = heading

@@ -214,24 +214,28 @@ def read_noise_json(src: str | Path | Mapping[str, Any]) -> dict[str, dict[str, 
     return out
 
 
-def resolve_noise(
+@dataclass
+class _NoiseSources:
+    """Where the figures of :func:`resolve_noise` come from, in its order of precedence."""
+
+    imu_s: Any
+    preset: Any
+    preset_src: str
+    datasheet: dict[str, float]
+    yaml_ds: dict[str, float]
+    njson: dict[str, dict[str, float]]
+    nsrc: str
+
+
+def _noise_sources(
     settings: Any,
     noise: str | Path | Mapping[str, Any] | None,
     overrides: Mapping[str, Any],
-    base_dir: Path | None = None,
-) -> tuple[dict[str, ChannelNoise], list[str]]:
-    """Noise figures of every channel, in the order option > noise.json > drive.yaml >
-    preset > default, and the list of assumptions made (defaults taken).
-
-    ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` may hold
-    ``imu_spec`` (preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``),
-    ``accel_turn_on``/``gyro_turn_on`` (SI, bounds), ``scale`` (fraction),
-    ``misalignment_deg``, ``flicker_tau_range_s``.
-    """
+    base_dir: Path | None,
+) -> _NoiseSources:
     from imubounds.presets import get_preset
 
     imu_s = getattr(settings, "imu", None)
-    assumed: list[str] = []
     spec = overrides.get("imu_spec")
     preset_name, preset_src = "mtx", "default"
     datasheet: dict[str, float] = {}
@@ -242,7 +246,6 @@ def resolve_noise(
             preset_name, preset_src = str(spec), "option"
     elif imu_s is not None and getattr(imu_s, "preset", None):
         preset_name, preset_src = str(imu_s.preset), "drive.yaml"
-    preset = get_preset(preset_name)
     yaml_ds: dict[str, float] = {}
     if imu_s is not None:
         for key, fac in (("accel_nd", 1.0), ("accel_bs", 1.0), ("gyro_nd", DEG), ("gyro_bs", DEG)):
@@ -257,91 +260,117 @@ def resolve_noise(
         nsrc = "noise.json (drive.yaml)"
     if noise is not None:
         njson = read_noise_json(noise)
-    out: dict[str, ChannelNoise] = {}
-    for ch in CHANNELS:
-        kind = kind_of(ch)
-        cn = ChannelNoise(ch)
-        srcs = cn.sources
-        ds_key = {"accel": ("accel_nd", "accel_bs"), "gyro": ("gyro_nd", "gyro_bs")}[kind]
-        pre = preset.kind(kind)
-        for term in ("N", "B", "Q", "K", "R"):
-            val: float | None = None
-            src = ""
-            if term in ("N", "B") and datasheet:
-                val, src = datasheet[ds_key[0 if term == "N" else 1]], "option --imu-spec"
-            elif ch in njson and term in njson[ch]:
-                val, src = njson[ch][term], nsrc
-            elif term in ("N", "B") and ds_key[0 if term == "N" else 1] in yaml_ds:
-                val, src = yaml_ds[ds_key[0 if term == "N" else 1]], "drive.yaml"
-            elif term == "K" and getattr(imu_s, f"{kind}_rrw", None) is not None:
-                val = float(getattr(imu_s, f"{kind}_rrw")) * (1.0 if kind == "accel" else DEG)
-                src = f"drive.yaml imu.{kind}_rrw"
-            elif term in pre:
-                val, src = float(pre[term]), f"preset {preset.key} ({preset_src})"
-            if val is None:
-                val, src = 0.0, "default"
-                if term in ("N", "B"):
-                    assumed.append(f"{ch}: no {term} figure anywhere; taken as 0")
-                elif term == "K":
-                    src = "default (no figure: taken as 0)"
-            setattr(cn, term, float(val))
-            srcs[term] = src
-        # turn-on bias (1-sigma)
-        key = f"{kind}_turn_on"
-        yaml_key = "accel_turn_on_mps2" if kind == "accel" else "gyro_turn_on_dps"
-        yv = getattr(imu_s, yaml_key, None) if imu_s is not None else None
-        cn.turn_on_kind = "bound"
-        if overrides.get(key) is not None:
-            cn.turn_on, srcs["turn_on"] = float(overrides[key]), "option"
-        elif yv is not None:
-            cn.turn_on = float(yv) * (1.0 if kind == "accel" else DEG)
-            srcs["turn_on"] = "drive.yaml"
-        elif "turn_on_bias" in pre:
-            cn.turn_on, srcs["turn_on"] = float(pre["turn_on_bias"]), f"preset {preset.key}"
-        else:
-            cn.turn_on, srcs["turn_on"] = cn.B, "default (1 sigma = B)"
-            cn.turn_on_kind = "sigma"
-            assumed.append(
-                f"{ch}: no turn-on bias figure: the turn-on bias is taken Gaussian with "
-                f"1-sigma equal to the bias instability B = {cn.B:.3g} {TERM_UNITS[kind]['B']}"
-            )
-        dkey = "accel_bias_drift_mps2" if kind == "accel" else "gyro_bias_drift_dps"
-        dv = getattr(imu_s, dkey, None) if imu_s is not None else None
-        if dv is not None:
-            cn.drift_bound = float(dv) * (1.0 if kind == "accel" else DEG)
-            srcs["drift_bound"] = "drive.yaml"
-            w = getattr(imu_s, "bias_drift_window_s", None)
-            cn.drift_window_s = float(w) if w is not None else 1.0
-        else:
-            srcs["drift_bound"] = "not stated"
-        # scale factor and misalignment
-        yv = getattr(imu_s, "scale_factor", None) if imu_s is not None else None
-        if overrides.get("scale") is not None:
-            cn.scale, srcs["scale"] = float(overrides["scale"]), "option"
-        elif yv is not None:
-            cn.scale, srcs["scale"] = float(yv), "drive.yaml"
-        elif "scale_factor" in pre and preset_src != "default":
-            cn.scale, srcs["scale"] = float(pre["scale_factor"]), f"preset {preset.key}"
-        else:
-            srcs["scale"] = "default"
-        yv = getattr(imu_s, "misalignment_deg", None) if imu_s is not None else None
-        if overrides.get("misalignment_deg") is not None:
-            cn.misalignment_rad = float(overrides["misalignment_deg"]) * DEG
-            srcs["misalignment_rad"] = "option"
-        elif yv is not None:
-            cn.misalignment_rad, srcs["misalignment_rad"] = float(yv) * DEG, "drive.yaml"
-        elif "misalignment_rad" in pre and preset_src != "default":
-            cn.misalignment_rad = float(pre["misalignment_rad"])
-            srcs["misalignment_rad"] = f"preset {preset.key}"
-        else:
-            srcs["misalignment_rad"] = "default"
-        fr = overrides.get("flicker_tau_range_s")
-        if fr is not None:
-            cn.flicker_tau_range_s = (float(fr[0]), float(fr[1]))
-            srcs["flicker_tau_range_s"] = "option"
-        else:
-            srcs["flicker_tau_range_s"] = "default (noise simulator)"
-        out[ch] = cn
+    return _NoiseSources(
+        imu_s, get_preset(preset_name), preset_src, datasheet, yaml_ds, njson, nsrc
+    )
+
+
+def _set_terms(cn: ChannelNoise, kind: str, src: _NoiseSources, assumed: list[str]) -> None:
+    """N, B, Q, K, R of one channel: option > noise.json > drive.yaml > preset > 0."""
+    ch, srcs, imu_s = cn.channel, cn.sources, src.imu_s
+    ds_key = {"accel": ("accel_nd", "accel_bs"), "gyro": ("gyro_nd", "gyro_bs")}[kind]
+    pre = src.preset.kind(kind)
+    for term in ("N", "B", "Q", "K", "R"):
+        val: float | None = None
+        where = ""
+        if term in ("N", "B") and src.datasheet:
+            val, where = src.datasheet[ds_key[0 if term == "N" else 1]], "option --imu-spec"
+        elif ch in src.njson and term in src.njson[ch]:
+            val, where = src.njson[ch][term], src.nsrc
+        elif term in ("N", "B") and ds_key[0 if term == "N" else 1] in src.yaml_ds:
+            val, where = src.yaml_ds[ds_key[0 if term == "N" else 1]], "drive.yaml"
+        elif term == "K" and getattr(imu_s, f"{kind}_rrw", None) is not None:
+            val = float(getattr(imu_s, f"{kind}_rrw")) * (1.0 if kind == "accel" else DEG)
+            where = f"drive.yaml imu.{kind}_rrw"
+        elif term in pre:
+            val, where = float(pre[term]), f"preset {src.preset.key} ({src.preset_src})"
+        if val is None:
+            val, where = 0.0, "default"
+            if term in ("N", "B"):
+                assumed.append(f"{ch}: no {term} figure anywhere; taken as 0")
+            elif term == "K":
+                where = "default (no figure: taken as 0)"
+        setattr(cn, term, float(val))
+        srcs[term] = where
+
+
+def _set_turn_on(
+    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: Mapping[str, Any],
+    assumed: list[str],
+) -> None:
+    """The turn-on bias: option > drive.yaml > preset > Gaussian with 1-sigma B."""
+    srcs, imu_s, pre = cn.sources, src.imu_s, src.preset.kind(kind)
+    key = f"{kind}_turn_on"
+    yaml_key = "accel_turn_on_mps2" if kind == "accel" else "gyro_turn_on_dps"
+    yv = getattr(imu_s, yaml_key, None) if imu_s is not None else None
+    cn.turn_on_kind = "bound"
+    if overrides.get(key) is not None:
+        cn.turn_on, srcs["turn_on"] = float(overrides[key]), "option"
+    elif yv is not None:
+        cn.turn_on = float(yv) * (1.0 if kind == "accel" else DEG)
+        srcs["turn_on"] = "drive.yaml"
+    elif "turn_on_bias" in pre:
+        cn.turn_on, srcs["turn_on"] = float(pre["turn_on_bias"]), f"preset {src.preset.key}"
+    else:
+        cn.turn_on, srcs["turn_on"] = cn.B, "default (1 sigma = B)"
+        cn.turn_on_kind = "sigma"
+        assumed.append(
+            f"{cn.channel}: no turn-on bias figure: the turn-on bias is taken Gaussian with "
+            f"1-sigma equal to the bias instability B = {cn.B:.3g} {TERM_UNITS[kind]['B']}"
+        )
+
+
+def _set_drift(cn: ChannelNoise, kind: str, imu_s: Any) -> None:
+    """A stated bound of the in-run bias wander (drive.yaml), if any."""
+    dkey = "accel_bias_drift_mps2" if kind == "accel" else "gyro_bias_drift_dps"
+    dv = getattr(imu_s, dkey, None) if imu_s is not None else None
+    if dv is not None:
+        cn.drift_bound = float(dv) * (1.0 if kind == "accel" else DEG)
+        cn.sources["drift_bound"] = "drive.yaml"
+        w = getattr(imu_s, "bias_drift_window_s", None)
+        cn.drift_window_s = float(w) if w is not None else 1.0
+    else:
+        cn.sources["drift_bound"] = "not stated"
+
+
+def _set_geometry(
+    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: Mapping[str, Any]
+) -> None:
+    """Scale factor, misalignment and the flicker band: option > drive.yaml > named preset
+    > default."""
+    srcs, imu_s, pre = cn.sources, src.imu_s, src.preset.kind(kind)
+    named = src.preset_src != "default"
+    yv = getattr(imu_s, "scale_factor", None) if imu_s is not None else None
+    if overrides.get("scale") is not None:
+        cn.scale, srcs["scale"] = float(overrides["scale"]), "option"
+    elif yv is not None:
+        cn.scale, srcs["scale"] = float(yv), "drive.yaml"
+    elif "scale_factor" in pre and named:
+        cn.scale, srcs["scale"] = float(pre["scale_factor"]), f"preset {src.preset.key}"
+    else:
+        srcs["scale"] = "default"
+    yv = getattr(imu_s, "misalignment_deg", None) if imu_s is not None else None
+    if overrides.get("misalignment_deg") is not None:
+        cn.misalignment_rad = float(overrides["misalignment_deg"]) * DEG
+        srcs["misalignment_rad"] = "option"
+    elif yv is not None:
+        cn.misalignment_rad, srcs["misalignment_rad"] = float(yv) * DEG, "drive.yaml"
+    elif "misalignment_rad" in pre and named:
+        cn.misalignment_rad = float(pre["misalignment_rad"])
+        srcs["misalignment_rad"] = f"preset {src.preset.key}"
+    else:
+        srcs["misalignment_rad"] = "default"
+    fr = overrides.get("flicker_tau_range_s")
+    if fr is not None:
+        cn.flicker_tau_range_s = (float(fr[0]), float(fr[1]))
+        srcs["flicker_tau_range_s"] = "option"
+    else:
+        srcs["flicker_tau_range_s"] = "default (noise simulator)"
+
+
+def _default_assumptions(out: dict[str, ChannelNoise]) -> list[str]:
+    """The defaults taken for every channel, in words."""
+    assumed: list[str] = []
     if any(cn.sources["scale"] == "default" for cn in out.values()):
         assumed.append(
             f"scale-factor error within +-{100 * DEFAULT_SCALE:g} % (no figure given; default)"
@@ -359,7 +388,35 @@ def resolve_noise(
             "preset): the bias wander beyond the flicker model is bounded only by a stated "
             "imu.*_bias_drift_* bound, where given"
         )
-    return out, assumed
+    return assumed
+
+
+def resolve_noise(
+    settings: Any,
+    noise: str | Path | Mapping[str, Any] | None,
+    overrides: Mapping[str, Any],
+    base_dir: Path | None = None,
+) -> tuple[dict[str, ChannelNoise], list[str]]:
+    """Noise figures of every channel, in the order option > noise.json > drive.yaml >
+    preset > default, and the list of assumptions made (defaults taken).
+
+    ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` may hold
+    ``imu_spec`` (preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``),
+    ``accel_turn_on``/``gyro_turn_on`` (SI, bounds), ``scale`` (fraction),
+    ``misalignment_deg``, ``flicker_tau_range_s``.
+    """
+    src = _noise_sources(settings, noise, overrides, base_dir)
+    assumed: list[str] = []
+    out: dict[str, ChannelNoise] = {}
+    for ch in CHANNELS:
+        kind = kind_of(ch)
+        cn = ChannelNoise(ch)
+        _set_terms(cn, kind, src, assumed)
+        _set_turn_on(cn, kind, src, overrides, assumed)
+        _set_drift(cn, kind, src.imu_s)
+        _set_geometry(cn, kind, src, overrides)
+        out[ch] = cn
+    return out, assumed + _default_assumptions(out)
 
 
 def parse_datasheet(text: str) -> dict[str, float]:

@@ -27,14 +27,13 @@ from imubounds.dynamic.estimator.budget import (
     kind_of,
     resolve_noise,
 )
+from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import (
     Aiding,
-    HeadingInput,
     ImuSeries,
     Vehicle,
     build_aiding,
     check_overlap,
-    heading_input,
     vehicle_from,
 )
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator.budget import CHANNELS, AlphaPlan, Term
-from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.dynamic.estimator.gnss_screen import gnss_outliers, miss_of
+from imubounds.errors import InputError, OptionError
 from imubounds.interval import IntervalArray as IA
 from imubounds.units import DEG
 
@@ -552,98 +553,6 @@ class Aiding:
 
 
 #: rejection threshold of the GNSS-only outlier test, in units of the residual's DRMS
-#: (Rayleigh: a good fix is rejected with probability exp(-16) ~ 1e-7; rejecting a good
-#: fix only loses information, never soundness)
-REJECT_K = 4.0
-
-
-def gnss_outliers(
-    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
-) -> np.ndarray:
-    """Fixes that contradict most predictions from their kept GNSS neighbours (pairs of
-    the three nearest kept fixes on each side): the residual from a pair's linear
-    interpolation, less the acceleration-bounded departure from the chord, exceeds
-    ``REJECT_K`` times its DRMS (``drms_i sqrt(1 + w_a^2 + w_b^2)`` for independent fix
-    errors) for more than half of the pairs. The worst offenders (local maxima of the
-    median excess) are rejected first and the test repeated with them removed, so that
-    two outliers in a row do not vouch for each other. A test on the GNSS alone (no
-    IMU): rejecting a good fix loses information, never soundness."""
-    m = t.size
-    kept = np.ones(m, dtype=bool)
-    if m < 3:
-        return ~kept
-    for _ in range(m):
-        idx = np.flatnonzero(kept)
-        if idx.size < 3:
-            break
-        ratio, any_valid = _worst_ratio(t[idx], e[idx], n[idx], drms[idx], a_max)
-        bad = any_valid & (ratio > 1.0)
-        if not np.any(bad):
-            break
-        # reject the local maxima of the excess among the offenders (within 2 kept fixes)
-        r = np.where(bad, ratio, -np.inf)
-        pad = np.concatenate([[-np.inf, -np.inf], r, [-np.inf, -np.inf]])
-        neigh = np.max(np.stack([pad[k:k + r.size] for k in (0, 1, 3, 4)]), axis=0)
-        top = bad & (r >= neigh)
-        kept[idx[top]] = False
-    return ~kept
-
-
-def _worst_ratio(
-    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per fix: the median over the pairs of its neighbours (up to three on each side) of
-    (residual - departure) / (REJECT_K DRMS) -- a fix next to an outlier still agrees
-    with most pairs --, and whether any pair was valid."""
-    ratios = []
-    any_valid = np.zeros(t.size, dtype=bool)
-    for da in (1, 2, 3):
-        for db in (1, 2, 3):
-            ce, cn, dev, res, valid = _pair_residual(t, e, n, drms, a_max, da, db)
-            d = (np.hypot(e - ce, n - cn) - dev) / (REJECT_K * res)
-            ratios.append(np.where(valid, d, np.nan))
-            any_valid |= valid
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(np.stack(ratios), axis=0)
-    return np.where(any_valid, med, 0.0), any_valid
-
-
-def _pair_residual(
-    t: np.ndarray, e: np.ndarray, n: np.ndarray, drms: np.ndarray, a_max: float, da: int,
-    db: int,
-) -> tuple[np.ndarray, ...]:
-    """Interpolation of each fix from fixes i - da and i + db: centre, the chord's
-    departure bound ``a_max (t - t_a)(t_b - t)/2``, the residual's DRMS, validity."""
-    m = t.size
-    idx = np.arange(m)
-    ia, ib = idx - da, idx + db
-    valid = (ia >= 0) & (ib < m)
-    ia, ib = np.clip(ia, 0, m - 1), np.clip(ib, 0, m - 1)
-    span = np.where(valid, t[ib] - t[ia], 1.0)
-    w = np.where(valid, (t - t[ia]) / span, 0.0)
-    ce = e[ia] + (e[ib] - e[ia]) * w
-    cn = n[ia] + (n[ib] - n[ia]) * w
-    dev = a_max * (t - t[ia]) * (t[ib] - t) / 2
-    res = np.sqrt(drms**2 + ((1 - w) * drms[ia]) ** 2 + (w * drms[ib]) ** 2)
-    return ce, cn, dev, res, valid
-
-
-def _miss_of(ag: Aiding, drms: np.ndarray, out: np.ndarray, a_max: float) -> np.ndarray:
-    """By how much each rejected fix exceeds the test's threshold of its nearest pair (m)."""
-    best = np.full(ag.gnss_t.size, np.inf)
-    for da, db in ((1, 1), (2, 1), (1, 2), (2, 2)):
-        ce, cn, dev, res, valid = _pair_residual(
-            ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, a_max, da, db
-        )
-        d = np.hypot(ag.gnss_e - ce, ag.gnss_n - cn) - dev - REJECT_K * res
-        best = np.minimum(best, np.where(valid, d, np.inf))
-    return best[out]
-
-
 def _rel(t: np.ndarray, t0: float) -> np.ndarray:
     return np.asarray(t, dtype=float) - t0
 
@@ -788,7 +697,7 @@ def build_aiding(
             ]
             out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
             if np.any(out):
-                misses = _miss_of(ag, drms, out, vehicle.max_accel)
+                misses = miss_of(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, out, vehicle.max_accel)
                 ag.gnss_rejected = [
                     (float(ag.gnss_t[i] + t0), float(miss))
                     for i, miss in zip(np.flatnonzero(out), misses, strict=True)
@@ -957,101 +866,6 @@ def build_aiding(
 
 
 # ------------------------------------------------------------------- heading input
-
-
-@dataclass
-class HeadingInput:
-    """A heading stream ready for intervals: compass heading (rad, clockwise from north)
-    after deviation correction, with its deviation bound and noise sigma."""
-
-    t: np.ndarray
-    heading_rad: np.ndarray
-    deviation_bound_rad: float
-    noise_sigma_rad: float
-    source: str
-    deviation_source: str = ""
-    noise_source: str = ""
-    noise_gain: float = 1.0
-    independent_of_gnss: bool = True
-    independent_of_imu: bool = True
-    notes: list[str] = field(default_factory=list)
-    #: the signed check against the GNSS course (compass._check_against_course)
-    course_check: dict[str, Any] | None = None
-
-
-def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
-    """The heading source of a drive, through the one compass function
-    :func:`imubounds.dynamic.aiding.compass.compass_heading` (calibration, declination
-    and deviation bound from ``drive.yaml: heading``; ``--declination``,
-    ``--heading-deviation`` and ``--heading-noise`` override).
-
-    A heading that cannot be calibrated with the default settings (a magnetometer whose
-    drive turns too little for an ellipse fit, say) leaves the drive without a heading
-    sensor, with a note saying why; asked for explicitly (``heading.fit`` or
-    ``heading.use`` in ``drive.yaml``) the error is the user's to see.
-    """
-    from imubounds.dynamic.aiding import compass as C
-
-    if drive.heading is None and drive.mag is None:
-        return None
-    st = drive.settings.heading
-    cal = opts.get("compass_cal")
-    if cal is not None:
-        from imubounds.io.validate import check_input_path
-
-        cal = str(check_input_path(cal, what="compass calibration", option="--compass-cal"))
-    try:
-        ch = C.compass_heading(
-            drive,
-            fit=opts.get("compass_fit"),
-            calibration=cal,
-            declination_deg=opts.get("declination_deg"),
-            deviation_deg=opts.get("heading_deviation_deg"),
-            alpha=float(opts.get("alpha") or 0.01),
-        )
-    except (InputError, AnalysisError) as exc:
-        explicit = (
-            cal is not None
-            or opts.get("compass_fit") is not None
-            or not {"heading.fit", "heading.use"} <= set(drive.settings.defaulted)
-        )
-        if explicit:
-            raise
-        return HeadingInput(
-            t=np.zeros(0),
-            heading_rad=np.zeros(0),
-            deviation_bound_rad=0.0,
-            noise_sigma_rad=0.0,
-            source="none",
-            notes=[f"heading sensor not used: {exc}"],
-        )
-    noise = opts.get("heading_noise_deg")
-    noise_rad = float(noise) * DEG if noise is not None else float(ch.noise_sigma_rad)
-    gain = 1.0
-    for key in ("swing", "gnss_course"):
-        cal = ch.detail.get(key)
-        if isinstance(cal, dict) and "B_rad" in cal and "C_rad" in cal:
-            # the correction is evaluated at the noisy reading
-            gain = 1.0 + abs(float(cal["B_rad"])) + abs(float(cal["C_rad"]))
-    dev_src = f"compass_heading() ({ch.calibration})"
-    if opts.get("heading_deviation_deg") is not None:
-        dev_src = "option"
-    elif st.deviation_deg is not None:
-        dev_src = "drive.yaml"
-    return HeadingInput(
-        t=np.asarray(ch.t, dtype=float),
-        heading_rad=np.asarray(ch.heading_rad, dtype=float),
-        deviation_bound_rad=float(ch.deviation_bound_rad),
-        noise_sigma_rad=noise_rad,
-        source=str(ch.source),
-        deviation_source=dev_src,
-        noise_source="option" if noise is not None else "compass_heading()",
-        noise_gain=gain,
-        independent_of_gnss=bool(ch.independent_of_gnss),
-        independent_of_imu=bool(ch.independent_of_imu),
-        notes=list(ch.notes) + list(ch.assumed),
-        course_check=ch.detail.get("gnss_course_check"),
-    )
 
 
 def check_overlap(imu: ImuSeries, ag: Aiding, source: str) -> None:
