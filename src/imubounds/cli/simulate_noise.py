@@ -213,10 +213,10 @@ def build_spec(args: argparse.Namespace) -> Any:
             values.update(sim.parse_term_list(text, kind))
         if tau_range is not None:
             values["bias_tau_range_s"] = tau_range
-        if getattr(args, kind) or (
-            tau_range is not None and any(c.startswith(kind) for c in spec.channels)
-        ):
+        if getattr(args, kind):
             spec = spec.with_overrides(kind, values)
+        elif tau_range is not None:  # the flicker band only: the axes the spec has
+            spec = spec.with_overrides(kind, values, add_missing=False)
     if sources and (args.gyro or args.accel):
         spec = replace(spec, name=f"{spec.name} + command-line figures")
     return spec

@@ -403,11 +403,16 @@ class NoiseSpec:
             raise OptionError("a datasheet spec needs gyro and/or accelerometer figures")
         return cls(channels=ch, name=name)
 
-    def with_overrides(self, kind: str, values: Mapping[str, Any]) -> NoiseSpec:
-        """Replace fields (SI) on every axis of ``kind`` (added if missing)."""
+    def with_overrides(
+        self, kind: str, values: Mapping[str, Any], *, add_missing: bool = True
+    ) -> NoiseSpec:
+        """Replace fields (SI) on every axis of ``kind`` (added if missing, unless
+        ``add_missing`` is false: then only the axes the spec has)."""
         ch = dict(self.channels)
         for c in ("x", "y", "z"):
             key = f"{kind}_{c}"
+            if key not in ch and not add_missing:
+                continue
             ch[key] = replace(ch.get(key, AxisNoise()), **values)
         return replace(self, channels=ch)
 
