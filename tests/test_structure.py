@@ -42,27 +42,15 @@ LONG_MODULES: dict[str, int] = {
 #: Functions over :data:`MAX_COMPLEXITY` today ((path under src/, name) -> complexity).
 COMPLEX_FUNCTIONS: dict[tuple[str, str], int] = {
     ("imubounds/dynamic/estimator/budget.py", "resolve_noise"): 30,
-    ("imubounds/io/chunked.py", "open_chunked"): 35,
-    ("imubounds/io/nmea.py", "read_drive_nmea"): 30,
 }
 
-#: Imports that close a cycle today (importer, imported): the format readers import the
-#: drive assembly back (io/drive_readers <-> nmea, rosbag, ulog); issue 23 item 2 (the
-#: readers registering in one registry) removes them.
-CYCLE_EDGES: set[tuple[str, str]] = {
-    ("imubounds.io.nmea", "imubounds.io"),
-    ("imubounds.io.nmea", "imubounds.io.drive_readers"),
-    ("imubounds.io.rosbag", "imubounds.io.drive_readers"),
-    ("imubounds.io.ulog", "imubounds.io.drive_readers"),
-}
+#: Imports that close a cycle today (importer, imported): none (the format readers take
+#: the mount and time matching from io/drive_mount, not from the drive assembly).
+CYCLE_EDGES: set[tuple[str, str]] = set()
 
-#: io modules importing from dynamic or stationary today (importer, imported): geodesy
-#: and the compass check, to move below io (issue 23 item 2).
-IO_UPWARD: set[tuple[str, str]] = {
-    ("imubounds.io.drive_layout", "imubounds.dynamic.aiding.geodesy"),
-    ("imubounds.io.drive_readers", "imubounds.dynamic.aiding.compass"),
-    ("imubounds.io.drive_readers", "imubounds.dynamic.aiding.geodesy"),
-}
+#: io modules importing from dynamic or stationary today (importer, imported): none
+#: (geodesy and the course over ground live in imubounds.geodesy, below io and dynamic).
+IO_UPWARD: set[tuple[str, str]] = set()
 
 
 # --------------------------------------------------------------------------- the graph

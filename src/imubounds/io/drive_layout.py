@@ -495,7 +495,7 @@ def attitude_from_table(df: pd.DataFrame, where: str) -> AttitudeStream:
 
 def truth_from_table(df: pd.DataFrame, where: str) -> Truth:
     """``truth`` table -> :class:`Truth` (ENU of its origin; extra columns kept by name)."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     t = _time(df, where)
     used = {"time_s"}
