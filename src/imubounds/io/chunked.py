@@ -448,10 +448,11 @@ def _open_text(o: _Opening) -> ChunkedLog:
     """A CSV/TSV/TXT/DAT log, optionally gzip."""
     p, opts, src, cols, chans, warnings = o.path, o.opts, o.src, o.cols, o.chans, o.warnings
     finish = o.finish
-    from .table import _detect_layout, _is_gzip, _line_finder, _read_head, iter_text_blocks
+    from .magic import file_is_gzip
+    from .table import _detect_layout, _line_finder, _read_head, iter_text_blocks
 
     try:
-        gz = _is_gzip(p)
+        gz = file_is_gzip(p)
     except OSError as err:
         raise InputError(f"{p}: cannot read the file ({err.strerror or err})") from err
     layout = _detect_layout(p, _read_head(p, gz))
@@ -651,9 +652,8 @@ def text_bytes_bound(path: Path) -> int | None:
     cancels: routing a small file needs no header or time read."""
     if not path.name.lower().endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
         return None
-    from .table import GZIP_MAGIC
+    from .magic import file_is_gzip
 
-    with open(path, "rb") as f:
-        gz = f.read(2) == GZIP_MAGIC
+    gz = file_is_gzip(path)
     size = path.stat().st_size * (3 if gz else 1)
     return (size // 12 + 1) * 8 * 4 + 8 * 4 * 1024  # n >= 1 row of up to 1024 columns

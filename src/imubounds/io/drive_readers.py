@@ -93,7 +93,9 @@ from imubounds.io.drive_settings import (
     parse_settings,
     read_settings_with_info,
 )
-from imubounds.io.drive_validate import check_input_path, validate_drive
+from imubounds.io.drive_validate import validate_drive
+from imubounds.io.magic import is_bag, is_ulog
+from imubounds.io.validate import check_input_path
 
 _BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 _NMEA_SUFFIXES = (".nmea", ".nma", ".gps")
@@ -128,7 +130,7 @@ def detect_layout(paths: Sequence[str | Path]) -> tuple[str, dict[str, Any]]:
             "no drive log given: pass a drive-layout directory, a VN-100 directory or its two "
             "CSV files, a comma2k19 segment, a ROS bag, a ULog, an NMEA capture or a CSV log"
         )
-    ps = [check_input_path(p, "drive log") for p in paths]
+    ps = [check_input_path(p, what="drive log", allow_dir=True) for p in paths]
     files = [p for p in ps if p.is_file()]
     dirs = [p for p in ps if p.is_dir()]
     if len(ps) == 1 and dirs:
@@ -140,13 +142,10 @@ def detect_layout(paths: Sequence[str | Path]) -> tuple[str, dict[str, Any]]:
     if len(ps) == 1:
         p = ps[0]
         name = p.name.lower()
-        from imubounds.io.rosbag import sniff_bag
-        from imubounds.io.ulog import sniff_ulog
-
         head = _head(p)
-        if name.endswith(_BAG_SUFFIXES) or sniff_bag(head):
+        if name.endswith(_BAG_SUFFIXES) or is_bag(head):
             return "rosbag", {"path": p}
-        if name.endswith(".ulg") or sniff_ulog(head):
+        if name.endswith(".ulg") or is_ulog(head):
             return "ulog", {"path": p}
         if _is_nmea(p):
             return "nmea", {"nmea": p, "imu": None}
@@ -204,7 +203,7 @@ def _settings(
         s = parse_settings({}, where)
         s.assumed.insert(0, f"{where}: no drive.yaml: every setting is its documented default")
         return s, {}
-    p = check_input_path(settings, "drive settings (drive.yaml)", directory=False)
+    p = check_input_path(settings, what="drive settings (drive.yaml)")
     data = load_settings_yaml(p)
     info = {}
     if isinstance(data, dict):
@@ -247,7 +246,7 @@ def _override_axes(s: DriveSettings, imu_axes: Sequence[str] | None) -> bool:
 
 
 def _vn_csv(path: Path) -> pd.DataFrame:
-    check_input_path(path, "VN-100 log", directory=False)
+    check_input_path(path, what="VN-100 log")
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError, pd.errors.ParserError) as err:
@@ -381,7 +380,7 @@ def _detect_backwards(drive: Drive) -> str:
 
 def _load(d: Path, rel: str) -> np.ndarray:
     p = d / rel
-    check_input_path(p, "comma2k19 signal", directory=False)
+    check_input_path(p, what="comma2k19 signal")
     try:
         with open(p, "rb") as fh:
             a = np.load(fh, allow_pickle=False)
@@ -591,7 +590,7 @@ def read_mapped_csv(
     tables: dict[str, tuple[pd.DataFrame, str]] = {}
     used: set[str] = set()
     for p in paths:
-        check_input_path(p, "CSV log", directory=False)
+        check_input_path(p, what="CSV log")
         df = _read_any_table(p)
         rename = {src: key for key, src in cmap.items() if src in df.columns}
         used |= set(rename.values())

@@ -26,6 +26,7 @@ from imubounds.io.log import ImuLog
 
 from .assemble import OnGap, ReadOptions, assemble_logs
 from .columns import parse_column_map, recognise
+from .magic import is_bag, is_gzip, is_hdf5, is_parquet, is_ulog
 from .validate import check_input_path
 
 __all__ = [
@@ -134,7 +135,7 @@ def registered_readers() -> list[ReaderEntry]:
 
 
 def _sniff_text(head: bytes) -> bool:
-    if head[:2] == b"\x1f\x8b":
+    if is_gzip(head):
         return True
     try:
         head.decode("utf-8")
@@ -151,26 +152,26 @@ register_reader(
     "parquet",
     "imubounds.io.table:read_parquet",
     suffixes=(".parquet", ".pq", ".parq"),
-    sniff=lambda head: head[:4] == b"PAR1",
+    sniff=is_parquet,
 )
 register_reader(
     "rosbag",
     "imubounds.io.rosbag:read_rosbag",
     suffixes=(".bag", ".db3", ".mcap"),
-    sniff=lambda head: head.startswith((b"#ROSBAG V2.0", b"\x89MCAP", b"SQLite format 3\x00")),
+    sniff=is_bag,
     sniff_dir=lambda d: (d / "metadata.yaml").is_file(),
 )
 register_reader(
     "ulog",
     "imubounds.io.ulog:read_ulog",
     suffixes=(".ulg", ".ulog"),
-    sniff=lambda head: head.startswith(b"ULog\x01\x12\x35"),
+    sniff=is_ulog,
 )
 register_reader(
     "hdf5",
     "imubounds.io.hdf5:read_hdf5",
     suffixes=(".h5", ".hdf5", ".hdf", ".he5"),
-    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"),
+    sniff=is_hdf5,
 )
 register_reader(
     "nmea",

@@ -56,14 +56,6 @@ TWIST_TYPES = ("geometry_msgs/msg/TwistWithCovarianceStamped", "geometry_msgs/ms
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 #: Header frame ids taken as a geographic (ENU) frame; anything else is a body frame.
 GEOGRAPHIC_FRAMES = ("enu", "map", "world", "earth", "utm", "gps", "gnss", "navsat", "ublox")
-ROS1_MAGIC = b"#ROSBAG V2.0"
-MCAP_MAGIC = b"\x89MCAP"
-SQLITE_MAGIC = b"SQLite format 3\x00"
-
-
-def sniff_bag(head: bytes) -> bool:
-    """True for the first bytes of a ROS 1 bag, an MCAP file or a ROS 2 sqlite3 file."""
-    return head.startswith((ROS1_MAGIC, MCAP_MAGIC, SQLITE_MAGIC))
 
 
 def _bag_error(path: Path, err: BaseException) -> InputError:

@@ -42,13 +42,7 @@ from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
 
-ULOG_MAGIC = b"ULog\x01\x12\x35"
 IMU_TOPICS = ("sensor_combined", "vehicle_imu")
-
-
-def sniff_ulog(head: bytes) -> bool:
-    """True for the first bytes of a ULog file."""
-    return head.startswith(ULOG_MAGIC)
 
 
 def truncation_note(path: Path) -> str | None:
