@@ -95,6 +95,7 @@ from imubounds.io.drive_settings import (
 )
 from imubounds.io.drive_validate import validate_drive
 from imubounds.io.magic import is_bag, is_ulog
+from imubounds.io.registry import reader_entry
 from imubounds.io.validate import check_input_path
 
 _BAG_SUFFIXES = (".bag", ".mcap", ".db3")
@@ -723,21 +724,10 @@ def read_drive(
             drive = read_vn100(files["imu"], files["gps"], s, mount=mount)
         elif layout == "comma2k19":
             drive = read_comma2k19(files["dir"], s)
-        elif layout == "rosbag":
-            from imubounds.io.rosbag import read_drive_rosbag
-
-            drive = read_drive_rosbag(files["path"], settings=s, topics=topics)
-        elif layout == "ulog":
-            from imubounds.io.ulog import read_drive_ulog
-
-            drive = read_drive_ulog(files["path"], settings=s)
-        elif layout == "nmea":
-            from imubounds.io.nmea import read_drive_nmea
-
-            drive = read_drive_nmea(
-                files["nmea"], files["imu"], settings=s, imu_frame=imu_frame,
-                date_utc=date_utc, time_offset_s=time_offset_s, on_bad_checksum=on_bad_checksum,
-            )
+        elif layout in ("rosbag", "ulog", "nmea"):  # formats that register a drive reader
+            options = {"topics": topics, "imu_frame": imu_frame, "date_utc": date_utc,
+                       "time_offset_s": time_offset_s, "on_bad_checksum": on_bad_checksum}
+            drive = reader_entry(layout).load_drive()(files, s, options)
         else:
             drive = read_mapped_csv(files["paths"], columns, s)
         _settings_from_streams(drive)

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, time
 from pathlib import Path
@@ -177,6 +178,18 @@ def _f(text: str) -> float:
 def _utc_seconds(d: date, t: time) -> float:
     dt = datetime.combine(d, t.replace(tzinfo=None), tzinfo=UTC)
     return dt.timestamp()
+
+
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``nmea`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`): the capture, and the IMU log if any."""
+    return read_drive_nmea(
+        files["nmea"], files["imu"], settings=settings, imu_frame=options["imu_frame"],
+        date_utc=options["date_utc"], time_offset_s=options["time_offset_s"],
+        on_bad_checksum=options["on_bad_checksum"],
+    )
 
 
 def read_drive_nmea(

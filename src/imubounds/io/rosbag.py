@@ -19,7 +19,7 @@ is zero the bag's receive time is used instead, with a warning.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -243,6 +243,14 @@ def _geographic(frame_id: str) -> bool:
 def _twist(msg: Any) -> Any:
     tw = msg.twist
     return tw.twist if hasattr(tw, "twist") else tw
+
+
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``rosbag`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`)."""
+    return read_drive_rosbag(files["path"], settings=settings, topics=options.get("topics"))
 
 
 def read_drive_rosbag(

@@ -22,6 +22,7 @@ quaternion) is already a heading clockwise from north.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -217,6 +218,14 @@ def quaternion_ned_heading(q: np.ndarray) -> np.ndarray:
 
 
 GPS_TOPICS = ("vehicle_gps_position", "sensor_gps")
+
+
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``ulog`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`)."""
+    return read_drive_ulog(files["path"], settings=settings)
 
 
 def read_drive_ulog(path: str | Path, *, settings: DriveSettings | None = None) -> Drive:
