@@ -276,3 +276,21 @@ def test_ruff_enforces_the_same_complexity_limit() -> None:
     assert lint["mccabe"]["max-complexity"] == MAX_COMPLEXITY
     exempt = {f for f, codes in lint.get("per-file-ignores", {}).items() if "C901" in codes}
     assert exempt == {f"src/{path}" for path, _ in COMPLEX_FUNCTIONS}, exempt
+
+
+def test_drive_formats_register_their_drive_reader_in_the_one_registry() -> None:
+    """read_drive finds the ROS-bag, ULog and NMEA drive readers through the reader
+    registry (so the drive assembly imports no format reader back); a format without
+    one, or an unknown name, is an InputError naming it."""
+    from imubounds.errors import InputError
+    from imubounds.io.nmea import drive_from_files as nmea_drive
+    from imubounds.io.registry import reader_entry
+    from imubounds.io.rosbag import drive_from_files as bag_drive
+    from imubounds.io.ulog import drive_from_files as ulog_drive
+
+    found = {n: reader_entry(n).load_drive() for n in ("rosbag", "ulog", "nmea")}
+    assert found == {"rosbag": bag_drive, "ulog": ulog_drive, "nmea": nmea_drive}
+    with pytest.raises(InputError, match="parquet format holds no drive"):
+        reader_entry("parquet").load_drive()
+    with pytest.raises(InputError, match="no reader 'furlong'"):
+        reader_entry("furlong")
