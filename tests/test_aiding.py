@@ -25,8 +25,8 @@ from imubounds.dynamic.aiding import (
     wrap_pi,
 )
 from imubounds.dynamic.aiding.compass import read_calibration
-from imubounds.dynamic.aiding.geodesy import enu_to_geodetic, haversine_enu
 from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.geodesy import enu_to_geodetic, haversine_enu
 
 
 def test_paper_gps_numbers() -> None:

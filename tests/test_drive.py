@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imubounds.dynamic.aiding.compass import course_over_ground
-from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 from imubounds.dynamic.scenario import ScenarioConfig, simulate, write_scenario
 from imubounds.errors import InputError
 from imubounds.frames import axes_matrix, wrap_pi
+from imubounds.geodesy import course_over_ground, geodetic_to_enu
 from imubounds.io import Drive, read_drive
-from imubounds.io.drive_readers import detect_layout, mount_check
+from imubounds.io.drive_mount import mount_check
+from imubounds.io.drive_readers import detect_layout
 
 
 @pytest.fixture(scope="module")

@@ -159,7 +159,7 @@ def test_every_mount_reads_to_the_same_body_imu(tmp_path: Path) -> None:
     import shutil
 
     from imubounds.io import read_drive
-    from imubounds.io.drive_readers import proper_axes
+    from imubounds.io.drive_mount import proper_axes
 
     sys_path = Path(__file__).parent
     import sys

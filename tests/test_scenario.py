@@ -338,7 +338,7 @@ def test_record_counts_match_an_independent_recount() -> None:
     streams and the truth, with the bounds drive.yaml states."""
     res = simulate(ScenarioConfig(seed=11, gps_cep_m=3.0, compass_noise_deg=0.3))
     d, tr = res.drive, res.truth
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     e, n, _ = geodetic_to_enu(d.gnss.lat_deg, d.gnss.lon_deg, d.gnss.alt_m, res.config.origin)
     i = np.rint(d.gnss.t * 100).astype(int)

@@ -38,27 +38,15 @@ LONG_MODULES: dict[str, int] = {
 
 #: Functions over :data:`MAX_COMPLEXITY` today ((path under src/, name) -> complexity).
 COMPLEX_FUNCTIONS: dict[tuple[str, str], int] = {
-    ("imubounds/io/chunked.py", "open_chunked"): 35,
-    ("imubounds/io/nmea.py", "read_drive_nmea"): 30,
 }
 
-#: Imports that close a cycle today (importer, imported): the format readers import the
-#: drive assembly back (io/drive_readers <-> nmea, rosbag, ulog); issue 23 item 2 (the
-#: readers registering in one registry) removes them.
-CYCLE_EDGES: set[tuple[str, str]] = {
-    ("imubounds.io.nmea", "imubounds.io"),
-    ("imubounds.io.nmea", "imubounds.io.drive_readers"),
-    ("imubounds.io.rosbag", "imubounds.io.drive_readers"),
-    ("imubounds.io.ulog", "imubounds.io.drive_readers"),
-}
+#: Imports that close a cycle today (importer, imported): none (the format readers take
+#: the mount and time matching from io/drive_mount, not from the drive assembly).
+CYCLE_EDGES: set[tuple[str, str]] = set()
 
-#: io modules importing from dynamic or stationary today (importer, imported): geodesy
-#: and the compass check, to move below io (issue 23 item 2).
-IO_UPWARD: set[tuple[str, str]] = {
-    ("imubounds.io.drive_layout", "imubounds.dynamic.aiding.geodesy"),
-    ("imubounds.io.drive_readers", "imubounds.dynamic.aiding.compass"),
-    ("imubounds.io.drive_readers", "imubounds.dynamic.aiding.geodesy"),
-}
+#: io modules importing from dynamic or stationary today (importer, imported): none
+#: (geodesy and the course over ground live in imubounds.geodesy, below io and dynamic).
+IO_UPWARD: set[tuple[str, str]] = set()
 
 
 # --------------------------------------------------------------------------- the graph
@@ -284,3 +272,21 @@ def test_ruff_enforces_the_same_complexity_limit() -> None:
     assert lint["mccabe"]["max-complexity"] == MAX_COMPLEXITY
     exempt = {f for f, codes in lint.get("per-file-ignores", {}).items() if "C901" in codes}
     assert exempt == {f"src/{path}" for path, _ in COMPLEX_FUNCTIONS}, exempt
+
+
+def test_drive_formats_register_their_drive_reader_in_the_one_registry() -> None:
+    """read_drive finds the ROS-bag, ULog and NMEA drive readers through the reader
+    registry (so the drive assembly imports no format reader back); a format without
+    one, or an unknown name, is an InputError naming it."""
+    from imubounds.errors import InputError
+    from imubounds.io.nmea import drive_from_files as nmea_drive
+    from imubounds.io.registry import reader_entry
+    from imubounds.io.rosbag import drive_from_files as bag_drive
+    from imubounds.io.ulog import drive_from_files as ulog_drive
+
+    found = {n: reader_entry(n).load_drive() for n in ("rosbag", "ulog", "nmea")}
+    assert found == {"rosbag": bag_drive, "ulog": ulog_drive, "nmea": nmea_drive}
+    with pytest.raises(InputError, match="parquet format holds no drive"):
+        reader_entry("parquet").load_drive()
+    with pytest.raises(InputError, match="no reader 'furlong'"):
+        reader_entry("furlong")

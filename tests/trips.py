@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtri
 
-from imubounds.dynamic.aiding.geodesy import enu_to_geodetic
 from imubounds.dynamic.estimator.budget import ChannelNoise, box_sum_variance
+from imubounds.geodesy import enu_to_geodetic
 from imubounds.io.drive import (
     AttitudeStream,
     Drive,

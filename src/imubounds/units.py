@@ -85,6 +85,82 @@ ACCEL_UNITS: dict[str, float] = {
 }
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
+# Unit spellings (lower case, spaces removed: imubounds.io.columns compacts a written unit
+# to this form) -> key of GYRO_UNITS. The one table of unit spellings: the column
+# recognition of every reader and the drive layout's <unit> suffixes both use it.
+GYRO_UNIT_SYNONYMS: dict[str, str] = {
+    "rad/s": "rad/s",
+    "rads": "rad/s",
+    "rad_s": "rad/s",
+    "radps": "rad/s",
+    "radpersec": "rad/s",
+    "rad/sec": "rad/s",
+    "rps": "rad/s",
+    "deg/s": "deg/s",
+    "degs": "deg/s",
+    "deg_s": "deg/s",
+    "degps": "deg/s",
+    "dps": "deg/s",
+    "deg/sec": "deg/s",
+    "degpersec": "deg/s",
+    "deg/h": "deg/h",
+    "deg/hr": "deg/h",
+    "degh": "deg/h",
+    "deg_h": "deg/h",
+    "dph": "deg/h",
+    "mrad/s": "mrad/s",
+    "mrads": "mrad/s",
+    "mrad_s": "mrad/s",
+}
+# Unit spellings -> key of ACCEL_UNITS.
+ACCEL_UNIT_SYNONYMS: dict[str, str] = {
+    "m/s^2": "m/s^2",
+    "m/s2": "m/s^2",
+    "ms2": "m/s^2",
+    "ms^2": "m/s^2",
+    "m_s2": "m/s^2",
+    "m_s_2": "m/s^2",
+    "m_s^2": "m/s^2",
+    "mps2": "m/s^2",
+    "mpss": "m/s^2",
+    "m/s/s": "m/s^2",
+    "g": "g",
+    "g0": "g",
+    "mg": "mg",
+    "ug": "ug",
+}
+TIME_UNIT_SYNONYMS: dict[str, str] = {
+    "s": "s",
+    "sec": "s",
+    "secs": "s",
+    "second": "s",
+    "seconds": "s",
+    "ms": "ms",
+    "msec": "ms",
+    "millisecond": "ms",
+    "milliseconds": "ms",
+    "us": "us",
+    "usec": "us",
+    "microsecond": "us",
+    "microseconds": "us",
+    "ns": "ns",
+    "nsec": "ns",
+    "nanosecond": "ns",
+    "nanoseconds": "ns",
+}
+assert set(GYRO_UNIT_SYNONYMS.values()) <= set(GYRO_UNITS)
+assert set(ACCEL_UNIT_SYNONYMS.values()) <= set(ACCEL_UNITS)
+assert set(TIME_UNIT_SYNONYMS.values()) <= set(TIME_UNITS)
+
+
+def unit_factors(kind: Literal["gyro", "accel", "time"]) -> dict[str, float]:
+    """Every accepted spelling of a ``kind`` unit (canonical keys and their synonyms)
+    -> the factor to SI."""
+    si = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "time": TIME_UNITS}[kind]
+    synonyms = {"gyro": GYRO_UNIT_SYNONYMS, "accel": ACCEL_UNIT_SYNONYMS,
+                "time": TIME_UNIT_SYNONYMS}[kind]  # fmt: skip
+    return {**si, **{spelling: si[key] for spelling, key in synonyms.items()}}
+
 
 def sensor_kind(channel: str) -> SensorKind:
     """``'gyro'`` for gyro channels, ``'accel'`` for accelerometer channels."""

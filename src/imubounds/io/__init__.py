@@ -6,7 +6,9 @@
 * :mod:`.drive` -- :class:`Drive`, a multi-sensor drive log in SI units, and its settings;
 * :mod:`.drive_readers` -- :func:`read_drive`, the one entry point for drive logs (the
   generic layout of :mod:`.drive_layout`, VN-100, comma2k19, ROS bags, ULog, NMEA, CSV
-  through a column map), validated by :mod:`.drive_validate`;
+  through a column map), validated by :mod:`.drive_validate`; the mount and the time
+  matching every drive reader shares in :mod:`.drive_mount`;
+* :mod:`.magic` -- the first bytes of every binary format, for sniffing;
 * :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
   shared column recognition, unit conversion and assembly into logs;
 * :mod:`.validate` -- the one validation layer every reader goes through (special

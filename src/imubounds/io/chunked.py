@@ -395,12 +395,34 @@ def open_chunked(
     if p.stat().st_size == 0:
         raise InputError(f"{p} is empty; give a file with data")
     suf = _suffix(p)
-    chans = None if channels is None else tuple(channels)
-    warnings: list[str] = []
-    cols = dict(opts.columns) if opts.columns else None
-    src = str(p)
+    o = _Opening(p, opts, dict(opts.columns) if opts.columns else None,
+                 None if channels is None else tuple(channels), [])  # fmt: skip
+    if suf.endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
+        return _open_text(o)
+    if suf in (".parquet", ".pq", ".parq"):
+        return _open_parquet(o)
+    if suf in (".npy", ".f64", ".bin", ".raw", ".f32"):
+        return _open_array(o, suf)
+    return _open_hdf5(o)
+
+
+@dataclass
+class _Opening:
+    """What :func:`open_chunked` knows before it reads a format: the file, the
+    validated options, the column map and channel names, the warnings so far."""
+
+    path: Path
+    opts: ReadOptions
+    cols: dict[str, str] | None
+    chans: tuple[str, ...] | None
+    warnings: list[str]
+
+    @property
+    def src(self) -> str:
+        return str(self.path)
 
     def finish(
+        self,
         fmt: str,
         plan_ch: dict[str, Any],
         stated: dict[str, str | None],
@@ -413,145 +435,164 @@ def open_chunked(
     ) -> ChunkedLog:
         units, factors = {}, {}
         for c in plan_ch:
-            units[c], factors[c] = _unit_factor(c, stated.get(c), opts, warnings, src)
+            units[c], factors[c] = _unit_factor(
+                c, stated.get(c), self.opts, self.warnings, self.src
+            )
         return ChunkedLog(
-            p, fmt, list(plan_ch), rate, n, units, factors, rereadable, warnings, sources,
-            extra or {}, on_gap=opts.on_gap, time=time,
+            self.path, fmt, list(plan_ch), rate, n, units, factors, rereadable, self.warnings,
+            sources, extra or {}, on_gap=self.opts.on_gap, time=time,
         )
 
-    if suf.endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
-        from .table import _detect_layout, _is_gzip, _line_finder, _read_head, iter_text_blocks
 
+def _open_text(o: _Opening) -> ChunkedLog:
+    """A CSV/TSV/TXT/DAT log, optionally gzip."""
+    p, opts, src, cols, chans, warnings = o.path, o.opts, o.src, o.cols, o.chans, o.warnings
+    finish = o.finish
+    from .magic import file_is_gzip
+    from .table import _detect_layout, _line_finder, _read_head, iter_text_blocks
+
+    try:
+        gz = file_is_gzip(p)
+    except OSError as err:
+        raise InputError(f"{p}: cannot read the file ({err.strerror or err})") from err
+    layout = _detect_layout(p, _read_head(p, gz))
+    plan = plan_columns(layout.header, src, columns=cols, channels=chans)
+    label = _line_finder(p, gz, layout)
+    tinfo = None
+    if plan.time is not None:
+        head = next(iter_text_blocks(p, gz, layout, plan, HEAD_TEXT_ROWS), None)
+        if head is None:
+            raise InputError(f"{p} has a header but no data rows; give a file with samples")
+        t = head[plan.time.index]
+        stated = plan.time.unit
+        if stated is None and t.dtype.kind == "i" and layout.first_row and not _numeric(
+            layout.first_row[plan.time.index]
+        ):
+            stated = "ns"  # ISO 8601 date-times, read as epoch ns
+        if stated is None and plan.time.source.lower() == "timestamp" and any(
+            s.layout == "kalibr" for s in plan.channels.values()
+        ):
+            stated = "ns"
+        rate, tinfo = _time_info(t, stated, opts, src, plan.time.source, warnings, label)
+    else:
+        rate = _check_rate(opts.rate_hz, src)
+    return finish(
+        "text", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+        None, False, {}, {"plan": plan, "gz": gz, "layout": layout, "row_label": label},
+        tinfo,
+    )
+
+
+def _open_parquet(o: _Opening) -> ChunkedLog:
+    """A Parquet log."""
+    p, opts, src, cols, chans, warnings = o.path, o.opts, o.src, o.cols, o.chans, o.warnings
+    finish = o.finish
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(p)
+        header = list(pf.schema_arrow.names)
+        n = int(pf.metadata.num_rows)
+    except (pa.ArrowException, OSError) as err:
+        raise InputError(f"{p}: not a readable Parquet file ({str(err)[:120]})") from err
+    plan = plan_columns(header, src, columns=cols, channels=chans)
+    tinfo = None
+    tsrc = None
+    if plan.time is not None:
+        tsrc = plan.time.source
         try:
-            gz = _is_gzip(p)
-        except OSError as err:
-            raise InputError(f"{p}: cannot read the file ({err.strerror or err})") from err
-        layout = _detect_layout(p, _read_head(p, gz))
-        plan = plan_columns(layout.header, src, columns=cols, channels=chans)
-        label = _line_finder(p, gz, layout)
-        tinfo = None
-        if plan.time is not None:
-            head = next(iter_text_blocks(p, gz, layout, plan, HEAD_TEXT_ROWS), None)
-            if head is None:
-                raise InputError(f"{p} has a header but no data rows; give a file with samples")
-            t = head[plan.time.index]
-            stated = plan.time.unit
-            if stated is None and t.dtype.kind == "i" and layout.first_row and not _numeric(
-                layout.first_row[plan.time.index]
-            ):
-                stated = "ns"  # ISO 8601 date-times, read as epoch ns
-            if stated is None and plan.time.source.lower() == "timestamp" and any(
-                s.layout == "kalibr" for s in plan.channels.values()
-            ):
-                stated = "ns"
-            rate, tinfo = _time_info(t, stated, opts, src, plan.time.source, warnings, label)
-        else:
-            rate = _check_rate(opts.rate_hz, src)
-        return finish(
-            "text", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
-            None, False, {}, {"plan": plan, "gz": gz, "layout": layout, "row_label": label},
-            tinfo,
-        )
-
-    if suf in (".parquet", ".pq", ".parq"):
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        try:
-            pf = pq.ParquetFile(p)
-            header = list(pf.schema_arrow.names)
-            n = int(pf.metadata.num_rows)
+            first = pf.read_row_group(0, columns=[tsrc]).column(0)
         except (pa.ArrowException, OSError) as err:
-            raise InputError(f"{p}: not a readable Parquet file ({str(err)[:120]})") from err
+            raise InputError(
+                f"{p}: the Parquet data cannot be read ({str(err)[:120]})"
+            ) from err
+        is_ts = pa.types.is_timestamp(first.type)
+        t = (first.cast(pa.int64()) if is_ts else first).to_numpy(zero_copy_only=False)
+        unit = first.type.unit if is_ts else plan.time.unit
+        rate, tinfo = _time_info(np.asarray(t[:HEAD_ROWS]), unit, opts, src, tsrc, warnings)
+    else:
+        rate = _check_rate(opts.rate_hz, src)
+    names_pq = {c: s.source for c, s in plan.channels.items()}
+    return finish(
+        "parquet", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+        n, True, {"columns": names_pq, "time": tsrc}, time=tinfo,
+    )
+
+
+def _open_array(o: _Opening, suf: str) -> ChunkedLog:
+    """A NumPy ``.npy`` array or a raw little-endian float file."""
+    p, opts, src, cols, chans, warnings = o.path, o.opts, o.src, o.cols, o.chans, o.warnings
+    finish = o.finish
+    if suf == ".npy":
+        try:
+            arr = np.load(p, mmap_mode="r")
+        except (ValueError, OSError, EOFError) as err:
+            raise InputError(f"{p}: not a readable .npy file ({err})") from err
+    else:
+        dt = np.dtype("<f4") if suf == ".f32" else np.dtype("<f8")
+        if p.stat().st_size % dt.itemsize:
+            raise InputError(
+                f"{p}: {p.stat().st_size} bytes are not a whole number of "
+                f"{dt.itemsize}-byte values; the file is truncated or not raw {dt}"
+            )
+        arr = np.memmap(p, dtype=dt, mode="r")
+    if arr.dtype.names:
+        header = list(arr.dtype.names)
         plan = plan_columns(header, src, columns=cols, channels=chans)
         tinfo = None
         tsrc = None
         if plan.time is not None:
             tsrc = plan.time.source
-            try:
-                first = pf.read_row_group(0, columns=[tsrc]).column(0)
-            except (pa.ArrowException, OSError) as err:
-                raise InputError(
-                    f"{p}: the Parquet data cannot be read ({str(err)[:120]})"
-                ) from err
-            is_ts = pa.types.is_timestamp(first.type)
-            t = (first.cast(pa.int64()) if is_ts else first).to_numpy(zero_copy_only=False)
-            unit = first.type.unit if is_ts else plan.time.unit
-            rate, tinfo = _time_info(np.asarray(t[:HEAD_ROWS]), unit, opts, src, tsrc, warnings)
+            t = np.asarray(arr[tsrc][:HEAD_ROWS])
+            rate, tinfo = _time_info(t, plan.time.unit, opts, src, tsrc, warnings)
         else:
             rate = _check_rate(opts.rate_hz, src)
-        names_pq = {c: s.source for c, s in plan.channels.items()}
+        fields = {c: s.source for c, s in plan.channels.items()}
         return finish(
-            "parquet", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
-            n, True, {"columns": names_pq, "time": tsrc}, time=tinfo,
+            "npy", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
+            int(arr.shape[0]), True, {"array": arr, "columns": fields, "time": tsrc},
+            time=tinfo,
         )
-
-    if suf in (".npy", ".f64", ".bin", ".raw", ".f32"):
-        if suf == ".npy":
-            try:
-                arr = np.load(p, mmap_mode="r")
-            except (ValueError, OSError, EOFError) as err:
-                raise InputError(f"{p}: not a readable .npy file ({err})") from err
-        else:
-            dt = np.dtype("<f4") if suf == ".f32" else np.dtype("<f8")
-            if p.stat().st_size % dt.itemsize:
-                raise InputError(
-                    f"{p}: {p.stat().st_size} bytes are not a whole number of "
-                    f"{dt.itemsize}-byte values; the file is truncated or not raw {dt}"
-                )
-            arr = np.memmap(p, dtype=dt, mode="r")
-        if arr.dtype.names:
-            header = list(arr.dtype.names)
-            plan = plan_columns(header, src, columns=cols, channels=chans)
-            tinfo = None
-            tsrc = None
-            if plan.time is not None:
-                tsrc = plan.time.source
-                t = np.asarray(arr[tsrc][:HEAD_ROWS])
-                rate, tinfo = _time_info(t, plan.time.unit, opts, src, tsrc, warnings)
-            else:
-                rate = _check_rate(opts.rate_hz, src)
-            fields = {c: s.source for c, s in plan.channels.items()}
-            return finish(
-                "npy", dict(plan.channels), {c: s.unit for c, s in plan.channels.items()}, rate,
-                int(arr.shape[0]), True, {"array": arr, "columns": fields, "time": tsrc},
-                time=tinfo,
+    names = list(chans) if chans else None
+    ncol = 1 if arr.ndim == 1 else int(arr.shape[1])
+    if suf != ".npy":
+        ncol = len(names) if names else 6
+        if arr.shape[0] % ncol:
+            raise InputError(
+                f"{p}: {arr.shape[0]} values are not a whole number of rows of "
+                f"{ncol} channels; give the channels with --channels"
             )
-        names = list(chans) if chans else None
-        ncol = 1 if arr.ndim == 1 else int(arr.shape[1])
-        if suf != ".npy":
-            ncol = len(names) if names else 6
-            if arr.shape[0] % ncol:
-                raise InputError(
-                    f"{p}: {arr.shape[0]} values are not a whole number of rows of "
-                    f"{ncol} channels; give the channels with --channels"
-                )
-            arr = arr.reshape(-1, ncol) if ncol > 1 else arr
-        if arr.ndim not in (1, 2):
-            raise InputError(f"{p}: array of shape {arr.shape}; expected (N,) or (N, C)")
-        if arr.dtype.kind not in "fiu":
-            raise InputError(f"{p}: array of type {arr.dtype} is not numeric")
-        if names is None:
-            if ncol != 6:
-                raise OptionError(
-                    f"{p}: an unnamed array with {ncol} column(s); name them with "
-                    "channels=(...) / --channels gyro_z,..."
-                )
-            names = list(IMU_CHANNELS)
-        if len(names) != ncol or any(c not in IMU_CHANNELS for c in names):
+        arr = arr.reshape(-1, ncol) if ncol > 1 else arr
+    if arr.ndim not in (1, 2):
+        raise InputError(f"{p}: array of shape {arr.shape}; expected (N,) or (N, C)")
+    if arr.dtype.kind not in "fiu":
+        raise InputError(f"{p}: array of type {arr.dtype} is not numeric")
+    if names is None:
+        if ncol != 6:
             raise OptionError(
-                f"{p}: has {ncol} column(s); give as many channel names from "
-                f"{', '.join(IMU_CHANNELS)}"
+                f"{p}: an unnamed array with {ncol} column(s); name them with "
+                "channels=(...) / --channels gyro_z,..."
             )
-        rate = _check_rate(opts.rate_hz, src)
-        index = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
-        order = {c: index[c] for c in IMU_CHANNELS if c in index}
-        return finish(
-            "npy" if suf == ".npy" else "raw", dict.fromkeys(order), {}, rate,
-            int(arr.shape[0]), True, {"array": arr, "columns": order},
+        names = list(IMU_CHANNELS)
+    if len(names) != ncol or any(c not in IMU_CHANNELS for c in names):
+        raise OptionError(
+            f"{p}: has {ncol} column(s); give as many channel names from "
+            f"{', '.join(IMU_CHANNELS)}"
         )
+    rate = _check_rate(opts.rate_hz, src)
+    index = {c: (i if arr.ndim == 2 else 0) for i, c in enumerate(names)}
+    order = {c: index[c] for c in IMU_CHANNELS if c in index}
+    return finish(
+        "npy" if suf == ".npy" else "raw", dict.fromkeys(order), {}, rate,
+        int(arr.shape[0]), True, {"array": arr, "columns": order},
+    )
 
-    # HDF5
+
+def _open_hdf5(o: _Opening) -> ChunkedLog:
+    """An HDF5 file: its 1-D datasets (or fields of compound ones) as columns."""
+    p, opts, src, cols, chans, warnings = o.path, o.opts, o.src, o.cols, o.chans, o.warnings
+    finish = o.finish
     import h5py
 
     try:
@@ -595,7 +636,6 @@ def open_chunked(
         True, {"columns": dsets, "time": tsrc5}, time=tinfo,
     )
 
-
 def _numeric(text: str) -> bool:
     try:
         float(text.replace(",", "."))
@@ -612,9 +652,8 @@ def text_bytes_bound(path: Path) -> int | None:
     cancels: routing a small file needs no header or time read."""
     if not path.name.lower().endswith((".csv", ".tsv", ".txt", ".dat", ".gz")):
         return None
-    from .table import GZIP_MAGIC
+    from .magic import file_is_gzip
 
-    with open(path, "rb") as f:
-        gz = f.read(2) == GZIP_MAGIC
+    gz = file_is_gzip(path)
     size = path.stat().st_size * (3 if gz else 1)
     return (size // 12 + 1) * 8 * 4 + 8 * 4 * 1024  # n >= 1 row of up to 1024 columns

@@ -39,7 +39,14 @@ from dataclasses import dataclass
 
 from imubounds.errors import OptionError
 from imubounds.io.log import IMU_CHANNELS
-from imubounds.units import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
+from imubounds.units import (
+    ACCEL_UNIT_SYNONYMS,
+    ACCEL_UNITS,
+    GYRO_UNIT_SYNONYMS,
+    GYRO_UNITS,
+    TIME_UNIT_SYNONYMS,
+    TIME_UNITS,
+)
 
 TIME_KEY = "time"
 #: Keys accepted on the left of a ``--columns`` map.
@@ -72,70 +79,6 @@ TIME_BASES: tuple[str, ...] = ("timestamp", "time_stamp", "time", "stamp", "ts",
                                "secs", "sec")
 _PREFIXES = ("field_", "imu_", "msg_", "data_")
 
-# Unit spellings (after compaction by _compact_unit) -> key of units.GYRO_UNITS.
-GYRO_UNIT_SYNONYMS: dict[str, str] = {
-    "rad/s": "rad/s",
-    "rads": "rad/s",
-    "rad_s": "rad/s",
-    "radps": "rad/s",
-    "radpersec": "rad/s",
-    "rad/sec": "rad/s",
-    "rps": "rad/s",
-    "deg/s": "deg/s",
-    "degs": "deg/s",
-    "deg_s": "deg/s",
-    "degps": "deg/s",
-    "dps": "deg/s",
-    "deg/sec": "deg/s",
-    "degpersec": "deg/s",
-    "deg/h": "deg/h",
-    "deg/hr": "deg/h",
-    "degh": "deg/h",
-    "deg_h": "deg/h",
-    "dph": "deg/h",
-    "mrad/s": "mrad/s",
-    "mrads": "mrad/s",
-    "mrad_s": "mrad/s",
-}
-# Unit spellings -> key of units.ACCEL_UNITS.
-ACCEL_UNIT_SYNONYMS: dict[str, str] = {
-    "m/s^2": "m/s^2",
-    "m/s2": "m/s^2",
-    "ms2": "m/s^2",
-    "ms^2": "m/s^2",
-    "m_s2": "m/s^2",
-    "m_s_2": "m/s^2",
-    "m_s^2": "m/s^2",
-    "mps2": "m/s^2",
-    "mpss": "m/s^2",
-    "m/s/s": "m/s^2",
-    "g": "g",
-    "g0": "g",
-    "mg": "mg",
-    "ug": "ug",
-}
-TIME_UNIT_SYNONYMS: dict[str, str] = {
-    "s": "s",
-    "sec": "s",
-    "secs": "s",
-    "second": "s",
-    "seconds": "s",
-    "ms": "ms",
-    "msec": "ms",
-    "millisecond": "ms",
-    "milliseconds": "ms",
-    "us": "us",
-    "usec": "us",
-    "microsecond": "us",
-    "microseconds": "us",
-    "ns": "ns",
-    "nsec": "ns",
-    "nanosecond": "ns",
-    "nanoseconds": "ns",
-}
-assert set(GYRO_UNIT_SYNONYMS.values()) <= set(GYRO_UNITS)
-assert set(ACCEL_UNIT_SYNONYMS.values()) <= set(ACCEL_UNITS)
-assert set(TIME_UNIT_SYNONYMS.values()) <= set(TIME_UNITS)
 
 
 @dataclass(frozen=True)

@@ -227,14 +227,20 @@ class Truth:
     extra: dict[str, Array] = field(default_factory=dict)
 
 
+#: Default GPS CEP in m at HDOP 1 (the paper's receiver); the one place of this default.
+DEFAULT_CEP_M = 3.0
+#: HDOP used for fixes that do not carry one.
+DEFAULT_HDOP = 1.0
+
+
 @dataclass
 class GnssSettings:
     """GNSS error model. ``cep_m``: CEP at HDOP 1 (m), used when a fix has no
     ``h_acc_m``; ``default_hdop`` when a fix has neither; ``vel_sigma_mps``:
     1-sigma per velocity component when the receiver reports none."""
 
-    cep_m: float = 3.0
-    default_hdop: float = 1.0
+    cep_m: float = DEFAULT_CEP_M
+    default_hdop: float = DEFAULT_HDOP
     vel_sigma_mps: float = 0.1
     #: clock offset of the GNSS stamps against the IMU (true time = stamp - offset, s)
     #: and a bound on what remains of it (s); the dynamic estimator applies and budgets

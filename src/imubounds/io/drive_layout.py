@@ -74,8 +74,9 @@ from imubounds.io.drive_settings import (
     read_settings_with_info,
     settings_to_dict,
 )
-from imubounds.io.drive_validate import check_input_path, existing_file
-from imubounds.units import ACCEL_UNITS, GYRO_UNITS
+from imubounds.io.drive_validate import existing_file
+from imubounds.io.validate import check_input_path
+from imubounds.units import unit_factors
 
 __all__ = [
     "FILES",
@@ -137,14 +138,9 @@ TABLE_COLUMNS: dict[str, tuple[str, ...]] = {
 }
 
 _AXES = {"x": 0, "y": 1, "z": 2}
-_GYRO_UNITS = {
-    **GYRO_UNITS,
-    "rad_s": 1.0,
-    "deg_s": math.pi / 180.0,
-    "deg_h": math.pi / 180.0 / 3600.0,
-    "mrad_s": 1e-3,
-}
-_ACCEL_UNITS = {**ACCEL_UNITS, "m_s2": 1.0}
+#: ``<unit>`` suffixes of the IMU columns -> factor to SI (the spellings of imubounds.units)
+_GYRO_UNITS = unit_factors("gyro")
+_ACCEL_UNITS = unit_factors("accel")
 #: Magnetometer units -> tesla ("raw": counts of unknown scale, kept as they are).
 MAG_UNITS = {
     "t": 1.0,
@@ -211,7 +207,7 @@ def read_table(path: Path) -> pd.DataFrame:
     """One layout table (CSV, CSV.gz or Parquet) with a ``time_s`` column and >= 1 row."""
     import zlib
 
-    check_input_path(path, "drive table", directory=False)
+    check_input_path(path, what="drive table")
     try:
         if path.name.endswith(".parquet"):
             df = pd.read_parquet(path)
@@ -495,7 +491,7 @@ def attitude_from_table(df: pd.DataFrame, where: str) -> AttitudeStream:
 
 def truth_from_table(df: pd.DataFrame, where: str) -> Truth:
     """``truth`` table -> :class:`Truth` (ENU of its origin; extra columns kept by name)."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     t = _time(df, where)
     used = {"time_s"}
@@ -590,7 +586,7 @@ def read_layout(directory: str | Path, settings: DriveSettings | None = None) ->
     applied by the caller on the parsed settings). The drive is not validated
     here: :func:`imubounds.io.read_drive` validates it.
     """
-    d = check_input_path(directory, "drive-layout directory", directory=True)
+    d = check_input_path(directory, what="drive-layout directory", need_dir=True)
     info: dict[str, Any] = {}
     if settings is None:
         settings, info = read_settings_with_info(d)

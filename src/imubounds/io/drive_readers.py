@@ -44,7 +44,7 @@ What was verified against the data (the sign conventions):
   body frame in ECEF (the body x axis carries the velocity, body z points
   down); the phone IMU axes agree with it once read as FRD (``gyro_z`` ~ -yaw
   rate, ``accel_x`` follows the forward acceleration, ``accel_z`` ~ -9.7),
-  which :func:`mount_check` confirms against the truth on every read. The
+  which :func:`~imubounds.io.drive_mount.mount_check` confirms against the truth on every read. The
   u-blox bearing is degrees clockwise from true north (agrees with the truth's
   heading to about a degree on the highway). There is no HDOP.
 """
@@ -52,7 +52,6 @@ What was verified against the data (the sign conventions):
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -68,8 +67,6 @@ from imubounds.frames import (
     frd_to_flu,
     is_identity_axes,
     matrix_to_rpy,
-    mount_attitude,
-    rotate_axes,
     wrap_pi,
 )
 from imubounds.io.drive import (
@@ -89,13 +86,17 @@ from imubounds.io.drive_layout import (
     is_layout,
     read_layout,
 )
+from imubounds.io.drive_mount import apply_mount, warn_mount
 from imubounds.io.drive_settings import (
     SETTINGS_FILE,
     load_settings_yaml,
     parse_settings,
     read_settings_with_info,
 )
-from imubounds.io.drive_validate import check_input_path, validate_drive
+from imubounds.io.drive_validate import validate_drive
+from imubounds.io.magic import is_bag, is_ulog
+from imubounds.io.registry import reader_entry
+from imubounds.io.validate import check_input_path
 
 _BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 _NMEA_SUFFIXES = (".nmea", ".nma", ".gps")
@@ -130,7 +131,7 @@ def detect_layout(paths: Sequence[str | Path]) -> tuple[str, dict[str, Any]]:
             "no drive log given: pass a drive-layout directory, a VN-100 directory or its two "
             "CSV files, a comma2k19 segment, a ROS bag, a ULog, an NMEA capture or a CSV log"
         )
-    ps = [check_input_path(p, "drive log") for p in paths]
+    ps = [check_input_path(p, what="drive log", allow_dir=True) for p in paths]
     files = [p for p in ps if p.is_file()]
     dirs = [p for p in ps if p.is_dir()]
     if len(ps) == 1 and dirs:
@@ -142,13 +143,10 @@ def detect_layout(paths: Sequence[str | Path]) -> tuple[str, dict[str, Any]]:
     if len(ps) == 1:
         p = ps[0]
         name = p.name.lower()
-        from imubounds.io.rosbag import sniff_bag
-        from imubounds.io.ulog import sniff_ulog
-
         head = _head(p)
-        if name.endswith(_BAG_SUFFIXES) or sniff_bag(head):
+        if name.endswith(_BAG_SUFFIXES) or is_bag(head):
             return "rosbag", {"path": p}
-        if name.endswith(".ulg") or sniff_ulog(head):
+        if name.endswith(".ulg") or is_ulog(head):
             return "ulog", {"path": p}
         if _is_nmea(p):
             return "nmea", {"nmea": p, "imu": None}
@@ -206,7 +204,7 @@ def _settings(
         s = parse_settings({}, where)
         s.assumed.insert(0, f"{where}: no drive.yaml: every setting is its documented default")
         return s, {}
-    p = check_input_path(settings, "drive settings (drive.yaml)", directory=False)
+    p = check_input_path(settings, what="drive settings (drive.yaml)")
     data = load_settings_yaml(p)
     info = {}
     if isinstance(data, dict):
@@ -245,133 +243,11 @@ def _override_axes(s: DriveSettings, imu_axes: Sequence[str] | None) -> bool:
 # ----------------------------------------------------------------------------- helpers
 
 
-def match_times(
-    t_src: np.ndarray, t_query: np.ndarray, tol_s: float | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """For each query time the index of the nearest source time, and whether it is within
-    ``tol_s`` (default: half the median query period, at most 0.5 s). Sorted inputs."""
-    t_src = np.asarray(t_src, dtype=float)
-    t_query = np.asarray(t_query, dtype=float)
-    if tol_s is None:
-        tol_s = 0.5 * float(np.median(np.diff(t_query))) if t_query.size > 1 else 0.5
-        tol_s = min(tol_s, 0.5)
-    if t_src.size == 0:
-        return np.zeros(t_query.size, int), np.zeros(t_query.size, bool)
-    k = np.clip(np.searchsorted(t_src, t_query), 0, t_src.size - 1)
-    prev = np.clip(k - 1, 0, t_src.size - 1)
-    use_prev = np.abs(t_src[prev] - t_query) < np.abs(t_src[k] - t_query)
-    k = np.where(use_prev, prev, k)
-    return k, np.abs(t_src[k] - t_query) <= tol_s
-
-
-# ----------------------------------------------------------------------------- mount
-
-
-def apply_mount(drive: Drive, *, attitude_of_sensor: bool = False) -> None:
-    """Rotate the IMU (and magnetometer) of ``drive`` from sensor to body axes by its
-    ``imu_axes`` (``mag_axes``); with ``attitude_of_sensor`` the attitude stream (an
-    AHRS in the same unit) is turned into the body's attitude too."""
-    s = drive.settings
-    rot = axes_matrix(s.imu_axes)
-    mag_rot = axes_matrix(s.mag_axes) if s.mag_axes is not None else rot
-    if drive.imu is not None:
-        drive.imu.accel = rotate_axes(drive.imu.accel, rot)
-        drive.imu.gyro = rotate_axes(drive.imu.gyro, rot)
-    if drive.mag is not None:
-        drive.mag.mag = rotate_axes(drive.mag.mag, mag_rot)
-    a = drive.attitude
-    if attitude_of_sensor and a is not None and not is_identity_axes(s.imu_axes):
-        a.roll_rad, a.pitch_rad, a.yaw_rad = mount_attitude(a.roll_rad, a.pitch_rad,
-                                                            a.yaw_rad, rot)
-    if not is_identity_axes(s.imu_axes):
-        drive.notes.append(
-            f"IMU mount: imu_axes {list(s.imu_axes)} applied (sensor axes rotated into the body "
-            "frame x forward, y left, z up)"
-        )
-
-
-_ROTATIONS: list[tuple[str, str, str]] = []
-
-
-def proper_axes() -> list[tuple[str, str, str]]:
-    """The 24 signed axis permutations that are rotations (every possible ``imu_axes``)."""
-    if not _ROTATIONS:
-        for perm in itertools.permutations("xyz"):
-            for signs in itertools.product(("", "-"), repeat=3):
-                axes = tuple(sg + a for sg, a in zip(signs, perm, strict=True))
-                m = np.zeros((3, 3))
-                for i, a in enumerate(axes):
-                    m[i, "xyz".index(a[-1])] = -1.0 if a.startswith("-") else 1.0
-                if np.isclose(np.linalg.det(m), 1.0):
-                    _ROTATIONS.append(axes)  # type: ignore[arg-type]
-    return list(_ROTATIONS)
-
-
-def mount_check(drive: Drive) -> dict[str, Any] | None:
-    """Check the IMU's body axes against the truth: the gyro z against the true yaw rate,
-    the accelerometer x against the true forward acceleration, z against gravity.
-
-    Returns ``{"score", "best_axes", "best_score"}`` (scores in [-3, 3]; the
-    best of the 24 rotations of the current body axes), or None without truth
-    heading and speed. :func:`read_drive` warns when another mapping fits
-    clearly better.
-    """
-    tr, imu = drive.truth, drive.imu
-    if tr is None or imu is None or tr.heading_rad is None or tr.u_mps is None:
-        return None
-    lo, hi = max(tr.t[0], imu.t[0]), min(tr.t[-1], imu.t[-1])
-    if hi - lo < 5.0 or not np.isfinite(imu.gyro).all() or not np.isfinite(imu.accel).all():
-        return None
-    grid = np.arange(lo, hi, 0.25)
-    yaw_rate = -np.gradient(np.interp(grid, tr.t, np.unwrap(tr.heading_rad)), grid)
-    fwd_acc = np.gradient(np.interp(grid, tr.t, tr.u_mps), grid)
-
-    def mean_at(arr: np.ndarray) -> np.ndarray:
-        cum = np.concatenate(([0.0], np.cumsum(0.5 * (arr[1:] + arr[:-1]) * np.diff(imu.t))))
-        mid = np.interp(grid, imu.t, cum)
-        out = np.gradient(mid, grid)
-        return np.asarray(out)
-
-    gyro = np.column_stack([mean_at(imu.gyro[:, k]) for k in range(3)])
-    acc = np.column_stack([mean_at(imu.accel[:, k]) for k in range(3)])
-
-    def corr(a: np.ndarray, b: np.ndarray) -> float:
-        if np.std(a) == 0 or np.std(b) == 0:
-            return 0.0
-        return float(np.corrcoef(a, b)[0, 1])
-
-    def score(axes: tuple[str, str, str]) -> float:
-        m = axes_matrix(axes)
-        g, a = gyro @ m.T, acc @ m.T
-        up = float(np.clip(np.median(a[:, 2]) / 9.8, -1.0, 1.0))
-        return corr(g[:, 2], yaw_rate) + corr(a[:, 0], fwd_acc) + up
-
-    here = score(("x", "y", "z"))
-    scores = {axes: score(axes) for axes in proper_axes()}
-    best = max(scores, key=lambda k: scores[k])
-    return {"score": here, "best_axes": list(best), "best_score": scores[best]}
-
-
-def _warn_mount(drive: Drive) -> None:
-    chk = mount_check(drive)
-    if chk is None:
-        return
-    drive.meta["mount_check"] = chk
-    if chk["best_axes"] != ["x", "y", "z"] and chk["best_score"] > chk["score"] + 0.5:
-        drive.warn(
-            "mount_mismatch",
-            1,
-            f"{drive.source}: the IMU axes disagree with the truth (score {chk['score']:.2f} of "
-            f"3); rotating them by {chk['best_axes']} fits it (score {chk['best_score']:.2f}): "
-            "check imu_axes",
-        )
-
-
 # ----------------------------------------------------------------------------- VN-100
 
 
 def _vn_csv(path: Path) -> pd.DataFrame:
-    check_input_path(path, "VN-100 log", directory=False)
+    check_input_path(path, what="VN-100 log")
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError, pd.errors.ParserError) as err:
@@ -483,8 +359,7 @@ def read_vn100(
 
 
 def _detect_backwards(drive: Drive) -> str:
-    from imubounds.dynamic.aiding.compass import course_over_ground
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import course_over_ground, geodetic_to_enu
 
     g, a = drive.gnss, drive.attitude
     if g is None or a is None or a.yaw_rad is None:
@@ -506,7 +381,7 @@ def _detect_backwards(drive: Drive) -> str:
 
 def _load(d: Path, rel: str) -> np.ndarray:
     p = d / rel
-    check_input_path(p, "comma2k19 signal", directory=False)
+    check_input_path(p, what="comma2k19 signal")
     try:
         with open(p, "rb") as fh:
             a = np.load(fh, allow_pickle=False)
@@ -536,8 +411,6 @@ def read_comma2k19(d: Path, settings: DriveSettings) -> Drive:
     """Read a comma2k19 segment: phone IMU (read as FRD, then ``imu_axes``), every u-blox
     fix with its speed and bearing as GNSS velocity, the CAN speed as body velocity, the
     (OS-calibrated) magnetometer, and ``global_pose`` as truth."""
-    import pymap3d
-
     drive = Drive(settings=settings, source=str(d), layout="comma2k19")
     # comma2k19 is driven by road cars: the side-slip velocity at the phone is a few
     # tenths of a m/s at most (0.37 m/s in global_pose on the bundled segment)
@@ -591,16 +464,18 @@ def read_comma2k19(d: Path, settings: DriveSettings) -> Drive:
         if ok.size == 0:
             raise InputError(f"{d}: no u-blox fix: no origin for the truth")
         origin = (float(lat[ok[0]]), float(lon[ok[0]]), float(gn[ok[0], 4]))
-        drive.truth = _comma_truth(d, origin, pymap3d)
+        drive.truth = _comma_truth(d, origin)
     else:
         drive.warnings.append(f"{d}: no global_pose/ folder: no ground truth")
     apply_mount(drive)
-    _warn_mount(drive)
+    warn_mount(drive)
     return drive
 
 
-def _comma_truth(d: Path, origin: tuple[float, float, float], pymap3d: Any) -> Truth:
+def _comma_truth(d: Path, origin: tuple[float, float, float]) -> Truth:
     from scipy.spatial.transform import Rotation
+
+    from imubounds.geodesy import ecef_to_enu
 
     ft = _load(d, "global_pose/frame_times")
     pos = _load(d, "global_pose/frame_positions")
@@ -612,7 +487,7 @@ def _comma_truth(d: Path, origin: tuple[float, float, float], pymap3d: Any) -> T
     c_ne = np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])
     c_nb = c_ne @ c_eb @ np.diag([1.0, -1.0, -1.0])  # FLU body -> ENU
     roll, pitch, heading = matrix_to_rpy(c_nb)
-    e, n, u = pymap3d.ecef2enu(pos[:, 0], pos[:, 1], pos[:, 2], *origin)
+    e, n, u = ecef_to_enu(pos[:, 0], pos[:, 1], pos[:, 2], origin)
     vb = np.einsum("nji,nj->ni", c_eb, vel) * np.array([1.0, -1.0, -1.0])  # body FLU
     psi = np.unwrap(0.5 * math.pi - heading)
     r = np.gradient(psi, ft)
@@ -716,7 +591,7 @@ def read_mapped_csv(
     tables: dict[str, tuple[pd.DataFrame, str]] = {}
     used: set[str] = set()
     for p in paths:
-        check_input_path(p, "CSV log", directory=False)
+        check_input_path(p, what="CSV log")
         df = _read_any_table(p)
         rename = {src: key for key, src in cmap.items() if src in df.columns}
         used |= set(rename.values())
@@ -849,21 +724,10 @@ def read_drive(
             drive = read_vn100(files["imu"], files["gps"], s, mount=mount)
         elif layout == "comma2k19":
             drive = read_comma2k19(files["dir"], s)
-        elif layout == "rosbag":
-            from imubounds.io.rosbag import read_drive_rosbag
-
-            drive = read_drive_rosbag(files["path"], settings=s, topics=topics)
-        elif layout == "ulog":
-            from imubounds.io.ulog import read_drive_ulog
-
-            drive = read_drive_ulog(files["path"], settings=s)
-        elif layout == "nmea":
-            from imubounds.io.nmea import read_drive_nmea
-
-            drive = read_drive_nmea(
-                files["nmea"], files["imu"], settings=s, imu_frame=imu_frame,
-                date_utc=date_utc, time_offset_s=time_offset_s, on_bad_checksum=on_bad_checksum,
-            )
+        elif layout in ("rosbag", "ulog", "nmea"):  # formats that register a drive reader
+            options = {"topics": topics, "imu_frame": imu_frame, "date_utc": date_utc,
+                       "time_offset_s": time_offset_s, "on_bad_checksum": on_bad_checksum}
+            drive = reader_entry(layout).load_drive()(files, s, options)
         else:
             drive = read_mapped_csv(files["paths"], columns, s)
         _settings_from_streams(drive)

@@ -17,7 +17,7 @@ import pandas as pd
 from imubounds.errors import InputError, OptionError
 from imubounds.frames import axes_matrix
 from imubounds.io.drive import DriveSettings
-from imubounds.io.drive_validate import check_input_path
+from imubounds.io.validate import check_input_path
 
 SETTINGS_FILE = "drive.yaml"
 
@@ -234,7 +234,7 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
     if not p.is_absolute() and base_dir is not None:
         p = Path(base_dir) / p
     try:
-        check_input_path(p, key, directory=False)
+        check_input_path(p, what=key)
     except InputError as err:
         raise InputError(f"{where}: {key}: {err}") from None
     return str(p.absolute())  # absolute: it must not be joined to the drive's folder again
@@ -243,7 +243,7 @@ def _resolve(value: str, key: str, where: str, base_dir: str | Path | None) -> s
 def _check_calibration(path: str, where: str) -> None:
     """Every (measured_deg, reference_deg) pair of a swing calibration must be finite: a
     NaN or empty cell is an error naming the row (the fit would drop it silently)."""
-    check_input_path(path, "compass calibration file", directory=False)
+    check_input_path(path, what="compass calibration file")
     try:
         data = pd.read_csv(path, comment="#", skipinitialspace=True)
     except (OSError, ValueError, UnicodeDecodeError, pd.errors.ParserError):
@@ -277,7 +277,7 @@ def check_noise_json(path: str | Path, where: str = "") -> None:
 
     lead = f"{where}: " if where else ""
     try:
-        p = check_input_path(path, "noise.json", directory=False)
+        p = check_input_path(path, what="noise.json")
     except InputError as err:
         raise InputError(f"{lead}noise.json: {err}") from None
     try:
@@ -371,7 +371,7 @@ def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
         s = parse_settings({}, str(p))
         s.assumed.insert(0, f"{p} is absent: every setting is its documented default")
         return s, {}
-    check_input_path(p, "drive settings", directory=False)
+    check_input_path(p, what="drive settings")
     data = load_settings_yaml(p)
     info: dict[str, Any] = {}
     if isinstance(data, dict):

@@ -58,7 +58,9 @@ def check_input_path(
 ) -> Path:
     """``path`` as a :class:`Path` if it is a regular file (``directory=False``), a directory
     (``True``) or either (``None``); named pipes, devices and sockets are refused without
-    opening them. The checks are :func:`imubounds.io.validate.check_input_path`'s."""
+    opening them. The checks are :func:`imubounds.io.validate.check_input_path`'s, which
+    io calls directly; this spelling is left only for ``dynamic/aiding/compass.py`` (delete it
+    when that call uses the one in :mod:`imubounds.io.validate`)."""
     return _check_path(
         path, what=what, allow_dir=directory is None, need_dir=directory is True
     )
@@ -73,7 +75,7 @@ def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:
     for suffix in suffixes:
         p = d / f"{stem}{suffix}"
         if os.path.lexists(p):
-            return check_input_path(p, f"the drive's {stem} table", directory=False)
+            return _check_path(p, what=f"the drive's {stem} table")
     return None
 
 

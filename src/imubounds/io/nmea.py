@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, time
 from pathlib import Path
@@ -179,6 +180,18 @@ def _utc_seconds(d: date, t: time) -> float:
     return dt.timestamp()
 
 
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``nmea`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`): the capture, and the IMU log if any."""
+    return read_drive_nmea(
+        files["nmea"], files["imu"], settings=settings, imu_frame=options["imu_frame"],
+        date_utc=options["date_utc"], time_offset_s=options["time_offset_s"],
+        on_bad_checksum=options["on_bad_checksum"],
+    )
+
+
 def read_drive_nmea(
     nmea_path: str | Path,
     imu_path: str | Path | None = None,
@@ -222,10 +235,7 @@ def read_drive_nmea(
         clockwise from north from HDT (true) else HDG (magnetic; true when every
         HDG carries the variation), IMU in FLU.
     """
-    import pynmea2
-
-    from imubounds.io import read_imu
-    from imubounds.io.drive_readers import apply_mount, match_times
+    from imubounds.io.drive_mount import apply_mount
 
     if imu_frame not in ("FLU", "FRD"):
         raise OptionError(f"imu_frame must be FLU or FRD, got {imu_frame!r}")
@@ -239,6 +249,40 @@ def read_drive_nmea(
             the_date = date.fromisoformat(date_utc)
         except ValueError as err:
             raise OptionError(f"date {date_utc!r} is not YYYY-MM-DD") from err
+    parsed, the_date = _parse_sentences(cap, the_date)
+    use_host = all(s.host_t is not None for s, _ in parsed)
+    if not use_host and the_date is None:
+        raise InputError(
+            f"{p}: sentences have no host time stamps and no RMC date; give the date (date_utc)"
+        )
+    rows = _collect_rows(p, parsed, use_host, the_date)
+    s_ = settings if settings is not None else DriveSettings()
+    drive = Drive(settings=s_, source=f"{p}" + (f" + {imu_path}" if imu_path else ""),
+                  layout="nmea")
+    drive.warnings.extend(cap.notes)
+    files: dict[str, str] = {"gnss": str(p)}
+    off = time_offset_s
+    _gnss_from_rows(p, rows, off, drive)
+    _heading_from_rows(p, rows, off, drive)
+    if drive.heading is not None:
+        files["heading"] = str(p)
+    if imu_path is None:
+        _imu_from_vnymr(cap, drive, files, off)
+    else:
+        _imu_from_file(imu_path, imu_options, imu_frame, drive, files)
+    drive.meta["files"] = files
+    drive.meta["nmea_time"] = "host stamps" if use_host else "UTC"
+    apply_mount(drive, attitude_of_sensor=True)
+    return drive
+
+
+def _parse_sentences(
+    cap: NmeaCapture, the_date: date | None
+) -> tuple[list[tuple[Sentence, object]], date | None]:
+    """The sentences pynmea2 can parse (others are not used here), and the date: the
+    given one, else that of the first RMC carrying one."""
+    import pynmea2
+
     parsed: list[tuple[Sentence, object]] = []
     for s in cap.sentences:
         try:
@@ -248,16 +292,16 @@ def read_drive_nmea(
         parsed.append((s, msg))
         if the_date is None and s.kind.endswith("RMC") and getattr(msg, "datestamp", None):
             the_date = msg.datestamp
-    use_host = all(s.host_t is not None for s, _ in parsed)
-    if not use_host and the_date is None:
-        raise InputError(
-            f"{p}: sentences have no host time stamps and no RMC date; give the date (date_utc)"
-        )
-    gga: list[tuple[float, ...]] = []
-    rmc: list[tuple[float, ...]] = []
-    vtg: list[tuple[float, ...]] = []
-    hdt: list[tuple[float, float]] = []
-    hdg: list[tuple[float, float, float]] = []
+    return parsed, the_date
+
+
+def _collect_rows(
+    p: Path, parsed: list[tuple[Sentence, object]], use_host: bool, the_date: date | None
+) -> dict[str, list[tuple[float, ...]]]:
+    """The rows of each used sentence type (GGA, RMC, VTG, HDT, HDG), each led by its
+    time in s (host stamp, else UTC of the date; a sentence without time takes the last)."""
+    rows: dict[str, list[tuple[float, ...]]] = {k: [] for k in ("GGA", "RMC", "VTG", "HDT",
+                                                                 "HDG")}  # fmt: skip
     last_t = math.nan
     for s, msg in parsed:
         stamp = getattr(msg, "timestamp", None)
@@ -273,39 +317,54 @@ def read_drive_nmea(
             continue
         last_t = t
         typ = s.kind[-3:]
-        m: Any = msg
         try:
-            if typ == "GGA":
-                lat = m.latitude if m.lat else math.nan
-                lon = m.longitude if m.lon else math.nan
-                gga.append((t, lat, lon, _f(m.altitude), _f(m.horizontal_dil), _f(m.gps_qual)))
-            elif typ == "RMC":
-                lat = m.latitude if m.lat else math.nan
-                lon = m.longitude if m.lon else math.nan
-                rmc.append((t, lat, lon, _f(m.true_course), 1.0 if m.status == "A" else 0.0,
-                            _f(m.spd_over_grnd) * KNOT))
-            elif typ == "VTG":
-                kmh = _f(m.spd_over_grnd_kmph)
-                spd = kmh / 3.6 if math.isfinite(kmh) else _f(m.spd_over_grnd_kts) * KNOT
-                vtg.append((t, _f(m.true_track), spd))
-            elif typ == "HDT":
-                hdt.append((t, _f(m.heading)))
-            elif typ == "HDG":
-                h = _f(m.heading)
-                dev = _f(m.deviation)
-                if math.isfinite(dev):
-                    h += dev if m.dev_dir == "E" else -dev
-                var = _f(m.variation)
-                var = (var if m.var_dir == "E" else -var) if math.isfinite(var) else math.nan
-                hdg.append((t, h, var))
+            row = _sentence_row(typ, msg, t)
         except (ValueError, TypeError, AttributeError) as err:
             raise InputError(f"{p}, line {s.line}: malformed {typ} sentence ({err})") from err
-    s_ = settings if settings is not None else DriveSettings()
-    drive = Drive(settings=s_, source=f"{p}" + (f" + {imu_path}" if imu_path else ""),
-                  layout="nmea")
-    drive.warnings.extend(cap.notes)
-    files: dict[str, str] = {"gnss": str(p)}
-    off = time_offset_s
+        if row is not None:
+            rows[typ].append(row)
+    return rows
+
+
+def _sentence_row(typ: str, msg: object, t: float) -> tuple[float, ...] | None:
+    """One row of a GGA (t, lat, lon, alt, hdop, quality), RMC (t, lat, lon, course deg,
+    valid, speed m/s), VTG (t, course deg, speed m/s), HDT (t, heading deg) or HDG (t,
+    magnetic heading deg, variation deg east) sentence; None for another type."""
+    m: Any = msg
+    if typ == "GGA":
+        lat = m.latitude if m.lat else math.nan
+        lon = m.longitude if m.lon else math.nan
+        return (t, lat, lon, _f(m.altitude), _f(m.horizontal_dil), _f(m.gps_qual))
+    if typ == "RMC":
+        lat = m.latitude if m.lat else math.nan
+        lon = m.longitude if m.lon else math.nan
+        return (t, lat, lon, _f(m.true_course), 1.0 if m.status == "A" else 0.0,
+                _f(m.spd_over_grnd) * KNOT)  # fmt: skip
+    if typ == "VTG":
+        kmh = _f(m.spd_over_grnd_kmph)
+        spd = kmh / 3.6 if math.isfinite(kmh) else _f(m.spd_over_grnd_kts) * KNOT
+        return (t, _f(m.true_track), spd)
+    if typ == "HDT":
+        return (t, _f(m.heading))
+    if typ == "HDG":
+        h = _f(m.heading)
+        dev = _f(m.deviation)
+        if math.isfinite(dev):
+            h += dev if m.dev_dir == "E" else -dev
+        var = _f(m.variation)
+        var = (var if m.var_dir == "E" else -var) if math.isfinite(var) else math.nan
+        return (t, h, var)
+    return None
+
+
+def _gnss_from_rows(
+    p: Path, rows: dict[str, list[tuple[float, ...]]], off: float, drive: Drive
+) -> None:
+    """The GNSS stream: GGA fixes (RMC positions without GGA), with the speed and course
+    of the RMC (else VTG) nearest in time."""
+    from imubounds.io.drive_mount import match_times
+
+    gga, rmc, vtg = rows["GGA"], rows["RMC"], rows["VTG"]
     if gga:
         g = _dedupe(np.asarray(gga, dtype=float))
         gs = GnssStream(
@@ -317,15 +376,22 @@ def read_drive_nmea(
         gs = GnssStream(t=r[:, 0] + off, lat_deg=r[:, 1], lon_deg=r[:, 2], fix=r[:, 4] > 0)
         drive.warnings.append(f"{p}: no GGA sentences: positions from RMC, default HDOP")
     else:
-        gs = None
-    if gs is not None:
-        vel = rmc or vtg
-        if vel:
-            v = _dedupe(np.asarray([(r[0], r[3], r[5]) for r in rmc] if rmc else vtg, float))
-            k, near = match_times(v[:, 0] + off, gs.t)
-            gs.speed_mps = np.where(near, v[k, 2], np.nan)
-            gs.course_rad = np.where(near, np.mod(np.radians(v[k, 1]), 2 * math.pi), np.nan)
-        drive.gnss = gs
+        return
+    vel = rmc or vtg
+    if vel:
+        v = _dedupe(np.asarray([(r[0], r[3], r[5]) for r in rmc] if rmc else vtg, float))
+        k, near = match_times(v[:, 0] + off, gs.t)
+        gs.speed_mps = np.where(near, v[k, 2], np.nan)
+        gs.course_rad = np.where(near, np.mod(np.radians(v[k, 1]), 2 * math.pi), np.nan)
+    drive.gnss = gs
+
+
+def _heading_from_rows(
+    p: Path, rows: dict[str, list[tuple[float, ...]]], off: float, drive: Drive
+) -> None:
+    """The heading stream: HDT (true) else HDG (magnetic; true when every HDG carries
+    the variation)."""
+    hdt, hdg = rows["HDT"], rows["HDG"]
     if hdt:
         hh = _dedupe(np.asarray(hdt, dtype=float))
         hh = hh[np.isfinite(hh[:, 1])]
@@ -342,28 +408,31 @@ def read_drive_nmea(
             f"{p}: heading from HDG (magnetic" + (", variation applied: true north)" if true else
                                                   "; the drive's declination applies)")
         )
-    if drive.heading is not None:
-        files["heading"] = str(p)
-    if imu_path is None:
-        _imu_from_vnymr(cap, drive, files, off)
-    else:
-        imu = read_imu(imu_path, on_gap="ignore") if imu_options is None else _read(
-            imu_path, imu_options)
-        drive.warnings.extend(imu.warnings)
-        nan = np.full(imu.t.size, np.nan)
-        acc = np.column_stack([imu.channels.get(f"accel_{a}", nan) for a in "xyz"])
-        gyr = np.column_stack([imu.channels.get(f"gyro_{a}", nan) for a in "xyz"])
-        frame_in = imu.frame if imu.frame in ("FLU", "FRD") else imu_frame
-        if frame_in == "FRD":
-            acc, gyr = acc * FRD_TO_FLU, gyr * FRD_TO_FLU
-            drive.notes.append(f"{imu_path}: FRD body axes converted to FLU (y and z negated)")
-        drive.imu = ImuStream(t=imu.t, accel=acc, gyro=gyr,
-                              input_units={"gyro": "rad/s", "accel": "m/s^2"})
-        files["imu"] = str(imu_path)
-    drive.meta["files"] = files
-    drive.meta["nmea_time"] = "host stamps" if use_host else "UTC"
-    apply_mount(drive, attitude_of_sensor=True)
-    return drive
+
+
+def _imu_from_file(
+    imu_path: str | Path,
+    imu_options: ReadOptions | None,
+    imu_frame: str,
+    drive: Drive,
+    files: dict[str, str],
+) -> None:
+    """The IMU stream from a separate IMU log (read by the reader registry)."""
+    from imubounds.io.registry import read_imu
+
+    imu = read_imu(imu_path, on_gap="ignore") if imu_options is None else _read(
+        imu_path, imu_options)
+    drive.warnings.extend(imu.warnings)
+    nan = np.full(imu.t.size, np.nan)
+    acc = np.column_stack([imu.channels.get(f"accel_{a}", nan) for a in "xyz"])
+    gyr = np.column_stack([imu.channels.get(f"gyro_{a}", nan) for a in "xyz"])
+    frame_in = imu.frame if imu.frame in ("FLU", "FRD") else imu_frame
+    if frame_in == "FRD":
+        acc, gyr = acc * FRD_TO_FLU, gyr * FRD_TO_FLU
+        drive.notes.append(f"{imu_path}: FRD body axes converted to FLU (y and z negated)")
+    drive.imu = ImuStream(t=imu.t, accel=acc, gyro=gyr,
+                          input_units={"gyro": "rad/s", "accel": "m/s^2"})
+    files["imu"] = str(imu_path)
 
 
 def _imu_from_vnymr(cap: NmeaCapture, drive: Drive, files: dict[str, str], off: float) -> None:
@@ -401,7 +470,7 @@ def _imu_from_vnymr(cap: NmeaCapture, drive: Drive, files: dict[str, str], off: 
 
 
 def _read(path: str | Path, opts: ReadOptions) -> ImuLog:
-    from imubounds.io import find_reader
+    from imubounds.io.registry import find_reader
 
     return find_reader(path).load()(Path(path), opts.validated())[0]
 

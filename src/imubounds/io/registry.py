@@ -8,6 +8,11 @@ first bytes of the file (for files with an unexpected suffix). New formats
 accepts ``"module:function"`` strings so that optional dependencies are only
 imported when such a file is read.
 
+A format that also holds a whole drive (ROS bags, ULog, NMEA captures) registers its
+drive reader in the same entry (``read_drive``): :func:`imubounds.io.read_drive` finds
+it here by the detected layout instead of importing the format module, so no format
+reader and the drive assembly import each other.
+
 Every reader hands its raw columns to
 :func:`imubounds.io.assemble.assemble_logs`, so unit conversion, time
 checks and gap handling behave the same for every format.
@@ -20,12 +25,14 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from imubounds.errors import InputError
 from imubounds.io.log import ImuLog
 
 from .assemble import OnGap, ReadOptions, assemble_logs
 from .columns import parse_column_map, recognise
+from .magic import is_bag, is_gzip, is_hdf5, is_parquet, is_ulog
 from .validate import check_input_path
 
 __all__ = [
@@ -38,6 +45,7 @@ __all__ = [
     "parse_column_map",
     "read_imu",
     "read_imu_segments",
+    "reader_entry",
     "recognise",
     "register_reader",
     "registered_readers",
@@ -47,6 +55,11 @@ __all__ = [
 ReaderFunc = Callable[[Path, ReadOptions], list[ImuLog]]
 SniffFunc = Callable[[bytes], bool]
 SniffDirFunc = Callable[[Path], bool]
+#: ``read_drive(files, settings, options) -> Drive``: ``files`` as
+#: :func:`imubounds.io.drive_readers.detect_layout` found them, the drive's
+#: :class:`~imubounds.io.drive.DriveSettings`, and the format's options of
+#: :func:`imubounds.io.read_drive` (``topics``, ``imu_frame``, ...).
+DriveReaderFunc = Callable[[Mapping[str, Any], Any, Mapping[str, Any]], Any]
 
 #: File name of the bundled 45-minute extract of the ADIS16405 static log.
 BUNDLED_STATIC_LOG = "adis16405_imu1_extract.csv.gz"
@@ -69,6 +82,9 @@ class ReaderEntry:
     sniff_dir:
         Optional test of a directory (formats stored as a folder, such as a
         ROS 2 bag); without it directories are refused.
+    read_drive:
+        Optional drive reader of the format (:data:`DriveReaderFunc`, or
+        ``"module:function"``), for :func:`imubounds.io.read_drive`.
     """
 
     name: str
@@ -76,6 +92,7 @@ class ReaderEntry:
     read: ReaderFunc | str
     sniff: SniffFunc | None = None
     sniff_dir: SniffDirFunc | None = None
+    read_drive: DriveReaderFunc | str | None = None
 
     def load(self) -> ReaderFunc:
         """The reader function (importing it if registered by name)."""
@@ -83,6 +100,16 @@ class ReaderEntry:
             return self.read
         module, _, func = self.read.partition(":")
         reader: ReaderFunc = getattr(importlib.import_module(module), func)
+        return reader
+
+    def load_drive(self) -> DriveReaderFunc:
+        """The drive reader (importing it if registered by name)."""
+        if self.read_drive is None:
+            raise InputError(f"the {self.name} format holds no drive")
+        if callable(self.read_drive):
+            return self.read_drive
+        module, _, func = self.read_drive.partition(":")
+        reader: DriveReaderFunc = getattr(importlib.import_module(module), func)
         return reader
 
 
@@ -96,6 +123,7 @@ def register_reader(
     suffixes: Iterable[str] = (),
     sniff: SniffFunc | None = None,
     sniff_dir: SniffDirFunc | None = None,
+    read_drive: DriveReaderFunc | str | None = None,
     replace: bool = False,
 ) -> ReaderEntry:
     """Register a file format for :func:`read_imu`.
@@ -113,12 +141,15 @@ def register_reader(
         ``sniff(first_64_bytes) -> bool`` for files whose suffix is unknown.
     sniff_dir:
         ``sniff_dir(directory) -> bool`` for formats stored as a directory.
+    read_drive:
+        The format's drive reader (:data:`DriveReaderFunc` or ``"module:function"``).
     replace:
         Allow replacing an existing registration.
     """
     if name in _REGISTRY and not replace:
         raise ValueError(f"reader {name!r} is already registered")
-    entry = ReaderEntry(name, tuple(s.lower() for s in suffixes), read, sniff, sniff_dir)
+    entry = ReaderEntry(name, tuple(s.lower() for s in suffixes), read, sniff, sniff_dir,
+                        read_drive)
     _REGISTRY[name] = entry
     return entry
 
@@ -133,8 +164,18 @@ def registered_readers() -> list[ReaderEntry]:
     return list(_REGISTRY.values())
 
 
+def reader_entry(name: str) -> ReaderEntry:
+    """The registered format ``name`` (``"rosbag"``, ``"nmea"``, ...)."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise InputError(
+            f"no reader {name!r} is registered (registered: {', '.join(_REGISTRY)})"
+        ) from None
+
+
 def _sniff_text(head: bytes) -> bool:
-    if head[:2] == b"\x1f\x8b":
+    if is_gzip(head):
         return True
     try:
         head.decode("utf-8")
@@ -151,31 +192,34 @@ register_reader(
     "parquet",
     "imubounds.io.table:read_parquet",
     suffixes=(".parquet", ".pq", ".parq"),
-    sniff=lambda head: head[:4] == b"PAR1",
+    sniff=is_parquet,
 )
 register_reader(
     "rosbag",
     "imubounds.io.rosbag:read_rosbag",
     suffixes=(".bag", ".db3", ".mcap"),
-    sniff=lambda head: head.startswith((b"#ROSBAG V2.0", b"\x89MCAP", b"SQLite format 3\x00")),
+    sniff=is_bag,
     sniff_dir=lambda d: (d / "metadata.yaml").is_file(),
+    read_drive="imubounds.io.rosbag:drive_from_files",
 )
 register_reader(
     "ulog",
     "imubounds.io.ulog:read_ulog",
     suffixes=(".ulg", ".ulog"),
-    sniff=lambda head: head.startswith(b"ULog\x01\x12\x35"),
+    sniff=is_ulog,
+    read_drive="imubounds.io.ulog:drive_from_files",
 )
 register_reader(
     "hdf5",
     "imubounds.io.hdf5:read_hdf5",
     suffixes=(".h5", ".hdf5", ".hdf", ".he5"),
-    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"),
+    sniff=is_hdf5,
 )
 register_reader(
     "nmea",
     "imubounds.io.nmea:read_nmea_imu",
     suffixes=(".nmea", ".nmea.txt"),
+    read_drive="imubounds.io.nmea:drive_from_files",
 )
 register_reader(
     "table",

@@ -19,7 +19,7 @@ is zero the bag's receive time is used instead, with a warning.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -56,14 +56,6 @@ TWIST_TYPES = ("geometry_msgs/msg/TwistWithCovarianceStamped", "geometry_msgs/ms
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 #: Header frame ids taken as a geographic (ENU) frame; anything else is a body frame.
 GEOGRAPHIC_FRAMES = ("enu", "map", "world", "earth", "utm", "gps", "gnss", "navsat", "ublox")
-ROS1_MAGIC = b"#ROSBAG V2.0"
-MCAP_MAGIC = b"\x89MCAP"
-SQLITE_MAGIC = b"SQLite format 3\x00"
-
-
-def sniff_bag(head: bytes) -> bool:
-    """True for the first bytes of a ROS 1 bag, an MCAP file or a ROS 2 sqlite3 file."""
-    return head.startswith((ROS1_MAGIC, MCAP_MAGIC, SQLITE_MAGIC))
 
 
 def _bag_error(path: Path, err: BaseException) -> InputError:
@@ -253,6 +245,14 @@ def _twist(msg: Any) -> Any:
     return tw.twist if hasattr(tw, "twist") else tw
 
 
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``rosbag`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`)."""
+    return read_drive_rosbag(files["path"], settings=settings, topics=options.get("topics"))
+
+
 def read_drive_rosbag(
     path: str | Path,
     *,
@@ -342,7 +342,7 @@ def read_drive_rosbag(
             used["attitude"] = att
     drive.meta["topics"] = {k: v for k, v in used.items() if v is not None}
     drive.meta["files"] = {k: f"{p}:{v}" for k, v in drive.meta["topics"].items()}
-    from imubounds.io.drive_readers import apply_mount
+    from imubounds.io.drive_mount import apply_mount
 
     apply_mount(drive, attitude_of_sensor=drive.meta.get("attitude_from") == "imu")
     return drive
@@ -438,7 +438,7 @@ def _velocities(bag: _Bag, path: Path, tp: dict[str, Any], drive: Drive,
     if gv is not None and drive.gnss is not None:
         t, v = _vectors(bag, path, gv, lambda m: _twist(m).linear, drive.warnings)
         if t.size:
-            from imubounds.io.drive_readers import match_times
+            from imubounds.io.drive_mount import match_times
 
             g = drive.gnss
             k, near = match_times(t, g.t)

@@ -31,20 +31,14 @@ from imubounds.io.log import ImuLog
 
 from .assemble import OnGap, RawChannel, RawTime, ReadOptions, assemble_logs
 from .columns import ColumnPlan, plan_columns, recognise
+from .magic import file_is_gzip
 
 if TYPE_CHECKING:
     import pandas as pd
     from numpy.typing import ArrayLike
 
-GZIP_MAGIC = b"\x1f\x8b"
-PARQUET_MAGIC = b"PAR1"
 _HEAD_BYTES = 1 << 18
 _DELIMITERS = ("\t", ",", ";", "|")
-
-
-def _is_gzip(path: Path) -> bool:
-    with open(path, "rb") as f:
-        return f.read(2) == GZIP_MAGIC
 
 
 def _open_text(path: Path, gz: bool) -> io.TextIOBase:
@@ -551,7 +545,7 @@ def read_text_table(path: Path, opts: ReadOptions) -> list[ImuLog]:
     list of ImuLog
         See :func:`imubounds.io.assemble.assemble_logs`.
     """
-    gz = _is_gzip(path)
+    gz = file_is_gzip(path)
     head = _read_head(path, gz)
     layout = _detect_layout(path, head)
     plan = plan_columns(layout.header, str(path), columns=opts.columns, channels=opts.channels)

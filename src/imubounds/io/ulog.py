@@ -22,6 +22,7 @@ quaternion) is already a heading clockwise from north.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -42,13 +43,7 @@ from imubounds.io.log import ImuLog
 
 from .assemble import RawChannel, RawTime, ReadOptions, assemble_logs
 
-ULOG_MAGIC = b"ULog\x01\x12\x35"
 IMU_TOPICS = ("sensor_combined", "vehicle_imu")
-
-
-def sniff_ulog(head: bytes) -> bool:
-    """True for the first bytes of a ULog file."""
-    return head.startswith(ULOG_MAGIC)
 
 
 def truncation_note(path: Path) -> str | None:
@@ -225,6 +220,14 @@ def quaternion_ned_heading(q: np.ndarray) -> np.ndarray:
 GPS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 
 
+def drive_from_files(
+    files: Mapping[str, Any], settings: DriveSettings, options: Mapping[str, Any]
+) -> Drive:
+    """The drive reader registered for the ``ulog`` format (see
+    :data:`imubounds.io.registry.DriveReaderFunc`)."""
+    return read_drive_ulog(files["path"], settings=settings)
+
+
 def read_drive_ulog(path: str | Path, *, settings: DriveSettings | None = None) -> Drive:
     """Read a PX4 ULog as a drive: IMU, GNSS (position, velocity, accuracy, dual-antenna
     heading), magnetometer and attitude.
@@ -278,7 +281,7 @@ def read_drive_ulog(path: str | Path, *, settings: DriveSettings | None = None) 
         drive.attitude = AttitudeStream(t=at, roll_rad=r, pitch_rad=pt, yaw_rad=y, source="ahrs")
         files["attitude"] = f"{p}:vehicle_attitude"
     drive.meta["files"] = files
-    from imubounds.io.drive_readers import apply_mount
+    from imubounds.io.drive_mount import apply_mount
 
     apply_mount(drive)
     return drive

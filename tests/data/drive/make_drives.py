@@ -57,7 +57,7 @@ FRD_TO_FLU = np.array([1.0, -1.0, -1.0])
 
 def gps_velocity(gps: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(east, north, speed) m/s at each fix: the difference to the next fix (last: previous)."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     e, n, _ = geodetic_to_enu(gps["latitude"], gps["longitude"])
     dt = np.diff(gps["t"])

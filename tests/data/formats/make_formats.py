@@ -384,7 +384,7 @@ def _cs(body: str) -> str:
 def write_vn100_nmea(nmea: Path, imu_csv: Path, bad: Path) -> None:
     """Host-stamped capture: the real $GPGGA and $VNYMR sentences, HDT from the VN-100 yaw,
     RMC with the course over ground between consecutive fixes; and the IMU as CSV."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     imu, gps, ymr, gga = vn100()
     lines: list[tuple[float, str]] = [(t, s) for t, s in zip(gps["t"], gga, strict=True)]

@@ -7,7 +7,6 @@ from imubounds.dynamic.aiding.compass import (
     heading_from_magnetometer,
     heading_intervals,
 )
-from imubounds.dynamic.aiding.geodesy import geodetic_to_enu, haversine_enu
 from imubounds.dynamic.aiding.gps import (
     GpsBoxSpec,
     cep_to_drms,
@@ -17,6 +16,7 @@ from imubounds.dynamic.aiding.gps import (
     radius_at_probability,
 )
 from imubounds.frames import compass_to_model, model_to_compass, wrap_pi
+from imubounds.geodesy import geodetic_to_enu, haversine_enu
 
 __all__ = [
     "CompassDeviation",

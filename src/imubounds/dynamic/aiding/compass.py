@@ -35,6 +35,7 @@ import numpy as np
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.frames import TWO_PI, compass_to_model, wrap_pi
+from imubounds.geodesy import course_over_ground
 
 
 @dataclass(frozen=True)
@@ -256,22 +257,6 @@ def heading_from_magnetometer(
     return (np.arctan2(-right, np.asarray(mx, dtype=float)) + declination_rad) % TWO_PI
 
 
-def course_over_ground(
-    t: np.ndarray, east: np.ndarray, north: np.ndarray, min_speed: float = 3.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Course over ground (rad, clockwise from north) from consecutive ENU fixes.
-
-    Returns ``(t_mid, course)`` at the midpoints of fix pairs whose speed is at
-    least ``min_speed`` m/s (slower pairs give unreliable courses and are dropped).
-    """
-    t = np.asarray(t, dtype=float)
-    de, dn, dt = np.diff(east), np.diff(north), np.diff(t)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.hypot(de, dn) / dt
-    ok = np.isfinite(speed) & (speed >= min_speed)
-    return 0.5 * (t[1:] + t[:-1])[ok], np.arctan2(de, dn)[ok] % TWO_PI
-
-
 # ----------------------------------------------------------------------------- one heading
 
 #: Deviation bound (deg) assumed for an uncalibrated compass when drive.yaml gives none.
@@ -355,7 +340,7 @@ def k_sigma(alpha: float, n: int) -> float:
 def _gnss_course(drive: Any, min_speed: float) -> tuple[np.ndarray, np.ndarray] | None:
     """(t, course rad clockwise from true north) of the GNSS while moving faster than
     ``min_speed``: the receiver's velocity if it has one, else consecutive positions."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     g = drive.gnss
     if g is None:
@@ -684,7 +669,7 @@ def course_noise(
     receiver's velocity (sigma = vel sigma / speed) or from chords of
     :data:`COURSE_CHORD` fixes (sigma = sqrt(2) x position sigma per axis / length),
     the GNSS errors being isotropic Gaussian (drive.yaml gnss: cep_m, vel_sigma_mps)."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
+    from imubounds.geodesy import geodetic_to_enu
 
     g = drive.gnss
     if g is None:

@@ -18,11 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from imubounds.errors import OptionError
+from imubounds.io.drive import DEFAULT_CEP_M, DEFAULT_HDOP  # the GNSS defaults, defined once
 
-#: Default GPS CEP in m at HDOP 1 (the paper's receiver).
-DEFAULT_CEP_M = 3.0
-#: HDOP used for fixes that do not carry one.
-DEFAULT_HDOP = 1.0
 #: Default probability level of the position box.
 DEFAULT_BOX = "p=0.999"
 

@@ -636,8 +636,8 @@ def build_aiding(
 ) -> Aiding:
     """Aiding intervals (IMU-free) with their budget rows. ``alpha`` must already count
     the GNSS fixes, GNSS velocity components and heading epochs."""
-    from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
     from imubounds.dynamic.aiding.gps import cep_to_drms
+    from imubounds.geodesy import geodetic_to_enu
 
     st = drive.settings
     ag = Aiding(origin=None)

@@ -35,10 +35,10 @@ from imubounds.dynamic.aiding.compass import (
     heading_from_magnetometer,
     heading_intervals,
 )
-from imubounds.dynamic.aiding.geodesy import geodetic_to_enu
 from imubounds.dynamic.aiding.gps import gps_box_halfwidths, parse_gps_box
 from imubounds.dynamic.estimator import paper_kernel as K
 from imubounds.errors import AnalysisError, InputError, OptionError
+from imubounds.geodesy import geodetic_to_enu
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")

@@ -59,11 +59,10 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
     e, n = np.asarray(tr.east_m, float), np.asarray(tr.north_m, float)
     if origin is not None and all(math.isfinite(v) for v in tr.origin[:2]):
         if tuple(origin[:2]) != tuple(tr.origin[:2]):
-            import pymap3d
+            from imubounds.geodesy import enu_to_geodetic_3d, geodetic_to_enu
 
-            lat, lon, alt = pymap3d.enu2geodetic(e, n, np.zeros_like(e), *tr.origin)
-            e, n, _ = pymap3d.geodetic2enu(lat, lon, alt, origin[0], origin[1], origin[2])
-            e, n = np.asarray(e, float), np.asarray(n, float)
+            lat, lon, alt = enu_to_geodetic_3d(e, n, np.zeros_like(e), tuple(tr.origin))
+            e, n, _ = geodetic_to_enu(lat, lon, alt, origin=(origin[0], origin[1], origin[2]))
     elif origin is None:
         # no GNSS: positions relative to the state at the first requested time
         e = e - np.interp(t_abs[0], tt, e)

@@ -119,7 +119,7 @@ def simulate_aiding(
 def _gnss(
     cfg: ScenarioConfig, traj: SampledTruth, rng: np.random.Generator, out: AidingOutput
 ) -> None:
-    import pymap3d
+    from imubounds.geodesy import enu_to_geodetic_3d
 
     t = epochs(cfg, cfg.gps_rate_hz)
     m = t.size
@@ -146,7 +146,7 @@ def _gnss(
         ang = orng.uniform(0, 2 * math.pi, int(outlier.sum()))
         ex[outlier] += cfg.gps_outlier_m * np.cos(ang)
         ey[outlier] += cfg.gps_outlier_m * np.sin(ang)
-    lat, lon, alt = pymap3d.enu2geodetic(k["east"] + ex, k["north"] + ey, k["up"] + ez, *cfg.origin)
+    lat, lon, alt = enu_to_geodetic_3d(k["east"] + ex, k["north"] + ey, k["up"] + ez, cfg.origin)
     g = GnssStream(
         t=t,
         lat_deg=np.asarray(lat, dtype=float),

@@ -1,4 +1,6 @@
-"""Geodetic coordinates -> local East-North frame at the first fix (METHOD.md 2.3).
+"""Geodetic coordinates <-> a local East-North-Up frame (METHOD.md 2.3).
+
+The one module that calls pymap3d; io, dynamic and the simulator convert through it.
 
 * ``wgs84`` (default): exact WGS-84 geodetic -> ENU with pymap3d.
 * ``haversine`` (the paper): great-circle distance S and initial bearing
@@ -16,6 +18,7 @@ import numpy as np
 import pymap3d
 
 from imubounds.errors import OptionError
+from imubounds.frames import TWO_PI
 
 #: Earth's mean radius used by the paper, m.
 EARTH_RADIUS_M = 6_371_000.0
@@ -78,7 +81,7 @@ def geodetic_to_enu(
     if method == "haversine":
         e, n = haversine_enu(lat, lon, origin[0], origin[1])
         return e, n, origin
-    raise OptionError(f"--geodesy must be one of {', '.join(GEODESY_METHODS)}, got {method!r}")
+    raise OptionError(f"method must be one of {', '.join(GEODESY_METHODS)}, got {method!r}")
 
 
 def enu_to_geodetic(
@@ -94,3 +97,41 @@ def enu_to_geodetic(
         origin[2],
     )
     return np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
+
+
+def enu_to_geodetic_3d(
+    east: np.ndarray,
+    north: np.ndarray,
+    up: np.ndarray,
+    origin: tuple[float, float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """WGS-84 (lat_deg, lon_deg, alt_m) of local ENU points (m) from ``origin``
+    (lat_deg, lon_deg, alt_m)."""
+    lat, lon, alt = pymap3d.enu2geodetic(east, north, up, *origin)
+    return (np.asarray(lat, dtype=float), np.asarray(lon, dtype=float),
+            np.asarray(alt, dtype=float))  # fmt: skip
+
+
+def ecef_to_enu(
+    x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray, origin: tuple[float, float, float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local (east, north, up) in m of WGS-84 ECEF points (m) from ``origin``
+    (lat_deg, lon_deg, alt_m)."""
+    e, n, u = pymap3d.ecef2enu(x_m, y_m, z_m, *origin)
+    return np.asarray(e, dtype=float), np.asarray(n, dtype=float), np.asarray(u, dtype=float)
+
+
+def course_over_ground(
+    t: np.ndarray, east: np.ndarray, north: np.ndarray, min_speed: float = 3.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Course over ground (rad, clockwise from north) from consecutive ENU fixes.
+
+    Returns ``(t_mid, course)`` at the midpoints of fix pairs whose speed is at
+    least ``min_speed`` m/s (slower pairs give unreliable courses and are dropped).
+    """
+    t = np.asarray(t, dtype=float)
+    de, dn, dt = np.diff(east), np.diff(north), np.diff(t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.hypot(de, dn) / dt
+    ok = np.isfinite(speed) & (speed >= min_speed)
+    return 0.5 * (t[1:] + t[:-1])[ok], np.arctan2(de, dn)[ok] % TWO_PI
