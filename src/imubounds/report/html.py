@@ -21,6 +21,7 @@ from typing import Any
 
 from imubounds import __version__
 from imubounds.errors import InputError
+from imubounds.report._html_checks import checks_block, summary_line
 from imubounds.report._html_fleet import _fleet_section
 from imubounds.report._html_parts import _e, _img, _listed, _load_json, _num, _table, _term_cell
 
@@ -265,6 +266,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             "90 % of the points where it is valid (τ ≥ its fit sample period) and is nowhere "
             "off by more than ×1.5; the fit rate and AR order are chosen to achieve that.</p>"
         )
+    parts.append(checks_block(d, channels))
     if _listed(d, "allan.png"):
         parts.append(
             _img(
@@ -643,6 +645,7 @@ def _summary_section(
                     )
         parts.append(_table(["channel", "N (white noise)", "B (bias instability)",
                              "K (rate random walk)"], rows))
+        parts.append(summary_line(channels))
     if dyn is not None:
         full = (dyn.get("modes") or {}).get("full") or {}
         verdicts = full.get("verdict") or {}
