@@ -107,6 +107,8 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
 def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
     imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     expected = [run_dir / "static" / "allan.png"]
+    if (run_dir / "static" / "stationarity.png").is_file():
+        expected.append(run_dir / "static" / "stationarity.png")
     if VN100.is_dir():
         expected += [run_dir / "dynamic" / f"{s}.png" for s in
                      ("margins", "motion", "windows", "trajectory", "intervals")]

@@ -14,11 +14,11 @@ def register(sub: Any) -> None:
         "demo",
         help="run the whole pipeline on the bundled real data",
         description="One story about one IMU: characterise the bundled ADIS16405 static "
-        "log (DIR/static), simulate the paper's 9.4 km trip with that IMU's measured noise "
-        "(DIR/sim, from DIR/static/noise.json), bound its error in motion against the characterised "
-        "noise (DIR/dynamic, with the in-motion figures in motion.json), export the filter "
-        "parameters in every format, stationary and in motion (DIR/filter), and write one "
-        "report (DIR/report.html).",
+        "log (DIR/static), simulate the paper's 9.4 km trip with that IMU's measured "
+        "noise (DIR/sim, from DIR/static/noise.json), bound its error in motion against "
+        "the characterised noise (DIR/dynamic, with the in-motion figures in motion.json), "
+        "export the filter parameters in every format, stationary and in motion "
+        "(DIR/filter), and write one report (DIR/report.html).",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
     add_force_option(p)

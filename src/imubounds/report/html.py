@@ -266,7 +266,6 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             "90 % of the points where it is valid (τ ≥ its fit sample period) and is nowhere "
             "off by more than ×1.5; the fit rate and AR order are chosen to achieve that.</p>"
         )
-    parts.append(checks_block(d, channels))
     if _listed(d, "allan.png"):
         parts.append(
             _img(
@@ -275,6 +274,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
                 "the fitted curve (and fitted stochastic models where asked).",
             )
         )
+    parts.append(checks_block(d, channels))
     parts.append(_run_block(d))
     parts.append("</details></section>")
     return "".join(parts), warnings, commands

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.stats import norm
 
 from imubounds.dynamic.scenario.config import ScenarioConfig
+from imubounds.dynamic.scenario.imu_noise import load_imu_noise, preset_noise
 from imubounds.dynamic.scenario.record import (
     Check,
     check,
@@ -44,7 +45,6 @@ from imubounds.dynamic.scenario.record import (
     white_interval_sums,
     window_means,
 )
-from imubounds.dynamic.scenario.imu_noise import load_imu_noise, preset_noise
 from imubounds.presets import get_preset
 from imubounds.stationary import noise_sim
 from imubounds.stationary.models import GaussMarkovModel

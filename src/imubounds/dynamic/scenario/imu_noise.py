@@ -18,11 +18,13 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from imubounds.dynamic.scenario.config import ScenarioConfig
 from imubounds.errors import InputError
 from imubounds.stationary.noise_sim import TERMS, AxisNoise, NoiseSpec
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.scenario.config import ScenarioConfig
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z")
 
@@ -46,7 +48,9 @@ def _read(path: str) -> dict[str, Any]:
             "'imubounds static'"
         ) from None
     except json.JSONDecodeError as err:
-        raise InputError(f"--imu-noise {p}: not valid JSON ({err.msg}, line {err.lineno})") from None
+        raise InputError(
+            f"--imu-noise {p}: not valid JSON ({err.msg}, line {err.lineno})"
+        ) from None
     if not isinstance(doc, dict):
         raise InputError(f"--imu-noise {p}: not a noise.json of 'imubounds static'")
     return doc
