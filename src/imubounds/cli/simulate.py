@@ -272,5 +272,12 @@ def run(args: argparse.Namespace) -> int:
             f"{res.closure_error_m():.2e} m, max speed {res.truth['speed'].max():.1f} m/s -> "
             f"{args.out}"
         )
+        fig = res.imu_errors.figures
+        if cfg.imu_noise is not None:
+            print(
+                f"IMU noise: {fig.source}; {len(fig.notes)} note(s) on what was simulated "
+                "(terms given only as upper bounds) in scenario.json: "
+                "true_values.imu.figures.noise_notes"
+            )
         print(res.record.summary())
     return 0
