@@ -47,9 +47,15 @@ def test_demo_tells_one_story_and_its_report_answers_first(
               "dynamic/motion.json", "report.html", "run.json"):  # fmt: skip
         assert (out / f).is_file(), f
     assert not (out / "dynamic_vn100").exists()  # one IMU, not three
-    # the trip's IMU is the ADIS16405's (datasheet noise) and the bounds use its noise.json
+    # the trip's IMU has the noise measured from the bundled log, and the bounds use it
     scen = json.loads((out / "sim" / "scenario.json").read_text())
-    assert scen["config"]["imu_preset"] == "adis16405"
+    assert Path(scen["config"]["imu_noise"]) == out / "static" / "noise.json"
+    assert scen["true_values"]["imu"]["figures"]["preset"] == "noise.json"
+    drive = yaml.safe_load((out / "sim" / "drive.yaml").read_text())
+    assert drive["imu"]["noise_json"] == "imu_noise.json"
+    assert (out / "sim" / "imu_noise.json").read_bytes() == (
+        out / "static" / "noise.json"
+    ).read_bytes()
     dyn = json.loads((out / "dynamic" / "dynamic.json").read_text())
     assert dyn["modes"]["full"]["guaranteed"] is True
     budget = dyn["modes"]["full"]["budget"]["gyro_z"]

@@ -107,6 +107,8 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
 def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
     imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     expected = [run_dir / "static" / "allan.png"]
+    if (run_dir / "static" / "stationarity.png").is_file():
+        expected.append(run_dir / "static" / "stationarity.png")
     if VN100.is_dir():
         expected += [run_dir / "dynamic" / f"{s}.png" for s in
                      ("margins", "motion", "windows", "trajectory", "intervals")]
@@ -312,3 +314,73 @@ def test_allan_labels_sigma_min_in_the_axis_unit() -> None:
     want = sm["value"] * 180 / math.pi * 3600  # rad/s -> deg/h
     assert label.startswith(f"σ_min = {want:.3g} deg/h"), label
     assert "deg/s" not in label
+
+
+def test_static_checks_misfit_record_length_stationarity_timing(tmp_path: Path) -> None:
+    """The noise.json's misfit, record_length, stationarity (with a warm-up and its
+    figure) and timing blocks are shown in the details, with one summary line."""
+    from PIL import Image
+
+    import imubounds as ib
+    from imubounds.io import bundled_static_log
+    from imubounds.io.outputs import to_jsonable
+    from imubounds.stationary.stationarity import Warmup
+
+    doc = to_jsonable(ib.characterize(bundled_static_log(), models=()).to_dict())
+    chans = doc["channels"]
+    for block in ("record_length", "stationarity", "timing"):
+        assert all(block in c for c in chans.values()), block
+    static = tmp_path / "run" / "static"
+    static.mkdir(parents=True)
+
+    def page(d: dict) -> str:
+        (static / "noise.json").write_text(json.dumps(d))
+        return build_report(tmp_path / "run")
+
+    clean = json.loads(json.dumps(doc))
+    for c in clean["channels"].values():
+        c["noise"]["selected"]["misfit"] = []
+        c["stationarity"]["warmup"] = None
+    html = page(clean)
+    assert "leave the curve on" not in html and "warm-up " not in html.split("id='static'")[0]
+    assert "The fitted terms follow the curve within its intervals at every τ." in html
+    assert html.count("none found") == len(chans)
+
+    warm = Warmup(0.0, 812.0, 271.0, 0.0123, 0.0004, 30.75).to_dict()
+    chans["accel_y"]["stationarity"]["warmup"] = warm
+    chans["accel_y"]["stationarity"]["stationary"] = False
+    Image.new("RGB", (8, 8), "white").save(static / "stationarity.png")
+    html = page(doc)
+    summary, details = html.split("<section id='static'>")
+    # one summary line: the warm-up and the channels whose terms leave the curve
+    mis = [ch for ch, c in chans.items() if c["noise"]["selected"]["misfit"]]
+    assert mis  # the bundled log has structure the five terms cannot follow
+    line = re.search(r"<p class='warn'>Static log: (.*?)</p>", summary)
+    assert line is not None
+    assert "warm-up accel_y 0 – 812 s" in line.group(1)
+    assert f"leave the curve on {', '.join(mis)}" in line.group(1)
+    # details: every misfit range with its side
+    for ch in mis:
+        for m in chans[ch]["noise"]["selected"]["misfit"]:
+            lo, hi = m["tau_range_s"]
+            assert f"<td class='l'>{ch}</td><td>{lo:.3g} – {hi:.3g} s</td><td>{m['side']}" in (
+                details
+            )
+    # record length: the relative widths at each length and the hours needed
+    rl = chans["gyro_y"]["record_length"]
+    assert "How long to record" in details and "needed for a 20 % width" in details
+    assert f"{100 * rl['rel_ci_width']['B'][-1]:.3g} %" in details
+    need = rl["hours_needed"]["B"]
+    shown = f"{need * 60:.2g} min" if need < 1 else f"{need:.3g} h"
+    assert re.search(rf"gyro_y B</td>(<td>[^<]*</td>)+<td>{re.escape(shown)}</td>", details)
+    # stationarity: the verdict, the warm-up's start and end, and the figure
+    assert "<span class='bad'>not stationary</span>" in details
+    assert "<span class='warn'>0 – 812 s</span> (T = 271 s" in details
+    assert details.count("none found") == len(chans) - 1
+    assert "consecutive windows of the log" in details  # stationarity.png embedded
+    # timing: the step, the jitter, the bound of the constant-rate error and the gaps
+    tm = chans["gyro_z"]["timing"]
+    assert "Time stamps" in details
+    assert (f"<td class='l'>gyro_z</td><td>{tm['median_step_s']:.4g} s</td><td>"
+            f"{100 * tm['jitter_rel']:.3g} %</td><td>{100 * tm['bound_rel_max']:.3g} %</td>"
+            f"<td>{tm['gaps']} (") in details

@@ -469,7 +469,13 @@ def characterize(
     return analyse_static(log, settings, channels=channels, progress=progress)
 
 
-def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> SimResult:
+def simulate_trip(
+    variant: str = "paper",
+    seed: int = 0,
+    *,
+    imu_noise: PathType | None = None,
+    **overrides: Any,
+) -> SimResult:
     """Simulate a drive with ground truth (the trips of ``imubounds simulate``).
 
     Parameters
@@ -479,6 +485,11 @@ def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> Si
         the paper's 9.4 km / 792 s trip with an MTx-grade IMU, GPS and compass).
     seed : int
         Random seed (the same seed gives the same trip).
+    imu_noise : path, optional
+        A noise.json of :func:`characterize` / ``imubounds static``: the trip's IMU gets
+        that noise per axis (N, B as flicker, K, and Q/R where the fit resolved them), as
+        ``imubounds simulate --imu-noise``; the drive's settings name the file, so that
+        :func:`imubounds.dynamic_margins` bounds with it. Default: the ``imu_preset``.
     **overrides
         Any field of :class:`imubounds.dynamic.scenario.ScenarioConfig`.
 
@@ -496,6 +507,8 @@ def simulate_trip(variant: str = "paper", seed: int = 0, **overrides: Any) -> Si
         raise OptionError(f"variant must be a scenario name (text), got {variant!r}")
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise OptionError(f"seed must be a whole number >= 0, got {seed!r}")
+    if imu_noise is not None:
+        overrides["imu_noise"] = str(imu_noise)
     return make_trip(variant, seed=int(seed), **overrides)
 
 

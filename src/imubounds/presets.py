@@ -98,18 +98,6 @@ VN100 = _p(
     aliases=("vn-100",),
 )
 
-#: Analog Devices ADIS16405 datasheet (the bundled static log's sensor): gyro angular
-#: random walk 2.0 deg/sqrt(h), in-run bias stability 0.007 deg/s; accelerometer velocity
-#: random walk 0.2 m/s/sqrt(h), in-run bias stability 0.2 mg. The demo simulates a trip
-#: with it and bounds it against the characterised noise.json of the bundled log.
-ADIS16405 = _p(
-    "adis16405",
-    "Analog Devices ADIS16405 datasheet",
-    gyro={"N": 2.0 * DEG / 60.0, "B": 0.007 * DEG},
-    accel={"N": 0.2 / 60.0, "B": 0.2 * _MG},
-    aliases=("adis",),
-)
-
 # Representative sensor grades (not one product each): the known-truth tests of the
 # stationary analysis simulate them. N and B are typical datasheet figures of the
 # grade; K is chosen so that the rate random walk overtakes the flicker floor
@@ -144,7 +132,7 @@ CONSUMER = _p(
 )
 
 PRESETS: Mapping[str, ImuPreset] = MappingProxyType(
-    {p.key: p for p in (XSENS_MTX, VN100, ADIS16405, TACTICAL, INDUSTRIAL, CONSUMER)}
+    {p.key: p for p in (XSENS_MTX, VN100, TACTICAL, INDUSTRIAL, CONSUMER)}
 )
 
 

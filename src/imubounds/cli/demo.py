@@ -14,11 +14,11 @@ def register(sub: Any) -> None:
         "demo",
         help="run the whole pipeline on the bundled real data",
         description="One story about one IMU: characterise the bundled ADIS16405 static "
-        "log (DIR/static), simulate the paper's 9.4 km trip with an IMU of the ADIS16405's "
-        "datasheet noise (DIR/sim), bound its error in motion against the characterised "
-        "noise (DIR/dynamic, with the in-motion figures in motion.json), export the filter "
-        "parameters in every format, stationary and in motion (DIR/filter), and write one "
-        "report (DIR/report.html).",
+        "log (DIR/static), simulate the paper's 9.4 km trip with that IMU's measured "
+        "noise (DIR/sim, from DIR/static/noise.json), bound its error in motion against "
+        "the characterised noise (DIR/dynamic, with the in-motion figures in motion.json), "
+        "export the filter parameters in every format, stationary and in motion "
+        "(DIR/filter), and write one report (DIR/report.html).",
     )
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")
     add_force_option(p)
@@ -47,10 +47,10 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
              "--no-report"],
         ),
         (
-            "simulating the paper's 9.4 km / 792 s trip with an ADIS16405-grade IMU "
-            "(datasheet noise), GNSS and compass",
-            ["simulate", "--scenario", "paper", "--imu-preset", "adis16405", "--seed", "0",
-             "-o", sim],
+            "simulating the paper's 9.4 km / 792 s trip with that IMU's measured noise "
+            "(static/noise.json), GNSS and compass",
+            ["simulate", "--scenario", "paper", "--imu-noise", str(Path(static) / "noise.json"),
+             "--seed", "0", "-o", sim],
         ),
         (
             "bounding the IMU's error in motion against the characterised noise",

@@ -7,6 +7,7 @@ from typing import Any
 
 from imubounds.cli._common import (
     add_force_option,
+    noise_json,
     nonneg_float,
     nonneg_int,
     positive_float,
@@ -106,6 +107,14 @@ def register(sub: Any) -> None:
     )
     g.add_argument("--imu-preset", metavar="NAME", help="IMU datasheet preset (mtx)")
     g.add_argument(
+        "--imu-noise",
+        type=noise_json,
+        metavar="NOISE_JSON",
+        help="the IMU's noise per axis from a noise.json of 'imubounds static' (N, B as "
+        "flicker, K, and Q/R where the fit resolved them; as simulate-noise --from-noise) "
+        "instead of a preset; drive.yaml names it (copied beside as imu_noise.json)",
+    )
+    g.add_argument(
         "--noise-scale",
         type=nonneg_float,
         help="multiply the IMU noise and biases (1; 0: noiseless IMU)",
@@ -202,6 +211,7 @@ _OPTIONS = {
     "attitude_rate": "attitude_rate_hz",
     "truth_rate": "truth_rate_hz",
     "imu_preset": "imu_preset",
+    "imu_noise": "imu_noise",
     "noise_scale": "noise_scale",
     "scale_error": "scale_error",
     "misalignment": "misalignment_deg",
@@ -227,6 +237,10 @@ def config_from_args(args: argparse.Namespace) -> Any:
         for opt, field in _OPTIONS.items()
         if getattr(args, opt, None) is not None
     }
+    if args.imu_noise and args.imu_preset:
+        from imubounds.errors import OptionError
+
+        raise OptionError("give --imu-preset or --imu-noise, not both")
     if args.no_bias:
         kw["imu_bias"] = False
     if args.bounded:
@@ -258,5 +272,12 @@ def run(args: argparse.Namespace) -> int:
             f"{res.closure_error_m():.2e} m, max speed {res.truth['speed'].max():.1f} m/s -> "
             f"{args.out}"
         )
+        fig = res.imu_errors.figures
+        if cfg.imu_noise is not None:
+            print(
+                f"IMU noise: {fig.source}; {len(fig.notes)} note(s) on what was simulated "
+                "(terms given only as upper bounds) in scenario.json: "
+                "true_values.imu.figures.noise_notes"
+            )
         print(res.record.summary())
     return 0

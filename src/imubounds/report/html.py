@@ -21,6 +21,7 @@ from typing import Any
 
 from imubounds import __version__
 from imubounds.errors import InputError
+from imubounds.report._html_checks import checks_block, summary_line
 from imubounds.report._html_fleet import _fleet_section
 from imubounds.report._html_parts import _e, _img, _listed, _load_json, _num, _table, _term_cell
 
@@ -273,6 +274,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
                 "the fitted curve (and fitted stochastic models where asked).",
             )
         )
+    parts.append(checks_block(d, channels))
     parts.append(_run_block(d))
     parts.append("</details></section>")
     return "".join(parts), warnings, commands
@@ -643,6 +645,7 @@ def _summary_section(
                     )
         parts.append(_table(["channel", "N (white noise)", "B (bias instability)",
                              "K (rate random walk)"], rows))
+        parts.append(summary_line(channels))
     if dyn is not None:
         full = (dyn.get("modes") or {}).get("full") or {}
         verdicts = full.get("verdict") or {}

@@ -160,6 +160,9 @@ class ScenarioConfig:
     aiding: tuple[str, ...] = DEFAULT_AIDING
     # IMU
     imu_preset: str = "mtx"
+    #: a noise.json of ``imubounds static``: the IMU's noise per axis (N, B as flicker over
+    #: ``bias_tau_range_s``, K, and Q/R where the fit resolved them) instead of the preset's
+    imu_noise: str | None = None
     noise_scale: float = 1.0  # multiplies N, B, K and the turn-on bias (0: noiseless IMU)
     imu_bias: bool = True  # turn-on bias and in-run bias instability
     turn_on_scale: float = 1.0  # turn-on sigma = this x (preset turn-on bias, else B)
@@ -271,7 +274,11 @@ class ScenarioConfig:
             raise OptionError(f"alpha must lie in (0, 1), got {self.alpha}")
         if self.laps < 1:
             raise OptionError(f"--laps must be at least 1, got {self.laps}")
-        if self.imu_preset.lower() not in preset_names():
+        if self.imu_noise is not None:
+            from imubounds.dynamic.scenario.imu_noise import load_imu_noise
+
+            load_imu_noise(self)  # names the file and what is wrong with it
+        elif self.imu_preset.lower() not in preset_names():
             raise OptionError(
                 f"unknown IMU preset {self.imu_preset!r}; available: {', '.join(preset_names())}"
             )

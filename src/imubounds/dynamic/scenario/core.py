@@ -155,11 +155,15 @@ def _settings(
 ) -> DriveSettings:
     fig = err.figures
     st = aid.stated
+    # with a noise.json the estimator reads each axis's terms from it (copied beside as
+    # imu_noise.json); else the preset's figures, one per sensor kind
+    by_json = cfg.imu_noise is not None and cfg.noise_scale == 1.0
     imu = ImuSettings(
-        accel_nd=fig.N["accel"],
-        accel_bs=fig.B["accel"],
-        gyro_nd=fig.N["gyro"] / DEG,
-        gyro_bs=fig.B["gyro"] / DEG,
+        noise_json=str(cfg.imu_noise) if by_json else None,
+        accel_nd=None if by_json else fig.N["accel"],
+        accel_bs=None if by_json else fig.B["accel"],
+        gyro_nd=None if by_json else fig.N["gyro"] / DEG,
+        gyro_bs=None if by_json else fig.B["gyro"] / DEG,
         accel_turn_on_mps2=fig.turn_on_bound["accel"],
         gyro_turn_on_dps=fig.turn_on_bound["gyro"] / DEG,
         scale_factor=fig.scale_bound,

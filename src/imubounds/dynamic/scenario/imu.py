@@ -30,13 +30,14 @@ risk ``alpha`` per stream with ``k(n) = Phi^-1(1 - alpha/(2n))``:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
 from scipy.stats import norm
 
 from imubounds.dynamic.scenario.config import ScenarioConfig
+from imubounds.dynamic.scenario.imu_noise import load_imu_noise, preset_noise
 from imubounds.dynamic.scenario.record import (
     Check,
     check,
@@ -94,7 +95,11 @@ def _window_mean_factor(beta: float, tau: float) -> float:
 
 @dataclass
 class ImuFigures:
-    """Per sensor kind (``accel``, ``gyro``), SI: the simulated noise and the stated bounds."""
+    """The simulated noise and the stated bounds, SI.
+
+    ``axes`` holds each channel's simulated noise (:class:`~imubounds.stationary.noise_sim.
+    AxisNoise`: N, Q, B, K, R); ``N``, ``B``, ``K`` and the bounds are per sensor kind
+    (``accel``, ``gyro``), the largest over its three axes (what ``drive.yaml`` states)."""
 
     N: dict[str, float]
     B: dict[str, float]
@@ -107,13 +112,29 @@ class ImuFigures:
     scale_bound: float | None
     misalignment_bound_rad: float | None
     preset: str
+    axes: dict[str, noise_sim.AxisNoise] = field(default_factory=dict)
+    source: str = ""
+    notes: tuple[str, ...] = ()
+
+    def white_sigma(self, ch: str, tau: Array | float, dt: float) -> Array:
+        """Deviation of the white part (N, and Q: differences of a white angle/velocity
+        error) averaged over ``tau`` (>= one sample ``dt``): ``sqrt(N^2/tau + 2Q^2/tau^2)``;
+        times ``tau`` it is the deviation of its integral."""
+        ax = self.axes[ch]
+        t = np.maximum(np.asarray(tau, dtype=float), dt)
+        return np.asarray(np.sqrt(ax.N**2 / t + 2.0 * ax.Q**2 / t**2))
 
     def to_dict(self) -> dict[str, object]:
         return {
             "preset": self.preset,
+            "noise_source": self.source,
             "N": self.N,
             "B": self.B,
             "K": self.K,
+            "axes": {
+                ch: {t: getattr(ax, t) for t in noise_sim.TERMS} for ch, ax in self.axes.items()
+            },
+            "noise_notes": list(self.notes),
             "turn_on_sigma": self.turn_on_sigma,
             "turn_on_bound": self.turn_on_bound,
             "drift_sigma": self.drift_sigma,
@@ -121,30 +142,56 @@ class ImuFigures:
             "drift_window_s": self.drift_window_s,
             "scale_bound": self.scale_bound,
             "misalignment_bound_rad": self.misalignment_bound_rad,
-            "units": "SI: N m/s^1.5 | rad/s^0.5; B, bounds m/s^2 | rad/s",
+            "units": "SI: N m/s^1.5 | rad/s^0.5; Q m/s | rad; K m/s^2.5 | rad/s^1.5; R m/s^3 | "
+            "rad/s^2; B, bounds m/s^2 | rad/s",
         }
 
 
+def _scaled_axes(cfg: ScenarioConfig) -> tuple[dict[str, noise_sim.AxisNoise], str, list[str]]:
+    """Each channel's noise (preset or noise.json) scaled by ``noise_scale``, without bias
+    terms when ``imu_bias`` is off; the source and notes."""
+    src = load_imu_noise(cfg) if cfg.imu_noise is not None else preset_noise(cfg)
+    s = cfg.noise_scale
+    notes = list(src.notes)
+    axes = {}
+    for ch, ax in src.axes.items():
+        on = s if cfg.imu_bias else 0.0
+        q = 0.0 if cfg.bounded else ax.Q * s
+        if cfg.bounded and ax.Q > 0:
+            notes.append(f"{ch} Q: not simulated with --bounded (white noise drawn truncated)")
+        axes[ch] = replace(ax, N=ax.N * s, Q=q, B=ax.B * on, K=ax.K * on, R=ax.R * on)
+    return axes, src.source, notes
+
+
 def imu_figures(cfg: ScenarioConfig) -> ImuFigures:
-    """The preset's figures scaled by ``noise_scale`` and the bounds stated for them."""
-    p = get_preset(cfg.imu_preset)
+    """The simulated noise (preset or noise.json, scaled by ``noise_scale``) and the bounds
+    stated for it."""
+    axes, source, notes = _scaled_axes(cfg)
+    pre = get_preset(cfg.imu_preset).kind if cfg.imu_noise is None else None
     T = cfg.duration_s
     lo = cfg.bias_tau_range_s[0]
+    k_d = k_level(cfg.alpha, 6 * max(1.0, T / lo))
     N, B, K, to_s, to_b, d_s, d_b = ({} for _ in range(7))
     for kind in ("accel", "gyro"):
-        f = p.kind(kind)
-        N[kind] = f["N"] * cfg.noise_scale
-        B[kind] = f["B"] * cfg.noise_scale if cfg.imu_bias else 0.0
-        K[kind] = f.get("K", 0.0) * cfg.noise_scale if cfg.imu_bias else 0.0
-        base = f.get("turn_on_bias", f["B"])
-        to_s[kind] = base * cfg.turn_on_scale * cfg.noise_scale if cfg.imu_bias else 0.0
+        mine = [ax for ch, ax in axes.items() if ch.startswith(kind)]
+        N[kind] = max(ax.N for ax in mine)
+        B[kind] = max(ax.B for ax in mine)
+        K[kind] = max(ax.K for ax in mine)
+        base = pre(kind).get("turn_on_bias") if pre is not None else None
+        if base is None:
+            to_s[kind] = B[kind] * cfg.turn_on_scale
+        else:
+            to_s[kind] = base * cfg.turn_on_scale * cfg.noise_scale if cfg.imu_bias else 0.0
         to_b[kind] = k_level(cfg.alpha, 6) * to_s[kind]
-        var = sum(
-            g.sigma**2 * _window_mean_factor(g.beta, lo)
-            for g in _flicker(B[kind], *cfg.bias_tau_range_s)
-        )
-        d_s[kind] = math.sqrt(var + K[kind] ** 2 * T)
-        d_b[kind] = k_level(cfg.alpha, 6 * max(1.0, T / lo)) * d_s[kind]
+        sig = []
+        for ax in mine:
+            var = sum(
+                g.sigma**2 * _window_mean_factor(g.beta, lo)
+                for g in _flicker(ax.B, *cfg.bias_tau_range_s)
+            )
+            sig.append((math.sqrt(var + ax.K**2 * T), ax.R * T))
+        d_s[kind] = max(x for x, _ in sig)
+        d_b[kind] = max(k_d * x + r for x, r in sig)
     return ImuFigures(
         N=N,
         B=B,
@@ -160,7 +207,10 @@ def imu_figures(cfg: ScenarioConfig) -> ImuFigures:
             if cfg.misalignment_deg
             else None
         ),
-        preset=p.key,
+        preset=get_preset(cfg.imu_preset).key if cfg.imu_noise is None else "noise.json",
+        axes=axes,
+        source=source,
+        notes=tuple(notes),
     )
 
 
@@ -241,21 +291,24 @@ def simulate_errors(
     wseeds = seeds["imu_white"].spawn(6)
     dseeds = seeds["imu_drift"].spawn(6)
     kw = k_level(cfg.alpha, 6 * n)
-    for j, kind in enumerate(kinds):
-        N = fig.N[kind]
+    for j, ch in enumerate(CHANNELS):
+        ax = fig.axes[ch]
+        N = ax.N
         if cfg.bounded:
             white[:, j] = truncated_normal(
                 np.random.default_rng(wseeds[j]), N / math.sqrt(dt), kw * N / math.sqrt(dt), n
             )
-        elif N > 0:
+        elif N > 0 or ax.Q > 0:
             white[:, j] = noise_sim.simulate_axis(
-                noise_sim.AxisNoise(N=N), n, cfg.rate_hz, wseeds[j]
+                noise_sim.AxisNoise(N=N, Q=ax.Q), n, cfg.rate_hz, wseeds[j]
             )
-        if fig.B[kind] > 0 or fig.K[kind] > 0:
+        if ax.B > 0 or ax.K > 0:
             slow = min(cfg.rate_hz, WANDER_RATE_HZ)
             m = int(math.ceil(cfg.duration_s * slow)) + 2
-            d = drift_process(fig.B[kind], fig.K[kind], cfg.bias_tau_range_s, m, slow, dseeds[j])
+            d = drift_process(ax.B, ax.K, cfg.bias_tau_range_s, m, slow, dseeds[j])
             drift[:, j] = np.interp(t, np.arange(m) / slow, d)
+        if ax.R > 0:  # the rate ramp of the noise simulator: R t from the first sample
+            drift[:, j] += ax.R * (t - t[0])
     sig_to = np.array([fig.turn_on_sigma[k] for k in kinds])
     if cfg.bounded:
         turn_on = truncated_normal(rng, sig_to, np.array([fig.turn_on_bound[k] for k in kinds]), 6)
@@ -281,7 +334,7 @@ def simulate_errors(
         off = ~np.eye(3, dtype=bool)
         mis[0][off] = vals[:6]
         mis[1][off] = vals[6:]
-    notes: list[str] = []
+    notes: list[str] = list(fig.notes)
     if cfg.bounded:
         notes += _bound_drift(cfg, t, drift, fig, kinds)
         if epoch_times is not None:
@@ -341,16 +394,16 @@ def imu_checks(cfg: ScenarioConfig, t: Array, err: ImuErrors, epoch_times: Array
     for j, ch in enumerate(CHANNELS):
         kind = "accel" if j < 3 else "gyro"
         unit = "m/s^2" if j < 3 else "rad/s"
-        N = fig.N[kind]
         w = err.white[:, j]
         out.append(
             check(
                 f"imu.{ch}.white_sample",
                 "imu",
                 unit,
-                "|white noise| <= k(n) N/sqrt(dt) per sample",
+                "|white noise| <= k(n) N/sqrt(dt) per sample (with Q: k(n) sqrt(N^2/dt + "
+                "2Q^2/dt^2))",
                 w,
-                k_s * N / math.sqrt(dt),
+                k_s * float(fig.white_sigma(ch, dt, dt)),
                 t,
                 k=k_s,
             )
@@ -364,9 +417,9 @@ def imu_checks(cfg: ScenarioConfig, t: Array, err: ImuErrors, epoch_times: Array
                     "imu",
                     "m/s" if j < 3 else "rad",
                     "|white noise integrated between consecutive aiding epochs| <= "
-                    "k(m) N sqrt(interval)",
+                    "k(m) N sqrt(interval) (with Q: k(m) sqrt(N^2 interval + 2Q^2))",
                     sums,
-                    k_m * N * np.sqrt(dur),
+                    k_m * dur * fig.white_sigma(ch, dur, dt),
                     t[ends],
                     k=k_m,
                     index=ends,
@@ -380,9 +433,9 @@ def imu_checks(cfg: ScenarioConfig, t: Array, err: ImuErrors, epoch_times: Array
                     "imu",
                     unit,
                     "|white noise averaged over an octave window tau| <= k(M) N/sqrt(tau), "
-                    "M windows of one sample to T/4",
+                    "M windows of one sample to T/4 (with Q: k(M) sqrt(N^2/tau + 2Q^2/tau^2))",
                     means,
-                    k_w * N / np.sqrt(size * dt),
+                    k_w * fig.white_sigma(ch, size * dt, dt),
                     t[ends],
                     k=k_w,
                     index=ends,

@@ -19,6 +19,7 @@ OUTPUT_FILES: tuple[str, ...] = (
     "truth.csv",
     "drive.yaml",
     "compass_cal.csv",
+    "imu_noise.json",
     "scenario.json",
 )
 
