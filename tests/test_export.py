@@ -130,6 +130,11 @@ def test_motion_factor_multiplies_n_and_k() -> None:
     assert kal["gyroscope_noise_density"] == pytest.approx(3.0 * 3.0e-4, rel=1e-6)
     text = ib.export_noise(known_noise(), "kalibr", motion=motion)
     assert "IN MOTION" in text and "accel_z: the trip did not resolve" in text
+    # the worst axis has no in-motion factor: its line says so (it is no in-motion bound)
+    unanalysed = {"format": "imubounds.motion/1", "channels": {"gyro_x": {"F": 2.0}}}
+    text = ib.export_noise(known_noise(), "kalibr", motion=unanalysed)
+    line = next(ln for ln in text.splitlines() if ln.startswith("gyroscope_noise_density"))
+    assert "of gyro_y" in line and "NO FACTOR for gyro_y" in line, line
     # in-motion figures of another noise model are refused, naming the channel
     other = {"format": "imubounds.motion/1",
              "channels": {"gyro_y": {"F": 3.0, "N_static": 1.0e-3}}}  # fmt: skip

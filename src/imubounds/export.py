@@ -54,6 +54,8 @@ class AxisTerms:
     B: float | None
     B_status: str
     motion_F: float | None = None
+    #: an in-motion export with no factor for this axis (not analysed, or unresolved)
+    motion_missing: bool = False
 
 
 @dataclass
@@ -145,6 +147,7 @@ def filter_noise(results: Any, motion: Any = None) -> FilterNoise:
                     "dynamic ... --static' with this noise.json, then export again"
                 )
             if F is None:
+                ax.motion_missing = True
                 out.notes.append(
                     f"{ch}: the trip did not resolve an in-motion factor (the aiding is "
                     "coarser than the stationary band at every tau): stationary figures kept"
@@ -154,6 +157,8 @@ def filter_noise(results: Any, motion: Any = None) -> FilterNoise:
             ax.N = None if ax.N is None else ax.N * float(F)
             ax.K = None if ax.K is None else ax.K * float(F)
         missing = [c for c in chans if c not in (mdoc.get("channels") or {})]
+        for c in missing:
+            chans[c].motion_missing = True
         if missing:
             out.notes.append(
                 f"{', '.join(missing)}: not analysed in motion (stationary figures kept)"
@@ -181,6 +186,9 @@ def _status(ax: AxisTerms, term: str) -> str:
     )
     if ax.motion_F is not None:
         txt += f"; in motion: stationary x F = {ax.motion_F:.3g}"
+    elif ax.motion_missing:
+        txt += (f"; in motion: NO FACTOR for {ax.channel} (not analysed or unresolved by the "
+                "trip): the stationary figure, not an in-motion bound")
     return txt
 
 
