@@ -165,3 +165,18 @@ def test_errors_name_the_problem() -> None:
         doc["channels"][f"gyro_{a}"]["noise"]["selected"]["N"]["value"] = None
     with pytest.raises(InputError, match="gyroscope_noise_density"):
         ib.export_noise(doc, "kalibr")
+
+
+def test_report_marks_in_motion_figures_without_a_factor() -> None:
+    """The report's filter table: an in-motion figure that is the stationary one (the worst
+    axis was not analysed in motion) is marked, one with a factor is not."""
+    from imubounds.report.html import _filter_block
+
+    motion = {"format": "imubounds.motion/1", "channels": {"gyro_x": {"F": 2.0}}}
+    rows = {r.split("</td>")[0].split(">")[-1]: r
+            for r in _filter_block(known_noise(), motion).split("<tr>")[2:]}  # fmt: skip
+    assert "no in-motion factor" in rows["gyroscope_noise_density"]
+    motion = {"format": "imubounds.motion/1", "channels": {"gyro_y": {"F": 2.0}}}
+    rows = {r.split("</td>")[0].split(">")[-1]: r
+            for r in _filter_block(known_noise(), motion).split("<tr>")[2:]}  # fmt: skip
+    assert "no in-motion factor" not in rows["gyroscope_noise_density"]

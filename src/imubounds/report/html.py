@@ -725,15 +725,24 @@ def _filter_block(noise: dict[str, Any], motion: dict[str, Any] | None) -> str:
 
     try:
         stat = yaml.safe_load(export_noise(noise, "kalibr"))
-        mot = yaml.safe_load(export_noise(noise, "kalibr", motion=motion)) if motion else None
+        mot_text = export_noise(noise, "kalibr", motion=motion) if motion else ""
+        mot = yaml.safe_load(mot_text) if motion else None
     except ImuboundsError as err:
         return f"<h3>Filter parameters</h3><p class='muted'>not exported: {_e(err)}</p>"
     units = {
         "gyroscope_noise_density": "rad/s/√Hz", "gyroscope_random_walk": "rad/s²/√Hz",
         "accelerometer_noise_density": "m/s²/√Hz", "accelerometer_random_walk": "m/s³/√Hz",
     }
-    rows = [[_e(k), _num(stat.get(k)), _num(mot.get(k)) if mot else "—", _e(u)]
-            for k, u in units.items()]
+    # an axis the trip gave no in-motion factor keeps its stationary figure: say so
+    no_factor = {ln.split(":", 1)[0] for ln in mot_text.splitlines() if "NO FACTOR" in ln}
+
+    def moving(k: str) -> str:
+        if not mot:
+            return "—"
+        note = " <span class='muted'>(no in-motion factor)</span>" if k in no_factor else ""
+        return _num(mot.get(k)) + note
+
+    rows = [[_e(k), _num(stat.get(k)), moving(k), _e(u)] for k, u in units.items()]
     return (
         "<h3>Filter parameters (Kalibr / OpenVINS, continuous time, worst axis)</h3>"
         + _table(["key", "stationary", "in motion", "unit"], rows)
