@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -42,3 +43,21 @@ def shared_data() -> Path:
 @pytest.fixture(scope="session")
 def adis_log_path(shared_data: Path) -> Path:
     return shared_data / "static" / "adis16405_imu1.csv.gz"
+
+
+@pytest.fixture
+def no_hang() -> Iterator[None]:
+    """Fail (instead of hanging the test run) if the test blocks for 60 s (a FIFO, a YAML
+    alias bomb); a module opts in with ``pytestmark = pytest.mark.usefixtures("no_hang")``."""
+    import signal
+
+    def hang(signum: int, frame: object) -> None:
+        raise TimeoutError("the command blocked for 60 s")
+
+    old = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(60)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

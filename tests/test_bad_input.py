@@ -13,8 +13,7 @@ from __future__ import annotations
 import errno
 import json
 import os
-import signal
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,20 +29,8 @@ OOC = ["--out-of-core", "--max-memory", "64KiB"]  # force the out-of-core reader
 FAST = ["-q", "--models", "none", "--no-plot", "--no-report"]
 
 
-@pytest.fixture(autouse=True)
-def no_hang() -> Iterator[None]:
-    """Fail (instead of hanging the test run) if a command blocks for 60 s."""
-
-    def hang(signum: int, frame: object) -> None:
-        raise TimeoutError("the command blocked for 60 s")
-
-    old = signal.signal(signal.SIGALRM, hang)
-    signal.alarm(60)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+#: every case fails (instead of hanging the run) if it blocks for 60 s (conftest.no_hang)
+pytestmark = pytest.mark.usefixtures("no_hang")
 
 
 # ----------------------------------------------------------------------------- inputs

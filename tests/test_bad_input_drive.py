@@ -15,9 +15,8 @@ import gzip
 import json
 import re
 import shutil
-import signal
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,20 +34,8 @@ from imubounds.io.table import read_frame
 FAST_STATIC = ["-q", "--models", "none", "--no-plot", "--no-report"]
 
 
-@pytest.fixture(autouse=True)
-def no_hang() -> Iterator[None]:
-    """Fail (instead of hanging) if a case blocks for 60 s (the alias bomb did)."""
-
-    def hang(signum: int, frame: object) -> None:
-        raise TimeoutError("the command blocked for 60 s")
-
-    old = signal.signal(signal.SIGALRM, hang)
-    signal.alarm(60)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+#: every case fails (instead of hanging the run) if it blocks for 60 s (conftest.no_hang)
+pytestmark = pytest.mark.usefixtures("no_hang")
 
 
 @pytest.fixture(scope="module")
