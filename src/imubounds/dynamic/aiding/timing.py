@@ -265,3 +265,50 @@ def shifted(obj: Any, name: str | None, est: OffsetEstimate) -> Any:
         return dataclasses.replace(obj, t=obj.t - est.offset_s)
     stream = getattr(obj, name)
     return dataclasses.replace(obj, **{name: shifted(stream, None, est)})
+
+
+#: the stated bound (s) on an undeclared clock offset of the heading stream against the
+#: IMU (drive.yaml heading.time_offset_s / time_offset_bound_s replace it); a larger
+#: offset is what the check against the GNSS course in the turns tests
+DEFAULT_HEADING_CLOCK_BOUND_S = 0.2
+
+
+def rate_allowance(
+    tq: np.ndarray,
+    imu_t: np.ndarray,
+    rate: np.ndarray,
+    bound_s: float,
+    err_rad: float,
+    rate_max: float,
+    scale: float = 0.0,
+) -> np.ndarray:
+    """The change of an angle over a clock offset ``|L| <= bound_s`` at the times ``tq``
+    (rad): ``(1 + scale) max |G(s) - G(t)| + err_rad`` over the IMU samples ``s`` within
+    ``bound_s`` (and one sample) of ``t``, ``G`` the integrated measured rate, ``err_rad``
+    the bound of the integral's error over ``bound_s`` (bias x bound + k white noise);
+    at most ``bound_s x rate_max``. Only the turns are widened: the gyro measures the
+    turn around each epoch."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    it = np.asarray(imu_t, dtype=float)
+    tq = np.asarray(tq, dtype=float)
+    cap = bound_s * rate_max
+    if it.size < 2 or tq.size == 0 or bound_s <= 0:
+        return np.zeros(tq.shape)
+    dt = float(np.median(np.diff(it)))
+    half = int(math.ceil(bound_s / max(dt, 1e-9))) + 1
+    r = np.nan_to_num(np.asarray(rate, dtype=float), nan=0.0)
+    G = np.cumsum(r * np.concatenate([[dt], np.diff(it)]))
+    gmax = maximum_filter1d(G, size=2 * half + 1, mode="nearest")
+    gmin = minimum_filter1d(G, size=2 * half + 1, mode="nearest")
+    i = np.searchsorted(it, tq).clip(0, it.size - 1)
+    j = (i - 1).clip(0, it.size - 1)
+    g = np.interp(tq, it, G)
+    swing = np.maximum(np.maximum(gmax[i], gmax[j]) - g, g - np.minimum(gmin[i], gmin[j]))
+    out = np.minimum((1.0 + scale) * swing + err_rad, cap)
+    # outside the IMU's span or where the rate is not finite: the vehicle's bound
+    bad = (tq < it[0]) | (tq > it[-1])
+    if not np.isfinite(rate).all():
+        fin = maximum_filter1d((~np.isfinite(rate)).astype(float), size=2 * half + 1)
+        bad |= (fin[i] > 0) | (fin[j] > 0)
+    return np.asarray(np.where(bad, cap, out))

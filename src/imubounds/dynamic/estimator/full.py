@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as TM_HEADING_BOUND_S
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
@@ -267,8 +268,17 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     for est in timing.values():
         if est.method != "drive.yaml":
             est.finalize(k_t)
-    _budget_timing(aiding, vehicle, timing)
     imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
+    # after refine_vehicle, which may rebuild the aiding
+    _budget_timing(aiding, vehicle, timing)
+    if _heading_clock_default(aiding, timing):
+        assumed.append(
+            f"heading clock: the heading stream's stamps within +-{TM_HEADING_BOUND_S:g} s "
+            "of the IMU's (default; heading.time_offset_s / time_offset_bound_s state it), "
+            "budgeted as the largest turn the gyro z measures within that bound of each "
+            "epoch (+ the bound of its error); a larger offset is tested by the check "
+            "against the GNSS course in the turns"
+        )
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -361,9 +371,43 @@ def _relative_offset(heading: HeadingInput) -> Any:
     )
 
 
+def _heading_clock_default(ag: Aiding, timing: dict[str, Any]) -> bool:
+    """Whether the heading stream gets the default clock bound (no stated offset)."""
+    h = timing.get("heading")
+    return bool(ag.has_heading and not ag.head_from_course and ag.head_h.size
+                and (h is None or h.method != "drive.yaml"))
+
+
+def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
+    """The default heading clock bound ``b`` (:data:`TM_HEADING_BOUND_S`) budgeted into
+    the heading intervals: the largest turn the gyro z measures within ``b`` of each
+    epoch (bias-corrected by the centre of the windows' bias interval) x (1 + scale),
+    + the bias interval's half-width x b + k of the integrated noise over b (white,
+    quantization, flicker) + misalignment x max rate x b
+    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`)."""
+    from imubounds.dynamic.aiding import timing as TM
+    from imubounds.dynamic.estimator.budget import box_sum_variance
+
+    ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
+    if not _heading_clock_default(ag, ctx.timing):
+        return
+    b = TM_HEADING_BOUND_S
+    gz = ctx.noise["gyro_z"]
+    m = int(math.ceil(b / imu.dt)) + 1
+    bc, bh = 0.5 * (beta0[2, 0] + beta0[2, 1]), 0.5 * (beta0[2, 1] - beta0[2, 0])
+    err = (bh + gz.misalignment_rad * veh.max_rate) * b + ctx.alpha.k("imu_intervals") * (
+        math.sqrt(box_sum_variance(gz, m, imu.dt, False))
+    )
+    it = ctx.drive.imu.t
+    rate = np.asarray(ctx.drive.imu.gyro[:, 2], float) - bc
+    add = TM.rate_allowance(ag.head_t + imu.t0, it, rate, b, err, veh.max_rate, gz.scale)
+    ag.head_h = ag.head_h + add
+
+
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
     """What remains of an applied clock offset, times the stream's rate bound, added to
-    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt."""
+    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt (the
+    default heading clock bound: :func:`_heading_clock_allowance`)."""
     g = timing.get("gnss")
     if g is not None and g.remainder_s > 0 and ag.has_gnss:
         dtr = g.remainder_s
@@ -719,6 +763,25 @@ class FullRun:
     )
 
 
+def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> Any:
+    prior, meas, has = _smoother_inputs(ctx)
+    vl = ctx.vehicle.lateral_bound
+    return SM.smooth(
+        ctx.te,
+        prior,
+        meas,
+        has,
+        links["YR"],
+        links["FH"],
+        links["QH"],
+        beta0,
+        math.inf if vl is None else float(vl),
+        tol=float(ctx.opts["tol"]),
+        max_sweeps=int(ctx.opts["max_sweeps"]),
+        t_offset=ctx.imu.t0,
+    )
+
+
 def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
     ctx = build_context(drive, noise, options)
@@ -749,22 +812,18 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     for bn in bnotes:
         fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
-    prior, meas, has = _smoother_inputs(ctx)
-    vl = ctx.vehicle.lateral_bound
-    res = SM.smooth(
-        ctx.te,
-        prior,
-        meas,
-        has,
-        links["YR"],
-        links["FH"],
-        links["QH"],
-        beta0,
-        math.inf if vl is None else float(vl),
-        tol=float(ctx.opts["tol"]),
-        max_sweeps=int(ctx.opts["max_sweeps"]),
-        t_offset=ctx.imu.t0,
-    )
+    head_h0 = ctx.aiding.head_h.copy()
+    _heading_clock_allowance(ctx, beta0)
+    res = _smooth(ctx, links, beta0)
+    b1 = res.beta[2] if res.beta.shape[0] > 2 else beta0[2]
+    if _heading_clock_default(ctx.aiding, ctx.timing) and np.isfinite(b1).all() and (
+        b1[1] - b1[0] < 0.5 * (beta0[2, 1] - beta0[2, 0])
+    ):
+        # the default heading clock bound again, with the gyro z bias interval the
+        # smoother found (sound: it holds under the assumptions with the wider allowance)
+        ctx.aiding.head_h = head_h0
+        _heading_clock_allowance(ctx, np.vstack([beta0[:2], [b1]]))
+        res = _smooth(ctx, links, beta0)
     if res.beta_note:
         notes.append(res.beta_note)
     for t_s, miss in ctx.aiding.gnss_rejected:
