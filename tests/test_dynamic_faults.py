@@ -72,7 +72,7 @@ def test_clean_trip_is_guaranteed_and_states_everything(base: Any) -> None:
     # the GNSS error model and K are stated (issue 27, item 4)
     assert any("isotropic Gaussian" in a for a in d["assumptions"])
     assert any("rate random walk K taken as 0" in a for a in d["assumptions"])
-    assert any(a.startswith("heading clock: ") and "+-0.2 s" in a for a in d["assumptions"])
+    assert any(a.startswith("heading clock: ") and "+-0.1 s" in a for a in d["assumptions"])
     # the heading check against the course is silent and signed
     for key in ("gnss", "heading"):
         tm = d["timing"][key]
@@ -94,7 +94,7 @@ CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
     "GNSS lag 0.5 s": (F.gnss_lag, {"lag_s": 0.5}, None),
     "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, "heading sensor"),
     "compass lag 0.5 s": (F.heading_lag, {"lag_s": 0.5}, None),
-    # within the default heading clock bound (0.2 s): enclosed, budgeted in the turns
+    # within the default heading clock bound (0.1 s): enclosed, budgeted in the turns
     "compass lag 0.1 s": (F.heading_lag, {"lag_s": 0.1}, None),
     "compass two-cycle deviation 2 deg": (F.heading_two_cycle, {"amplitude_deg": 2.0}, None),
     "Student-t GNSS": (F.student_t, {"dof": 3.0, "seed": 7}, None),

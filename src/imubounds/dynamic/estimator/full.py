@@ -380,28 +380,51 @@ def _heading_clock_default(ag: Aiding, timing: dict[str, Any]) -> bool:
 
 def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     """The default heading clock bound ``b`` (:data:`TM_HEADING_BOUND_S`) budgeted into
-    the heading intervals: the largest turn the gyro z measures within ``b`` of each
-    epoch (bias-corrected by the centre of the windows' bias interval) x (1 + scale),
-    + the bias interval's half-width x b + k of the integrated noise over b (white,
-    quantization, flicker) + misalignment x max rate x b
-    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`)."""
+    the heading intervals: the largest true turn within ``b`` of each epoch. With the
+    gyro z bias taken from the heading stream over a window of ~20 s around the epoch
+    (:func:`~imubounds.dynamic.aiding.timing.local_swing`): the bias-corrected measured
+    turn x (1 + scale) + b x the bias's error from the heading's ends + k of the gyro
+    noise's kernel (box of b minus its share of the window: the turn-on bias cancels,
+    the flicker mostly) + the rate random walk and misalignment over b. Elsewhere (no
+    window, gaps): the measured turn corrected by the centre of the bias interval
+    ``beta0``, + its half-width x b + k of the noise integrated over b
+    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
     from imubounds.dynamic.aiding import timing as TM
-    from imubounds.dynamic.estimator.budget import box_sum_variance
+    from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
 
     ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
     if not _heading_clock_default(ag, ctx.timing):
         return
-    b = TM_HEADING_BOUND_S
+    b, W = TM_HEADING_BOUND_S, TM.LOCAL_BIAS_HALF_S
     gz = ctx.noise["gyro_z"]
+    k = ctx.alpha.k("imu_intervals")
     m = int(math.ceil(b / imu.dt)) + 1
+    other = gz.misalignment_rad * veh.max_rate * b
+    th = ag.head_t + imu.t0
+    # the local bias from the heading
+    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts["imu_stamp"])
+    turn, berr, ok = TM.local_swing(th, ag.head_c, ag.head_h, te, G, b, W, veh.max_rate,
+                                    gz.scale)
+    M = int(round(2 * W / imu.dt))
+    var = 0.0
+    for pos in (0, M // 4, (M - m) // 2):
+        c = np.full(M, -imu.dt * m / M)
+        c[pos : pos + m] += imu.dt
+        var = max(var, kernel_variance(gz, c, imu.dt, True))
+    noise = k * math.sqrt(var) + k * gz.K * math.sqrt(2 * W) * b + other
+    local = turn + berr + noise
+    # elsewhere: the bias interval of the windows or the first smoother pass
     bc, bh = 0.5 * (beta0[2, 0] + beta0[2, 1]), 0.5 * (beta0[2, 1] - beta0[2, 0])
-    err = (bh + gz.misalignment_rad * veh.max_rate) * b + ctx.alpha.k("imu_intervals") * (
-        math.sqrt(box_sum_variance(gz, m, imu.dt, False))
-    )
-    it = ctx.drive.imu.t
+    err = (bh + D_KR_of(ctx)) * b + other + k * math.sqrt(box_sum_variance(gz, m, imu.dt, False))
     rate = np.asarray(ctx.drive.imu.gyro[:, 2], float) - bc
-    add = TM.rate_allowance(ag.head_t + imu.t0, it, rate, b, err, veh.max_rate, gz.scale)
+    wide = TM.rate_allowance(th, ctx.drive.imu.t, rate, b, err, veh.max_rate, gz.scale)
+    add = np.minimum(np.where(ok, np.minimum(local, wide), wide), b * veh.max_rate)
     ag.head_h = ag.head_h + add
+
+
+def D_KR_of(ctx: Context) -> float:
+    """The rate random walk's bound of gyro z over the trip (rad/s)."""
+    return float(ctx.D_KR.get("gyro_z", 0.0))
 
 
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
