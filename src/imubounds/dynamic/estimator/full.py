@@ -271,6 +271,14 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
     # after refine_vehicle, which may rebuild the aiding
     _budget_timing(aiding, vehicle, timing)
+    if aiding.has_gnss:
+        assumed.append(
+            "GNSS multipath: no step of a run of fixes (a bias shared by consecutive fixes) "
+            "beyond the Gaussian error model; a step is tested (residual_checks: 'gnss "
+            "position step' with the receiver's velocity, the runs of residuals otherwise) "
+            "and one smaller than their steps_unnoticed (m) goes unnoticed and is NOT in "
+            "the GNSS radius"
+        )
     if _heading_clock_default(aiding, timing):
         assumed.append(
             f"heading clock: the heading stream's stamps within +-{TM_HEADING_BOUND_S:g} s "
