@@ -219,7 +219,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_samples": imu.n * 6,
             "imu_windows": 1,
             "imu_changes": 1,
-            "imu_intervals": 7 * (te.size - 1),
+            # + the gyro z noise over the heading clock bound at each heading epoch
+            "imu_intervals": 7 * (te.size - 1) + _clock_bound_events(heading, timing),
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
             "gnss_position": n_fix,
@@ -233,7 +234,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_changes": "the noise change between each pair of adjacent windows (the "
             "change test; split equally over the tau levels)",
             "imu_intervals": "the noise integrated over each link of the smoother (flat and "
-            "ramp weights, per channel)",
+            "ramp weights, per channel) and, under the default heading clock bound, the gyro "
+            "z noise over that bound at each heading epoch",
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
             "gnss_position": "each fix's position error (Rayleigh radius)",
@@ -379,6 +381,14 @@ def _relative_offset(heading: HeadingInput) -> Any:
     )
 
 
+def _clock_bound_events(heading: HeadingInput | None, timing: dict[str, Any]) -> int:
+    """Heading epochs whose clock allowance takes a k of the imu_intervals family."""
+    h = timing.get("heading")
+    if heading is None or (h is not None and h.method == "drive.yaml"):
+        return 0
+    return int(heading.t.size)
+
+
 def _heading_clock_default(ag: Aiding, timing: dict[str, Any]) -> bool:
     """Whether the heading stream gets the default clock bound (no stated offset)."""
     h = timing.get("heading")
@@ -394,8 +404,8 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     turn x (1 + scale) + b x the bias's error from the heading's ends + k of the gyro
     noise's kernel (box of b minus its share of the window: the turn-on bias cancels,
     the flicker mostly) + the rate random walk and misalignment over b. Elsewhere (no
-    window, gaps): the measured turn corrected by the centre of the bias interval
-    ``beta0``, + its half-width x b + k of the noise integrated over b
+    window, gaps): the measured turn corrected by the centre of the windows' bias
+    interval ``beta0``, + its half-width x b + k of the noise integrated over b
     (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
     from imubounds.dynamic.aiding import timing as TM
     from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
@@ -421,7 +431,7 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
         var = max(var, kernel_variance(gz, c, imu.dt, True))
     noise = k * math.sqrt(var) + k * gz.K * math.sqrt(2 * W) * b + other
     local = turn + berr + noise
-    # elsewhere: the bias interval of the windows or the first smoother pass
+    # elsewhere: the bias interval of the windows
     bc, bh = 0.5 * (beta0[2, 0] + beta0[2, 1]), 0.5 * (beta0[2, 1] - beta0[2, 0])
     err = (bh + D_KR_of(ctx)) * b + other + k * math.sqrt(box_sum_variance(gz, m, imu.dt, False))
     rate = np.asarray(ctx.drive.imu.gyro[:, 2], float) - bc
@@ -843,18 +853,8 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     for bn in bnotes:
         fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
-    head_h0 = ctx.aiding.head_h.copy()
     _heading_clock_allowance(ctx, beta0)
     res = _smooth(ctx, links, beta0)
-    b1 = res.beta[2] if res.beta.shape[0] > 2 else beta0[2]
-    if _heading_clock_default(ctx.aiding, ctx.timing) and np.isfinite(b1).all() and (
-        b1[1] - b1[0] < 0.5 * (beta0[2, 1] - beta0[2, 0])
-    ):
-        # the default heading clock bound again, with the gyro z bias interval the
-        # smoother found (sound: it holds under the assumptions with the wider allowance)
-        ctx.aiding.head_h = head_h0
-        _heading_clock_allowance(ctx, np.vstack([beta0[:2], [b1]]))
-        res = _smooth(ctx, links, beta0)
     if res.beta_note:
         notes.append(res.beta_note)
     for t_s, miss in ctx.aiding.gnss_rejected:
