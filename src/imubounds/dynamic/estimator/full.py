@@ -431,6 +431,7 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
         var = max(var, kernel_variance(gz, c, imu.dt, True))
     noise = k * math.sqrt(var) + k * gz.K * math.sqrt(2 * W) * b + other
     local = turn + berr + noise
+    ok &= np.isfinite(local)  # a gap in the heading or the gyro: the wider bound
     # elsewhere: the bias interval of the windows
     bc, bh = 0.5 * (beta0[2, 0] + beta0[2, 1]), 0.5 * (beta0[2, 1] - beta0[2, 0])
     err = (bh + D_KR_of(ctx)) * b + other + k * math.sqrt(box_sum_variance(gz, m, imu.dt, False))
