@@ -72,6 +72,7 @@ def test_clean_trip_is_guaranteed_and_states_everything(base: Any) -> None:
     # the GNSS error model and K are stated (issue 27, item 4)
     assert any("isotropic Gaussian" in a for a in d["assumptions"])
     assert any("rate random walk K taken as 0" in a for a in d["assumptions"])
+    assert any(a.startswith("heading clock: ") and "+-0.1 s" in a for a in d["assumptions"])
     # the heading check against the course is silent and signed
     for key in ("gnss", "heading"):
         tm = d["timing"][key]
@@ -93,6 +94,9 @@ CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
     "GNSS lag 0.5 s": (F.gnss_lag, {"lag_s": 0.5}, None),
     "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, "heading sensor"),
     "compass lag 0.5 s": (F.heading_lag, {"lag_s": 0.5}, None),
+    # within the default heading clock bound (0.1 s): enclosed, budgeted in the turns
+    "compass lag 0.1 s": (F.heading_lag, {"lag_s": 0.1}, None),
+    "compass two-cycle deviation 2 deg": (F.heading_two_cycle, {"amplitude_deg": 2.0}, None),
     "Student-t GNSS": (F.student_t, {"dof": 3.0, "seed": 7}, None),
     "lever arm 1.5 m": (F.lever_arm, {"length_m": 1.5}, None),
     "IMU stamps at the start": (F.imu_stamp_start, {}, None),
@@ -205,3 +209,67 @@ def test_relative_clock_offset_of_the_heading(base: Any, lag: float) -> None:
     assert rel["applied"] is False and rel["offset_s"] == 0.0
     assert abs(rel["estimate_s"] - lag) <= 0.05, rel
     assert rel["interval_s"][0] <= lag <= rel["interval_s"][1]
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+@pytest.mark.parametrize("case", ["compass lag 0.1 s", "compass two-cycle deviation 2 deg"])
+def test_compass_faults_in_the_corners_other_seeds(seed: int, case: str) -> None:
+    """The two compass faults that were silent misses in the corners (issue 27's sweep):
+    enclosed, or withdrawn with every miss covered, on two more seeds."""
+    drive = make_trip("paper", seed=seed, aiding=AIDING, **TRIP).drive
+    fn, kw, _ = CASES[case]
+    bad_drive = fn(drive, **kw)
+    r = dynamic_margins(bad_drive)
+    bad, guar = truth_misses(r, bad_drive)
+    assert not (bad & guar).any(), f"{case} seed {seed}: {int((bad & guar).sum())} silent"
+
+
+def test_heading_clock_bound_is_budgeted_in_the_turns(base: Any) -> None:
+    """The default heading clock bound (0.1 s): the heading half-width grows by at least
+    0.1 s x the true yaw rate at every epoch (the true turn within the bound, from the
+    simulator's truth), and stating drive.yaml heading.time_offset_bound_s replaces it."""
+    from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
+
+    r = dynamic_margins(base)
+    hs = dataclasses.replace(base.settings.heading, time_offset_bound_s=0.0)
+    stated = dataclasses.replace(base, settings=dataclasses.replace(base.settings, heading=hs))
+    r0 = dynamic_margins(stated)
+    ag, ag0 = r.full.ctx.aiding, r0.full.ctx.aiding
+    assert np.array_equal(ag.head_t, ag0.head_t)
+    add = ag.head_h - ag0.head_h
+    tr = base.truth
+    tt = np.asarray(tr.t, float)
+    psi = np.unwrap(np.asarray(tr.heading_rad, float))
+    th = ag.head_t + r.full.ctx.imu.t0
+    turn = np.maximum(
+        np.abs(np.interp(th + B, tt, psi) - np.interp(th, tt, psi)),
+        np.abs(np.interp(th - B, tt, psi) - np.interp(th, tt, psi)),
+    )
+    inside = (th - B > tt[0]) & (th + B < tt[-1])
+    assert np.all(add[inside] >= turn[inside]), float(np.max(turn[inside] - add[inside]))
+    assert float(np.max(turn)) > math.radians(1.0)  # the trip turns
+    d, d0 = r.to_dict(), r0.to_dict()
+    assert any(a.startswith("heading clock: ") for a in d["assumptions"])
+    assert not any(a.startswith("heading clock: ") for a in d0["assumptions"])
+    assert d0["timing"]["heading"]["method"] == "drive.yaml"
+
+
+def test_step_check_variance_is_exact() -> None:
+    """The variance of the velocity part of the step statistic (residual_checks._vel_var)
+    and its trapezoid weights, against a Monte Carlo of the integrated velocity noise."""
+    from imubounds.dynamic.estimator.residual_checks import _vel_var
+
+    rng = np.random.default_rng(0)
+    n, m = 60, 8
+    d = rng.uniform(0.8, 1.2, n - 1)
+    sv = rng.uniform(0.1, 0.3, n)
+    i = np.array([10, 30, 52])
+    v = rng.normal(0.0, 1.0, (4000, n)) * sv
+    steps = np.cumsum(0.5 * (v[:, 1:] + v[:, :-1]) * d, 1)
+    P = np.concatenate([np.zeros((v.shape[0], 1)), steps], 1)
+    D = np.stack([P[:, k : k + m].mean(1) - P[:, k - m : k].mean(1) for k in i], 1)
+    var, dw = _vel_var(i, m, d, sv)
+    assert np.allclose(var, D.var(0), rtol=0.1)
+    # the weights sum to m (uniform spacing: sum w d^3 = m)
+    assert np.allclose(_vel_var(i, m, np.ones(n - 1), sv)[1], m)
+    assert np.all(dw <= m * d.max() ** 3)

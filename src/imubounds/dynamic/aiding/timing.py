@@ -265,3 +265,118 @@ def shifted(obj: Any, name: str | None, est: OffsetEstimate) -> Any:
         return dataclasses.replace(obj, t=obj.t - est.offset_s)
     stream = getattr(obj, name)
     return dataclasses.replace(obj, **{name: shifted(stream, None, est)})
+
+
+#: the stated bound (s) on an undeclared clock offset of the heading stream against the
+#: IMU (drive.yaml heading.time_offset_s / time_offset_bound_s replace it); a larger
+#: offset is what the check against the GNSS course in the turns tests
+DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
+#: half-length (s) of the window around each heading epoch over which the gyro z bias is
+#: taken from the heading stream itself (:func:`local_swing`)
+LOCAL_BIAS_HALF_S = 10.0
+
+
+def rate_allowance(
+    tq: np.ndarray,
+    imu_t: np.ndarray,
+    rate: np.ndarray,
+    bound_s: float,
+    err_rad: float,
+    rate_max: float,
+    scale: float = 0.0,
+) -> np.ndarray:
+    """The change of an angle over a clock offset ``|L| <= bound_s`` at the times ``tq``
+    (rad): ``(1 + scale) max |G(s) - G(t)| + err_rad`` over the IMU samples ``s`` within
+    ``bound_s`` (and one sample) of ``t``, ``G`` the integrated measured rate, ``err_rad``
+    the bound of the integral's error over ``bound_s`` (bias x bound + k white noise);
+    at most ``bound_s x rate_max``. Only the turns are widened: the gyro measures the
+    turn around each epoch."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    it = np.asarray(imu_t, dtype=float)
+    tq = np.asarray(tq, dtype=float)
+    cap = bound_s * rate_max
+    if it.size < 2 or tq.size == 0 or bound_s <= 0:
+        return np.zeros(tq.shape)
+    dt = float(np.median(np.diff(it)))
+    half = int(math.ceil(bound_s / max(dt, 1e-9))) + 1
+    r = np.nan_to_num(np.asarray(rate, dtype=float), nan=0.0)
+    G = np.cumsum(r * np.concatenate([[dt], np.diff(it)]))
+    gmax = maximum_filter1d(G, size=2 * half + 1, mode="nearest")
+    gmin = minimum_filter1d(G, size=2 * half + 1, mode="nearest")
+    i = np.searchsorted(it, tq).clip(0, it.size - 1)
+    j = (i - 1).clip(0, it.size - 1)
+    g = np.interp(tq, it, G)
+    swing = np.maximum(np.maximum(gmax[i], gmax[j]) - g, g - np.minimum(gmin[i], gmin[j]))
+    out = np.minimum((1.0 + scale) * swing + err_rad, cap)
+    # outside the IMU's span or where the rate is not finite: the vehicle's bound
+    bad = (tq < it[0]) | (tq > it[-1])
+    if not np.isfinite(rate).all():
+        fin = maximum_filter1d((~np.isfinite(rate)).astype(float), size=2 * half + 1)
+        bad |= (fin[i] > 0) | (fin[j] > 0)
+    return np.asarray(np.where(bad, cap, out))
+
+
+def local_windows(th: np.ndarray, half_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each heading epoch, the heading epochs ``(ja, jb)`` that end a window of about
+    ``2 half_s`` holding it (shifted inside the stream at its ends), and whether the
+    window is usable: its length within 10 % of ``2 half_s`` (no gap)."""
+    th = np.asarray(th, dtype=float)
+    n = th.size
+    if n < 2 or th[-1] - th[0] < 2 * half_s:
+        z = np.zeros(n, dtype=int)
+        return z, z, np.zeros(n, dtype=bool)
+    start = np.clip(th - half_s, th[0], th[-1] - 2 * half_s)
+    ja = np.searchsorted(th, start).clip(0, n - 1)
+    jb = np.searchsorted(th, start + 2 * half_s).clip(0, n - 1)
+    T = th[jb] - th[ja]
+    ok = np.abs(T - 2 * half_s) <= 0.2 * half_s
+    return ja, jb, ok
+
+
+def local_swing(
+    th: np.ndarray,
+    hc: np.ndarray,
+    hh: np.ndarray,
+    imu_t: np.ndarray,
+    G: np.ndarray,
+    bound_s: float,
+    half_s: float,
+    rate_max: float,
+    scale: float,
+    chunk: int = 20000,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(largest turn within ``bound_s`` of each heading epoch, bias error x bound_s,
+    usable) with the gyro z bias taken from the heading stream over a window of about
+    ``2 half_s`` around the epoch (:func:`local_windows`): ``b = (dG - dh) / T`` over the
+    window's ends, ``G`` the integrated measured rate (rad, at ``imu_t``), ``hc`` the
+    heading (rad, counter-clockwise, unwrapped) of half-width ``hh``. The turn is
+    ``(1 + scale) max |G(s) - G(t) - b (s - t)|`` over the IMU samples within
+    ``bound_s`` (and one sample) of ``t``; the bias error ``(hh_a + hh_b + 2 bound_s
+    rate_max + scale |dG|) / T`` covers the heading's errors at the window's ends (its
+    clock offset included) and the gyro's scale; the gyro's noise within the window is
+    the caller's (a kernel whose turn-on part cancels)."""
+    th = np.asarray(th, dtype=float)
+    it = np.asarray(imu_t, dtype=float)
+    n = th.size
+    turn = np.zeros(n)
+    berr = np.zeros(n)
+    ja, jb, ok = local_windows(th, half_s)
+    if not ok.any() or it.size < 2:
+        return turn, berr, ok
+    dt = float(np.median(np.diff(it)))
+    h = int(math.ceil(bound_s / max(dt, 1e-9))) + 1
+    Ga, Gb = np.interp(th[ja], it, G), np.interp(th[jb], it, G)
+    T = np.maximum(th[jb] - th[ja], 1e-9)
+    dG = Gb - Ga
+    b = (dG - (hc[jb] - hc[ja])) / T
+    berr = bound_s * (hh[ja] + hh[jb] + 2 * bound_s * rate_max + scale * np.abs(dG)) / T
+    offs = np.arange(-h, h + 1)
+    for a in range(0, n, chunk):
+        sl = slice(a, min(n, a + chunk))
+        i0 = np.searchsorted(it, th[sl])
+        idx = (i0[:, None] + offs[None, :]).clip(0, it.size - 1)
+        g0 = np.interp(th[sl], it, G)
+        dev = G[idx] - g0[:, None] - b[sl, None] * (it[idx] - th[sl, None])
+        turn[sl] = (1.0 + scale) * np.max(np.abs(dev), axis=1)
+    return turn, berr, ok

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as TM_HEADING_BOUND_S
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
@@ -218,7 +219,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_samples": imu.n * 6,
             "imu_windows": 1,
             "imu_changes": 1,
-            "imu_intervals": 7 * (te.size - 1),
+            # + the gyro z noise over the heading clock bound at each heading epoch
+            "imu_intervals": 7 * (te.size - 1) + _clock_bound_events(heading, timing),
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
             "gnss_position": n_fix,
@@ -232,7 +234,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_changes": "the noise change between each pair of adjacent windows (the "
             "change test; split equally over the tau levels)",
             "imu_intervals": "the noise integrated over each link of the smoother (flat and "
-            "ramp weights, per channel)",
+            "ramp weights, per channel) and, under the default heading clock bound, the gyro "
+            "z noise over that bound at each heading epoch",
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
             "gnss_position": "each fix's position error (Rayleigh radius)",
@@ -267,8 +270,25 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     for est in timing.values():
         if est.method != "drive.yaml":
             est.finalize(k_t)
-    _budget_timing(aiding, vehicle, timing)
     imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
+    # after refine_vehicle, which may rebuild the aiding
+    _budget_timing(aiding, vehicle, timing)
+    if aiding.has_gnss:
+        assumed.append(
+            "GNSS multipath: no step of a run of fixes (a bias shared by consecutive fixes) "
+            "beyond the Gaussian error model; a step is tested (residual_checks: 'gnss "
+            "position step' with the receiver's velocity, the runs of residuals otherwise) "
+            "and one smaller than their steps_unnoticed (m) goes unnoticed and is NOT in "
+            "the GNSS radius"
+        )
+    if _heading_clock_default(aiding, timing):
+        assumed.append(
+            f"heading clock: the heading stream's stamps within +-{TM_HEADING_BOUND_S:g} s "
+            "of the IMU's (default; heading.time_offset_s / time_offset_bound_s state it), "
+            "budgeted as the largest turn the gyro z measures within that bound of each "
+            "epoch (+ the bound of its error); a larger offset is tested by the check "
+            "against the GNSS course in the turns"
+        )
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -361,9 +381,75 @@ def _relative_offset(heading: HeadingInput) -> Any:
     )
 
 
+def _clock_bound_events(heading: HeadingInput | None, timing: dict[str, Any]) -> int:
+    """Heading epochs whose clock allowance takes a k of the imu_intervals family."""
+    h = timing.get("heading")
+    if heading is None or (h is not None and h.method == "drive.yaml"):
+        return 0
+    return int(heading.t.size)
+
+
+def _heading_clock_default(ag: Aiding, timing: dict[str, Any]) -> bool:
+    """Whether the heading stream gets the default clock bound (no stated offset)."""
+    h = timing.get("heading")
+    return bool(ag.has_heading and not ag.head_from_course and ag.head_h.size
+                and (h is None or h.method != "drive.yaml"))
+
+
+def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
+    """The default heading clock bound ``b`` (:data:`TM_HEADING_BOUND_S`) budgeted into
+    the heading intervals: the largest true turn within ``b`` of each epoch. With the
+    gyro z bias taken from the heading stream over a window of ~20 s around the epoch
+    (:func:`~imubounds.dynamic.aiding.timing.local_swing`): the bias-corrected measured
+    turn x (1 + scale) + b x the bias's error from the heading's ends + k of the gyro
+    noise's kernel (box of b minus its share of the window: the turn-on bias cancels,
+    the flicker mostly) + the rate random walk and misalignment over b. Elsewhere (no
+    window, gaps): the measured turn corrected by the centre of the windows' bias
+    interval ``beta0``, + its half-width x b + k of the noise integrated over b
+    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
+    from imubounds.dynamic.aiding import timing as TM
+    from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
+
+    ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
+    if not _heading_clock_default(ag, ctx.timing):
+        return
+    b, W = TM_HEADING_BOUND_S, TM.LOCAL_BIAS_HALF_S
+    gz = ctx.noise["gyro_z"]
+    k = ctx.alpha.k("imu_intervals")
+    m = int(math.ceil(b / imu.dt)) + 1
+    other = gz.misalignment_rad * veh.max_rate * b
+    th = ag.head_t + imu.t0
+    # the local bias from the heading
+    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts["imu_stamp"])
+    turn, berr, ok = TM.local_swing(th, ag.head_c, ag.head_h, te, G, b, W, veh.max_rate,
+                                    gz.scale)
+    M = int(round(2 * W / imu.dt))
+    var = 0.0
+    for pos in (0, M // 4, (M - m) // 2):
+        c = np.full(M, -imu.dt * m / M)
+        c[pos : pos + m] += imu.dt
+        var = max(var, kernel_variance(gz, c, imu.dt, True))
+    noise = k * math.sqrt(var) + k * gz.K * math.sqrt(2 * W) * b + other
+    local = turn + berr + noise
+    ok &= np.isfinite(local)  # a gap in the heading or the gyro: the wider bound
+    # elsewhere: the bias interval of the windows
+    bc, bh = 0.5 * (beta0[2, 0] + beta0[2, 1]), 0.5 * (beta0[2, 1] - beta0[2, 0])
+    err = (bh + D_KR_of(ctx)) * b + other + k * math.sqrt(box_sum_variance(gz, m, imu.dt, False))
+    rate = np.asarray(ctx.drive.imu.gyro[:, 2], float) - bc
+    wide = TM.rate_allowance(th, ctx.drive.imu.t, rate, b, err, veh.max_rate, gz.scale)
+    add = np.minimum(np.where(ok, np.minimum(local, wide), wide), b * veh.max_rate)
+    ag.head_h = ag.head_h + add
+
+
+def D_KR_of(ctx: Context) -> float:
+    """The rate random walk's bound of gyro z over the trip (rad/s)."""
+    return float(ctx.D_KR.get("gyro_z", 0.0))
+
+
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
     """What remains of an applied clock offset, times the stream's rate bound, added to
-    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt."""
+    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt (the
+    default heading clock bound: :func:`_heading_clock_allowance`)."""
     g = timing.get("gnss")
     if g is not None and g.remainder_s > 0 and ag.has_gnss:
         dtr = g.remainder_s
@@ -719,6 +805,25 @@ class FullRun:
     )
 
 
+def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> Any:
+    prior, meas, has = _smoother_inputs(ctx)
+    vl = ctx.vehicle.lateral_bound
+    return SM.smooth(
+        ctx.te,
+        prior,
+        meas,
+        has,
+        links["YR"],
+        links["FH"],
+        links["QH"],
+        beta0,
+        math.inf if vl is None else float(vl),
+        tol=float(ctx.opts["tol"]),
+        max_sweeps=int(ctx.opts["max_sweeps"]),
+        t_offset=ctx.imu.t0,
+    )
+
+
 def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
     ctx = build_context(drive, noise, options)
@@ -749,22 +854,8 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     for bn in bnotes:
         fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
-    prior, meas, has = _smoother_inputs(ctx)
-    vl = ctx.vehicle.lateral_bound
-    res = SM.smooth(
-        ctx.te,
-        prior,
-        meas,
-        has,
-        links["YR"],
-        links["FH"],
-        links["QH"],
-        beta0,
-        math.inf if vl is None else float(vl),
-        tol=float(ctx.opts["tol"]),
-        max_sweeps=int(ctx.opts["max_sweeps"]),
-        t_offset=ctx.imu.t0,
-    )
+    _heading_clock_allowance(ctx, beta0)
+    res = _smooth(ctx, links, beta0)
     if res.beta_note:
         notes.append(res.beta_note)
     for t_s, miss in ctx.aiding.gnss_rejected:

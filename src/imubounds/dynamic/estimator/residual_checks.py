@@ -122,6 +122,29 @@ def _families(ctx: Any, sm: Any) -> list[Family]:
     return [f for f in fams if f.t.size >= 2]
 
 
+def _vel_var(
+    i: np.ndarray, m: int, d: np.ndarray, sv: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(exact variance (m^2) of the velocity part of the step statistic ``D`` at the
+    splits ``i``, ``sum_l w_l d_l^3`` (s^3) for its trapezoid error) with ``m`` fixes
+    before and after: ``mean_A P - mean_B P`` weights the trapezoid pair ``l`` by ``w =
+    (m + 1 + o) / m`` for ``o = l - i`` in ``[-m, -1]`` and ``(m - 1 - o) / m`` in
+    ``[0, m - 1]`` (0 elsewhere; the weights sum to m), so the velocity ``v_j`` has the
+    coefficient ``(d_{j-1} w_{j-1} + d_j w_j) / 2``: the variance is
+    ``sum_j c_j^2 sigma_j^2`` (a triangle, about ``2 m / 3 (sigma d)^2``) and the
+    trapezoid error is at most ``jerk sum_l w_l d_l^3 / 12``."""
+    o = np.arange(-m - 1, m + 1)  # pair offsets -m-1 .. m
+    w = np.where(o < 0, (m + 1 + o) / m, (m - 1 - o) / m)
+    w[(o < -m) | (o > m - 1)] = 0.0
+    L = (i[:, None] + o[None, :])  # pair indices
+    dl = np.where((L >= 0) & (L < d.size), d[L.clip(0, d.size - 1)], 0.0)
+    u = 0.5 * dl * w[None, :]  # (splits, 2m + 2): pair l's weight on v_l and v_{l+1}
+    c = u[:, 1:] + u[:, :-1]  # v_j for j = i - m .. i + m
+    J = (i[:, None] + o[None, 1:]).clip(0, sv.size - 1)
+    var = np.sum((c * sv[J]) ** 2, axis=1)
+    return np.asarray(var), np.asarray(2.0 * np.sum(u * dl * dl, axis=1))
+
+
 def step_check(
     ctx: Any, a_fam: float, t_span: tuple[float, float]
 ) -> tuple[list[Violation], dict[str, Any]]:
@@ -129,10 +152,10 @@ def step_check(
     velocity integrated by the trapezoid rule: ``q_i = p_i - P_i`` (P the integral) is
     constant but for noise, so the difference of the means of ``q`` over ``m`` fixes
     before and after each split must stay within ``det + k sigma``: ``det`` the
-    trapezoid's error bound (max jerk x dt^3 / 12 per pair over the 2m pairs), sigma
-    from the positions' and the velocities' stated Gaussian errors (the velocity's
-    coefficient bounded by dt). Runs of consecutive fixes only (gaps > 2.5 x the median
-    interval split them)."""
+    trapezoid's error bound (max jerk x dt^3 / 12 per pair, weighted by the pair's
+    triangular weight in ``D``), sigma from the positions' and the velocities' stated
+    Gaussian errors (exact for those weights, :func:`_vel_var`). Runs of consecutive
+    fixes only (gaps > 2.5 x the median interval split them)."""
     from scipy.stats import norm
 
     ag = ctx.aiding
@@ -170,8 +193,9 @@ def step_check(
                     break
                 i = np.arange(m, n - m + 1, max(1, m // 2))
                 D = (cq[i + m] - cq[i]) / m - (cq[i] - cq[i - m]) / m
-                var = (cs[i + m] - cs[i - m]) / m**2 + (cv[i + m] - cv[i - m])
-                det = cd[np.minimum(i + m - 1, n - 1)] - cd[i - m]
+                vv2, dw = _vel_var(i, m, d, ag.gvel_sig[a:b])
+                var = (cs[i + m] - cs[i - m]) / m**2 + vv2
+                det = jerk * dw / 12.0
                 cand.append((a, ax, m, i, D, var, det))
             # each fix against the mean of its NB neighbours on each side
             M = NB
