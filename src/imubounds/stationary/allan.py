@@ -82,11 +82,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary import _allan_kernels as _k
-from imubounds.stationary.edf import edf_greenhall, edf_totdev
+from imubounds.stationary.edf import chi2_ppf, edf_greenhall, edf_totdev, norm_cdf, norm_pdf
 
 __all__ = [
     "ESTIMATORS",
@@ -123,9 +122,9 @@ HADAMARD_ESTIMATORS: tuple[str, ...] = ("hadamard", "non-overlapping-hadamard")
 ROBUST_CLIP: float = 3.0
 #: E[min(Z², c²)] for a standard normal Z and c = ROBUST_CLIP (consistency factor).
 ROBUST_CONSISTENCY: float = float(
-    (2 * stats.norm.cdf(ROBUST_CLIP) - 1)
-    - 2 * ROBUST_CLIP * stats.norm.pdf(ROBUST_CLIP)
-    + 2 * ROBUST_CLIP**2 * stats.norm.sf(ROBUST_CLIP)
+    (2 * norm_cdf(ROBUST_CLIP) - 1)
+    - 2 * ROBUST_CLIP * norm_pdf(ROBUST_CLIP)
+    + 2 * ROBUST_CLIP**2 * norm_cdf(-ROBUST_CLIP)
 )
 #: EDF factor of the robust estimate (its variance at the normal law is within a few
 #: per cent of the plain one; the factor leaves a margin for the estimated scale).
@@ -825,8 +824,8 @@ def confidence_interval(
     dev = np.asarray(dev, dtype=np.float64)
     edf = np.asarray(edf, dtype=np.float64)
     p = 1.0 - confidence
-    lo = dev * np.sqrt(edf / stats.chi2.ppf(1.0 - p / 2.0, edf))
-    hi = dev * np.sqrt(edf / stats.chi2.ppf(p / 2.0, edf))
+    lo = dev * np.sqrt(edf / chi2_ppf(1.0 - p / 2.0, edf))
+    hi = dev * np.sqrt(edf / chi2_ppf(p / 2.0, edf))
     return lo, hi
 
 

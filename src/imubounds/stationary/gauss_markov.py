@@ -10,7 +10,7 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize, signal
+from scipy import optimize
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary import theory
@@ -260,6 +260,8 @@ def simulate_gm(
     out = np.empty(n)
     out[0] = x0
     if n > 1:
+        from scipy import signal  # only here: its import takes a quarter of a second
+
         out[1:], _ = signal.lfilter([innovation_std], [1.0, -phi], w[1:], zi=[phi * x0])
     return out
 
