@@ -46,7 +46,6 @@ COMPLEX_FUNCTIONS: dict[tuple[str, str], int] = {
 #: drive assembly back (io/drive_readers <-> nmea, rosbag, ulog); issue 23 item 2 (the
 #: readers registering in one registry) removes them.
 CYCLE_EDGES: set[tuple[str, str]] = {
-    ("imubounds.io.nmea", "imubounds.io"),
     ("imubounds.io.nmea", "imubounds.io.drive_readers"),
     ("imubounds.io.rosbag", "imubounds.io.drive_readers"),
     ("imubounds.io.ulog", "imubounds.io.drive_readers"),
