@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
+import threading
+from collections.abc import Sequence
 from typing import Any
 
 from imubounds.cli._common import (
@@ -170,6 +173,42 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def _later_imports(args: argparse.Namespace) -> list[str]:
+    """The heavy modules the analysis and the outputs import after the log is read."""
+    mods = ["scipy.optimize", "imubounds.stationary.models"]
+    if not args.no_plot:
+        mods += ["matplotlib.figure", "matplotlib.backends.backend_agg",
+                 "imubounds.report.static_plots"]  # fmt: skip
+    if not args.no_report:
+        mods.append("imubounds.report.html")
+    return mods
+
+
+def _read_while_importing(args: argparse.Namespace, modules: Sequence[str]) -> Any:
+    """Read the log while another thread imports ``modules`` (about a second of imports
+    that would otherwise wait for the read: parsing and decompressing release the GIL).
+
+    The reader's own modules are imported first, here, so that the two threads never
+    import the same module; an import that fails in the thread is left to fail again,
+    with its error, where the module is used. The thread is joined before returning.
+    """
+    import imubounds.io.table  # noqa: F401 - the reader, imported before the thread starts
+
+    def work() -> None:
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:  # noqa: BLE001 - raised again at the real import
+                return
+
+    thread = threading.Thread(target=work, name="imubounds-imports", daemon=True)
+    thread.start()
+    try:
+        return read_log_from_args(args.log, args)
+    finally:
+        thread.join()
+
+
 def summary(result: Any) -> dict[str, Any]:
     """A compact summary per channel: the selected terms (SI, IEEE 952 and datasheet
     units, status), sigma_min, the per-sample bound with its k and the random-walk growth."""
@@ -325,7 +364,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         for note in result.notes:
             rep.info(note)
     else:
-        log = read_log_from_args(args.log, args)
+        log = _read_while_importing(args, _later_imports(args))
         for w in log.warnings:
             rep.warn(w)
         rep.info(

@@ -10,7 +10,6 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary import theory
@@ -327,6 +326,8 @@ def _fit_exponential(
     a_lo, a_hi = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, grid.size - 1)])
     lb = a_lo
     if a_hi > a_lo:
+        from scipy import optimize  # here: a half-second import
+
         sol = optimize.minimize_scalar(
             lambda v: amp_and_cost(v)[1],
             bounds=(a_lo, a_hi),

@@ -13,7 +13,6 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import special
-from scipy.optimize import nnls
 
 from imubounds.errors import AnalysisError
 from imubounds.stationary import theory
@@ -164,6 +163,10 @@ def _nnls_weighted(
     A: NDArray[np.float64], b: NDArray[np.float64], sw: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """NNLS of ``(A x - b)·sw`` with column scaling; returns x ≥ 0."""
+    # imported here: scipy.optimize takes half a second, which `imubounds static`
+    # spends while the log is read (cli/static.py)
+    from scipy.optimize import nnls
+
     Aw = A * sw[:, None]
     bw = b * sw
     scale = np.linalg.norm(Aw, axis=0)
