@@ -8,7 +8,8 @@ import json
 import math
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 from imubounds.cli._common import (
@@ -30,7 +31,7 @@ MODELS = ("gm", "ar")
 
 
 def register(sub: Any) -> None:
-    from imubounds.stationary.allan import ESTIMATORS, TAU_GRAMMAR
+    from imubounds.stationary.allan_grammar import ESTIMATORS, TAU_GRAMMAR
 
     p = sub.add_parser(
         "static",
@@ -175,7 +176,7 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def _later_imports(args: argparse.Namespace) -> list[str]:
     """The heavy modules the analysis and the outputs import after the log is read."""
-    mods = ["scipy.optimize", "imubounds.stationary.models"]
+    mods = ["imubounds.stationary.pipeline", "scipy.optimize", "imubounds.stationary.models"]
     if not args.no_plot:
         mods += ["matplotlib.figure", "matplotlib.backends.backend_agg",
                  "imubounds.report.static_plots"]  # fmt: skip
@@ -184,15 +185,17 @@ def _later_imports(args: argparse.Namespace) -> list[str]:
     return mods
 
 
-def _read_while_importing(args: argparse.Namespace, modules: Sequence[str]) -> Any:
-    """Read the log while another thread imports ``modules`` (about a second of imports
-    that would otherwise wait for the read: parsing and decompressing release the GIL).
+@contextmanager
+def _importing(modules: Sequence[str]) -> Iterator[None]:
+    """Import ``modules`` in another thread while the body runs (routing and reading
+    the log: decompressing and parsing release the GIL), about a second of imports
+    that would otherwise wait for the read; the thread is joined on leaving.
 
-    The reader's own modules are imported first, here, so that the two threads never
-    import the same module; an import that fails in the thread is left to fail again,
-    with its error, where the module is used. The thread is joined before returning.
+    The reader's modules are imported before (``_run``). An import that fails in the
+    thread is left to fail again, with its error, where the module is used. Two
+    threads importing the same module wait for each other, which cannot deadlock as
+    the package has no import cycle (tests/test_structure.py).
     """
-    import imubounds.io.table  # noqa: F401 - the reader, imported before the thread starts
 
     def work() -> None:
         for name in modules:
@@ -204,7 +207,7 @@ def _read_while_importing(args: argparse.Namespace, modules: Sequence[str]) -> A
     thread = threading.Thread(target=work, name="imubounds-imports", daemon=True)
     thread.start()
     try:
-        return read_log_from_args(args.log, args)
+        yield
     finally:
         thread.join()
 
@@ -305,14 +308,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, outset: Any) -> list[str]:
+    import imubounds.io.table  # noqa: F401 - the reader, before the import thread starts
     from imubounds.io.outputs import write_json, write_text
-    from imubounds.stationary.pipeline import StaticSettings, analyse_static
-    from imubounds.stationary.stream import (
-        analyse_static_outofcore,
-        format_bytes,
-        parse_memory,
-        route_outofcore,
-    )
+    from imubounds.stationary.routing import format_bytes, parse_memory, route_outofcore
 
     rep = Reporter(args.quiet)
     models = (
@@ -320,8 +318,18 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         if args.models.strip().lower() in ("", "none")
         else parse_list(args.models, MODELS, "--models")
     )
+    taus = parse_taus(args.tau)
+    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
+    with _importing(_later_imports(args)):  # while the log is routed and read
+        big = route_outofcore(
+            args.log, args.max_memory, force=args.out_of_core, channels=channels,
+            **_open_kwargs(args),
+        )  # fmt: skip
+        log = read_log_from_args(args.log, args) if big is None else None
+    from imubounds.stationary.pipeline import StaticSettings, analyse_static
+
     settings = StaticSettings(
-        taus=parse_taus(args.tau),
+        taus=taus,
         estimator=args.estimator,
         confidence=args.confidence,
         k_sigma=args.k_sigma,
@@ -334,10 +342,6 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         ar_max_order=args.ar_max_order,
         cut_warmup=args.cut_warmup,
     )
-    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
-    big = route_outofcore(
-        args.log, args.max_memory, force=args.out_of_core, channels=channels, **_open_kwargs(args)
-    )
     if big is not None and args.robust:
         from imubounds.errors import OptionError
 
@@ -346,6 +350,8 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             "(raise --max-memory or drop --robust)"
         )
     if big is not None:
+        from imubounds.stationary.stream import analyse_static_outofcore
+
         rep.info(
             f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
             f" data buffers <= {format_bytes(parse_memory(args.max_memory))}"
@@ -364,7 +370,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         for note in result.notes:
             rep.info(note)
     else:
-        log = _read_while_importing(args, _later_imports(args))
+        assert log is not None
         for w in log.warnings:
             rep.warn(w)
         rep.info(
