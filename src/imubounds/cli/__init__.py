@@ -65,7 +65,43 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of ``imubounds``; given the command line ``argv``, only its command's.
+
+    Registering a command imports what its options need (the scenario tables of
+    ``simulate``, the estimators of ``static``...), about half a second for all of
+    them; a command line that names its command (``imubounds static ...``, after
+    ``--debug`` only) gets a parser with that command alone, which parses it the same
+    (its ``--help`` included). Without ``argv``, or when ``argv`` names no command
+    (``--help``, ``--version``, a misspelt command), every command is registered.
+    """
+    only = _named_command(argv)
+    if only is not None:
+        parser = _parser_with((only,))
+        if argv is not None and _command_token(argv) in _subparsers(parser).choices:
+            return parser
+    return _parser_with(COMMAND_MODULES)
+
+
+def _command_token(argv: Sequence[str]) -> str | None:
+    """The first argument that is not ``--debug`` (the command, if one is named)."""
+    return next((a for a in argv if a != "--debug"), None)
+
+
+def _named_command(argv: Sequence[str] | None) -> str | None:
+    """The command module ``argv`` names (``simulate-noise`` -> ``simulate_noise``)."""
+    token = None if argv is None else _command_token(argv)
+    if token is None:
+        return None
+    module = token.replace("-", "_")
+    return module if module in COMMAND_MODULES else None
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> Any:
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+
+
+def _parser_with(modules: Sequence[str]) -> argparse.ArgumentParser:
     parser = _Parser(
         prog="imubounds",
         description="How much to trust a MEMS IMU: stationary noise (Allan variance, "
@@ -77,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMAND_MODULES:
+    for name in modules:
         module = importlib.import_module(f"imubounds.cli.{name}")
         module.register(sub)
     for p in sub.choices.values():  # accepted after the command too
@@ -88,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def run_command(argv: Sequence[str]) -> int:
     """Parse and run one command; its errors propagate (``demo`` runs its steps so)."""
-    args = build_parser().parse_args(list(argv))
+    args = build_parser(list(argv)).parse_args(list(argv))
     args.argv = list(argv)
     return int(args.func(args) or 0)
 
@@ -200,7 +236,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: list[str], state: dict[str, bool]) -> int:
-    parser = build_parser()
+    parser = build_parser(argv)
     try:
         args = parser.parse_args(argv)
     except SystemExit as done:  # --help, --version, or an invalid option (already printed)

@@ -172,7 +172,7 @@ time_unit = _unit_type("time", "s, ms, us or ns")
 
 def memory_size(text: str) -> int:
     """A memory setting (``1GiB``, ``512MB``, ``2e9``) in bytes, at least 64 KiB."""
-    from imubounds.stationary.stream import parse_memory
+    from imubounds.stationary.routing import parse_memory
 
     try:
         return parse_memory(text)
@@ -381,7 +381,7 @@ def parse_taus(text: str) -> str | int | list[float]:
     The grammar lives in :func:`imubounds.stationary.allan.parse_tau_spec`; a bare
     number is refused as ambiguous.
     """
-    from imubounds.stationary.allan import parse_tau_spec
+    from imubounds.stationary.allan_grammar import parse_tau_spec
 
     return parse_tau_spec(text)
 

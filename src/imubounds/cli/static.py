@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 from imubounds.cli._common import (
@@ -27,7 +31,7 @@ MODELS = ("gm", "ar")
 
 
 def register(sub: Any) -> None:
-    from imubounds.stationary.allan import ESTIMATORS, TAU_GRAMMAR
+    from imubounds.stationary.allan_grammar import ESTIMATORS, TAU_GRAMMAR
 
     p = sub.add_parser(
         "static",
@@ -170,6 +174,44 @@ def _open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def _later_imports(args: argparse.Namespace) -> list[str]:
+    """The heavy modules the analysis and the outputs import after the log is read."""
+    mods = ["imubounds.stationary.pipeline", "scipy.optimize", "imubounds.stationary.models"]
+    if not args.no_plot:
+        mods += ["matplotlib.figure", "matplotlib.backends.backend_agg",
+                 "imubounds.report.static_plots"]  # fmt: skip
+    if not args.no_report:
+        mods.append("imubounds.report.html")
+    return mods
+
+
+@contextmanager
+def _importing(modules: Sequence[str]) -> Iterator[None]:
+    """Import ``modules`` in another thread while the body runs (routing and reading
+    the log: decompressing and parsing release the GIL), about a second of imports
+    that would otherwise wait for the read; the thread is joined on leaving.
+
+    The reader's modules are imported before (``_run``). An import that fails in the
+    thread is left to fail again, with its error, where the module is used. Two
+    threads importing the same module wait for each other, which cannot deadlock as
+    the package has no import cycle (tests/test_structure.py).
+    """
+
+    def work() -> None:
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:  # noqa: BLE001 - raised again at the real import
+                return
+
+    thread = threading.Thread(target=work, name="imubounds-imports", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        thread.join()
+
+
 def summary(result: Any) -> dict[str, Any]:
     """A compact summary per channel: the selected terms (SI, IEEE 952 and datasheet
     units, status), sigma_min, the per-sample bound with its k and the random-walk growth."""
@@ -266,14 +308,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, outset: Any) -> list[str]:
+    import imubounds.io.table  # noqa: F401 - the reader, before the import thread starts
     from imubounds.io.outputs import write_json, write_text
-    from imubounds.stationary.pipeline import StaticSettings, analyse_static
-    from imubounds.stationary.stream import (
-        analyse_static_outofcore,
-        format_bytes,
-        parse_memory,
-        route_outofcore,
-    )
+    from imubounds.stationary.routing import format_bytes, parse_memory, route_outofcore
 
     rep = Reporter(args.quiet)
     models = (
@@ -281,8 +318,18 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         if args.models.strip().lower() in ("", "none")
         else parse_list(args.models, MODELS, "--models")
     )
+    taus = parse_taus(args.tau)
+    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
+    with _importing(_later_imports(args)):  # while the log is routed and read
+        big = route_outofcore(
+            args.log, args.max_memory, force=args.out_of_core, channels=channels,
+            **_open_kwargs(args),
+        )  # fmt: skip
+        log = read_log_from_args(args.log, args) if big is None else None
+    from imubounds.stationary.pipeline import StaticSettings, analyse_static
+
     settings = StaticSettings(
-        taus=parse_taus(args.tau),
+        taus=taus,
         estimator=args.estimator,
         confidence=args.confidence,
         k_sigma=args.k_sigma,
@@ -295,10 +342,6 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         ar_max_order=args.ar_max_order,
         cut_warmup=args.cut_warmup,
     )
-    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
-    big = route_outofcore(
-        args.log, args.max_memory, force=args.out_of_core, channels=channels, **_open_kwargs(args)
-    )
     if big is not None and args.robust:
         from imubounds.errors import OptionError
 
@@ -307,6 +350,8 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             "(raise --max-memory or drop --robust)"
         )
     if big is not None:
+        from imubounds.stationary.stream import analyse_static_outofcore
+
         rep.info(
             f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
             f" data buffers <= {format_bytes(parse_memory(args.max_memory))}"
@@ -325,7 +370,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         for note in result.notes:
             rep.info(note)
     else:
-        log = read_log_from_args(args.log, args)
+        assert log is not None
         for w in log.warnings:
             rep.warn(w)
         rep.info(

@@ -82,11 +82,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary import _allan_kernels as _k
-from imubounds.stationary.edf import edf_greenhall, edf_totdev
+from imubounds.stationary.allan_grammar import ESTIMATORS as ESTIMATORS
+from imubounds.stationary.allan_grammar import TAU_GRAMMAR as TAU_GRAMMAR
+from imubounds.stationary.allan_grammar import parse_tau_spec as parse_tau_spec
+from imubounds.stationary.edf import chi2_ppf, edf_greenhall, edf_totdev, norm_cdf, norm_pdf
 
 __all__ = [
     "ESTIMATORS",
@@ -107,15 +109,6 @@ __all__ = [
     "tau_grid",
 ]
 
-#: Estimator names accepted by :func:`allan`.
-ESTIMATORS: tuple[str, ...] = (
-    "overlapping",
-    "non-overlapping",
-    "modified",
-    "hadamard",
-    "non-overlapping-hadamard",
-    "total",
-)
 #: The Hadamard family (third differences of the phase; blind to a linear rate drift).
 HADAMARD_ESTIMATORS: tuple[str, ...] = ("hadamard", "non-overlapping-hadamard")
 
@@ -123,9 +116,9 @@ HADAMARD_ESTIMATORS: tuple[str, ...] = ("hadamard", "non-overlapping-hadamard")
 ROBUST_CLIP: float = 3.0
 #: E[min(Z², c²)] for a standard normal Z and c = ROBUST_CLIP (consistency factor).
 ROBUST_CONSISTENCY: float = float(
-    (2 * stats.norm.cdf(ROBUST_CLIP) - 1)
-    - 2 * ROBUST_CLIP * stats.norm.pdf(ROBUST_CLIP)
-    + 2 * ROBUST_CLIP**2 * stats.norm.sf(ROBUST_CLIP)
+    (2 * norm_cdf(ROBUST_CLIP) - 1)
+    - 2 * ROBUST_CLIP * norm_pdf(ROBUST_CLIP)
+    + 2 * ROBUST_CLIP**2 * norm_cdf(-ROBUST_CLIP)
 )
 #: EDF factor of the robust estimate (its variance at the normal law is within a few
 #: per cent of the plain one; the factor leaves a margin for the estimated scale).
@@ -332,55 +325,6 @@ def max_cluster_size(n_samples: int, estimator: str = "overlapping") -> int:
 #: ``"all"`` is refused when it would sum more than this many squared terms
 #: (every m from 1 to the maximum costs about N per m); use ``points:K`` instead.
 ALL_TAU_MAX_WORK: float = 2e10
-
-TAU_GRAMMAR = (
-    "'octave' (m = 1, 2, 4, ...), 'decade' (m = 1, 2, 5, 10, ...), 'all' (every m), "
-    "'points:K' (K log-spaced points) or averaging times in seconds ending in 's', "
-    "e.g. '1,10,100s'"
-)
-
-
-def parse_tau_spec(text: str) -> str | int | list[float]:
-    """Read a τ-grid specification in the command-line grammar.
-
-    ``octave`` | ``decade`` | ``all`` | ``points:K`` (K log-spaced points) |
-    ``1,10,100s`` (averaging times in s; the list ends in ``s``). A bare number
-    is refused because it is ambiguous (a count or seconds?).
-
-    Returns what :func:`tau_grid` takes: the keyword, an int (points) or a
-    list of τ in s.
-    """
-    raw = str(text)
-    t = raw.strip().lower()
-    if t in ("octave", "decade", "all"):
-        return t
-    if t.startswith("points:"):
-        body = t[len("points:") :].strip()
-        if not body.isdigit() or int(body) < 2:
-            raise OptionError(f"tau grid {raw!r}: points:K needs a whole number K >= 2")
-        return int(body)
-    seconds = t.endswith("s")
-    items = [v.strip() for v in (t[:-1] if seconds else t).split(",")]
-    try:
-        values = [float(v) for v in items]
-    except ValueError:
-        if seconds:
-            raise OptionError(
-                f"tau grid {raw!r}: cannot read the seconds; write e.g. '1,10,100s'"
-            ) from None
-        raise OptionError(f"unknown tau grid {raw!r}: use {TAU_GRAMMAR}") from None
-    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
-        raise OptionError(
-            f"tau grid {raw!r}: every tau must be a positive, finite number of seconds"
-        )
-    if seconds:
-        return values
-    raise OptionError(
-        f"tau grid {raw!r} is ambiguous: write points:K for K log-spaced points (K >= 2) or "
-        f"{t}s for averaging times in seconds"
-    )
-
-
 def tau_grid(
     n_samples: int,
     rate_hz: float,
@@ -825,8 +769,8 @@ def confidence_interval(
     dev = np.asarray(dev, dtype=np.float64)
     edf = np.asarray(edf, dtype=np.float64)
     p = 1.0 - confidence
-    lo = dev * np.sqrt(edf / stats.chi2.ppf(1.0 - p / 2.0, edf))
-    hi = dev * np.sqrt(edf / stats.chi2.ppf(p / 2.0, edf))
+    lo = dev * np.sqrt(edf / chi2_ppf(1.0 - p / 2.0, edf))
+    hi = dev * np.sqrt(edf / chi2_ppf(p / 2.0, edf))
     return lo, hi
 
 

@@ -12,6 +12,40 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import special
+
+
+# --------------------------------------------------------------------------
+# chi-squared and normal quantiles without importing scipy.stats
+# --------------------------------------------------------------------------
+def chi2_ppf(q: Any, df: Any) -> NDArray[np.float64]:
+    """``scipy.stats.chi2.ppf(q, df)`` for ``0 < q < 1`` (the same formula,
+    ``2·gammaincinv(df/2, q)``, NaN where ``df <= 0``), without importing
+    ``scipy.stats`` (about a quarter of a second of every command)."""
+    q = np.asarray(q, dtype=np.float64)
+    df = np.asarray(df, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        out = 2.0 * special.gammaincinv(df / 2.0, q)
+    return np.asarray(np.where(df > 0, out, np.nan), dtype=np.float64)
+
+
+def norm_ppf(q: Any) -> Any:
+    """``scipy.stats.norm.ppf`` (``special.ndtri``)."""
+    return special.ndtri(q)
+
+
+def norm_cdf(x: Any) -> Any:
+    """``scipy.stats.norm.cdf`` (``special.ndtr``); ``norm_cdf(-x)`` is the survival."""
+    return special.ndtr(x)
+
+
+def norm_pdf(x: Any) -> Any:
+    """``scipy.stats.norm.pdf``, the same expression."""
+    return np.exp(-np.asarray(x, dtype=np.float64) ** 2 / 2.0) / np.sqrt(2 * np.pi)
 
 
 # --------------------------------------------------------------------------

@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import nnls
 
 from imubounds.errors import OptionError
 from imubounds.stationary.gauss_markov import GaussMarkovModel, gm_avar_continuous
@@ -56,6 +55,8 @@ def flicker_gm_terms(
     tcs = np.logspace(math.log10(a), math.log10(b), k)
     tau = np.logspace(math.log10(lo), math.log10(hi), 20 * k)
     mat = np.stack([gm_avar_continuous(tau, 1.0, 1.0 / tc) for tc in tcs], axis=1)
+    from scipy.optimize import nnls  # here: a half-second import
+
     w, _ = nnls(mat, np.ones(tau.size))
     level = B_FACTOR2 * B * B
     return tuple(

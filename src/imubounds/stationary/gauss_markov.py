@@ -10,7 +10,6 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize, signal
 
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.stationary import theory
@@ -260,6 +259,8 @@ def simulate_gm(
     out = np.empty(n)
     out[0] = x0
     if n > 1:
+        from scipy import signal  # only here: its import takes a quarter of a second
+
         out[1:], _ = signal.lfilter([innovation_std], [1.0, -phi], w[1:], zi=[phi * x0])
     return out
 
@@ -325,6 +326,8 @@ def _fit_exponential(
     a_lo, a_hi = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, grid.size - 1)])
     lb = a_lo
     if a_hi > a_lo:
+        from scipy import optimize  # here: a half-second import
+
         sol = optimize.minimize_scalar(
             lambda v: amp_and_cost(v)[1],
             bounds=(a_lo, a_hi),

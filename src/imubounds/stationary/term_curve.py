@@ -12,11 +12,11 @@ from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import special, stats
-from scipy.optimize import nnls
+from scipy import special
 
 from imubounds.errors import AnalysisError
 from imubounds.stationary import theory
+from imubounds.stationary.edf import chi2_ppf, norm_ppf
 from imubounds.units import Term
 
 TERMS: tuple[Term, ...] = ("Q", "N", "B", "K", "R")
@@ -128,7 +128,7 @@ def _log_sd(edf: NDArray[np.float64]) -> NDArray[np.float64]:
 def _upper_points(c: _Curve, level: float = UPPER_BOUND_LEVEL) -> NDArray[np.float64]:
     """Per-point upper ends of σ at ``level`` (two-sided) from each point's EDF."""
     p = 1.0 - level
-    return np.asarray(c.dev * np.sqrt(c.edf / stats.chi2.ppf(p / 2.0, c.edf)), dtype=np.float64)
+    return np.asarray(c.dev * np.sqrt(c.edf / chi2_ppf(p / 2.0, c.edf)), dtype=np.float64)
 
 
 def curve_upper_bound(curve: AllanCurve | _Curve, term: str) -> tuple[float, float]:
@@ -163,6 +163,10 @@ def _nnls_weighted(
     A: NDArray[np.float64], b: NDArray[np.float64], sw: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """NNLS of ``(A x - b)·sw`` with column scaling; returns x ≥ 0."""
+    # imported here: scipy.optimize takes half a second, which `imubounds static`
+    # spends while the log is read (cli/static.py)
+    from scipy.optimize import nnls
+
     Aw = A * sw[:, None]
     bw = b * sw
     scale = np.linalg.norm(Aw, axis=0)
@@ -199,7 +203,7 @@ def _eta_from_residuals(
 
 
 #: The upper quartile of the standard normal (median |z| of a Gaussian).
-_Q75 = float(stats.norm.ppf(0.75))
+_Q75 = float(norm_ppf(0.75))
 
 
 def _median_small(v: NDArray[np.float64]) -> float:

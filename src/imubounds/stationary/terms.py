@@ -53,11 +53,11 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
 from imubounds.errors import InputError, OptionError
 from imubounds.stationary import theory
 from imubounds.stationary.consistency import consistent_bound, describe_misfit, misfit_ranges
+from imubounds.stationary.edf import norm_ppf
 from imubounds.stationary.term_curve import EDF_MIN as EDF_MIN
 from imubounds.stationary.term_curve import TERMS as TERMS
 from imubounds.stationary.term_curve import (
@@ -303,7 +303,7 @@ def fit_terms(
     obs = c.observable()
     candidates = [j for j, t in enumerate(TERMS) if t in terms and obs[j]]
     sd_stat = _log_sd(c.edf)
-    z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    z = float(norm_ppf(0.5 + confidence / 2.0))
     density = _grid_density(c.tau)
     # 1. the full model, robustly: its weights and misfit are then kept fixed
     full, w, eta = _robust_fit(c.basis[:, candidates], avar, sd_stat, robust, iterations)

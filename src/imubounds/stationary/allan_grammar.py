@@ -1,0 +1,68 @@
+"""The command-line grammar of the Allan-family options (estimator names, τ grids).
+
+Light on purpose (no numpy, scipy or numba): the command line builds its parser and
+reads ``--tau`` with it while the analysis modules are imported in another thread.
+:mod:`imubounds.stationary.allan` re-exports every name.
+"""
+
+from __future__ import annotations
+
+import math
+
+from imubounds.errors import OptionError
+
+#: Estimator names accepted by :func:`allan`.
+ESTIMATORS: tuple[str, ...] = (
+    "overlapping",
+    "non-overlapping",
+    "modified",
+    "hadamard",
+    "non-overlapping-hadamard",
+    "total",
+)
+TAU_GRAMMAR = (
+    "'octave' (m = 1, 2, 4, ...), 'decade' (m = 1, 2, 5, 10, ...), 'all' (every m), "
+    "'points:K' (K log-spaced points) or averaging times in seconds ending in 's', "
+    "e.g. '1,10,100s'"
+)
+
+
+def parse_tau_spec(text: str) -> str | int | list[float]:
+    """Read a τ-grid specification in the command-line grammar.
+
+    ``octave`` | ``decade`` | ``all`` | ``points:K`` (K log-spaced points) |
+    ``1,10,100s`` (averaging times in s; the list ends in ``s``). A bare number
+    is refused because it is ambiguous (a count or seconds?).
+
+    Returns what :func:`tau_grid` takes: the keyword, an int (points) or a
+    list of τ in s.
+    """
+    raw = str(text)
+    t = raw.strip().lower()
+    if t in ("octave", "decade", "all"):
+        return t
+    if t.startswith("points:"):
+        body = t[len("points:") :].strip()
+        if not body.isdigit() or int(body) < 2:
+            raise OptionError(f"tau grid {raw!r}: points:K needs a whole number K >= 2")
+        return int(body)
+    seconds = t.endswith("s")
+    items = [v.strip() for v in (t[:-1] if seconds else t).split(",")]
+    try:
+        values = [float(v) for v in items]
+    except ValueError:
+        if seconds:
+            raise OptionError(
+                f"tau grid {raw!r}: cannot read the seconds; write e.g. '1,10,100s'"
+            ) from None
+        raise OptionError(f"unknown tau grid {raw!r}: use {TAU_GRAMMAR}") from None
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise OptionError(
+            f"tau grid {raw!r}: every tau must be a positive, finite number of seconds"
+        )
+    if seconds:
+        return values
+    raise OptionError(
+        f"tau grid {raw!r} is ambiguous: write points:K for K log-spaced points (K >= 2) or "
+        f"{t}s for averaging times in seconds"
+    )

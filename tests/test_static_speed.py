@@ -1,0 +1,99 @@
+"""What made ``imubounds static`` faster keeps the same answers (issue 28 item 2).
+
+No timing is asserted: the parser of one command equals the full parser's, the
+static path imports neither the trip simulator, pandas, scipy.stats nor scipy.signal,
+and the replacements of scipy.stats and lfilter give the values they replaced.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy import signal, stats
+
+from imubounds.cli import COMMAND_MODULES, build_parser
+from imubounds.stationary.ar_model import ar_autocovariance
+from imubounds.stationary.edf import chi2_ppf, norm_cdf, norm_pdf, norm_ppf
+
+
+def _help(parser: object, command: str) -> str:
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")  # type: ignore[attr-defined]
+    return str(sub.choices[command].format_help())
+
+
+@pytest.mark.parametrize("module", COMMAND_MODULES)
+def test_parser_of_one_command_equals_the_full_one(module: str) -> None:
+    command = module.replace("_", "-")
+    full = build_parser()
+    one = build_parser([command, "--help"])
+    assert _help(one, command) == _help(full, command)
+    with_debug = build_parser(["--debug", command])
+    assert _help(with_debug, command) == _help(full, command)
+
+
+def test_parser_without_a_command_has_every_command() -> None:
+    for argv in ([], ["--help"], ["--version"], ["stat"]):
+        sub = next(a for a in build_parser(argv)._actions
+                   if a.__class__.__name__ == "_SubParsersAction")  # fmt: skip
+        assert len(sub.choices) == len(COMMAND_MODULES), argv
+
+
+def test_static_path_imports_no_simulator_pandas_or_scipy_stats(tmp_path: object) -> None:
+    code = (
+        "import sys\n"
+        "from imubounds.cli import main\n"
+        "from imubounds.io import bundled_static_log\n"
+        f"rc = main(['static', str(bundled_static_log()), '-o', {str(tmp_path)!r}, '-q',"
+        " '--models', 'none', '--no-report'])\n"
+        "bad = [m for m in ('imubounds.dynamic.scenario', 'pandas', 'scipy.stats',"
+        " 'scipy.signal') if m in sys.modules]\n"
+        "print(rc, bad)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "0 []", out.stdout + out.stderr
+
+
+def test_special_function_quantiles_equal_scipy_stats() -> None:
+    df = np.array([0.7, 1.0, 3.5, 20.0, 1e4])
+    for q in (0.0001, 0.1585, 0.5, 0.8415, 0.9999):
+        np.testing.assert_allclose(chi2_ppf(q, df), stats.chi2.ppf(q, df), rtol=1e-14)
+    assert np.isnan(chi2_ppf(0.5, np.array([0.0, -1.0]))).all()
+    x = np.array([-4.0, -1.0, 0.0, 0.5, 3.0])
+    np.testing.assert_allclose(norm_cdf(x), stats.norm.cdf(x), rtol=1e-15)
+    np.testing.assert_allclose(norm_cdf(-x), stats.norm.sf(x), rtol=1e-15)
+    np.testing.assert_allclose(norm_pdf(x), stats.norm.pdf(x), rtol=1e-15)
+    np.testing.assert_allclose(norm_ppf(0.841), stats.norm.ppf(0.841), rtol=1e-15)
+
+
+def test_ar_autocovariance_tail_equals_lfilter() -> None:
+    rng = np.random.default_rng(3)
+    for p in (1, 2, 7, 20):
+        a = np.zeros(0)
+        for k in rng.uniform(-0.8, 0.8, p):  # a stable AR(p) from reflection coefficients
+            a = np.concatenate((a - k * a[::-1], [-k]))
+        r = ar_autocovariance(a, 0.3, 500)
+        den = np.concatenate(([1.0], a))
+        zi = signal.lfiltic([1.0], den, r[: p + 1][::-1][:p])
+        tail, _ = signal.lfilter([1.0], den, np.zeros(500 - p - 1), zi=zi)
+        np.testing.assert_allclose(r[p + 1 :], tail, rtol=0, atol=1e-13 * r[0])
+
+
+def test_log_axis_labels_are_plain_text() -> None:
+    from matplotlib.figure import Figure
+
+    from imubounds.report.static_plots import PlainLogFormatter, log_axes
+
+    fig = Figure()
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot([1e-3, 1e2], [2e-3, 7e-3])
+    log_axes(ax)
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_xticklabels() + ax.get_yticklabels() if t.get_text()]
+    assert labels and not any("$" in s for s in labels), labels
+    assert "10⁻³" in labels
+    fmt = PlainLogFormatter()
+    assert fmt._num_to_string(2e-3, 1e-3, 1e-2) == "2×10⁻³"
+    assert fmt._num_to_string(100.0, 1.0, 1e3) == "10²"
