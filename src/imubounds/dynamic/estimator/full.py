@@ -796,7 +796,6 @@ class FullRun:
     ctx: Context
     margins: dict[str, ChannelMargins]
     smoother: SM.SmootherResult | None
-    beta_windows: np.ndarray
     links: dict[str, np.ndarray] | None
     notes: list[str]
     #: (stream, test, detail, evidence span or None) of every failed check of the run
@@ -870,7 +869,7 @@ def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
                 "neighbours (the miss is beyond that threshold)",
             ),
         )
-    return FullRun(ctx, margins, res, beta0, links, notes, fails)
+    return FullRun(ctx, margins, res, links, notes, fails)
 
 
 def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:

@@ -608,7 +608,6 @@ class SmootherResult:
     te: np.ndarray
     X: np.ndarray
     beta: np.ndarray
-    beta_prior: np.ndarray
     dropped: list[Dropped]
     rounds: int
     sweeps: int
@@ -694,7 +693,7 @@ def smooth(
             st, ep, what, sw = fixpoint(X, link, YR, FH, QH, DT, beta, vlat, False, tol, max_sweeps)
             sweeps += sw
         if st == 0:
-            return SmootherResult(te, X, beta, beta0, dropped, rounds, sweeps, beta_note, link)
+            return SmootherResult(te, X, beta, dropped, rounds, sweeps, beta_note, link)
         if rounds >= max_rounds:
             hull = np.stack(
                 [np.minimum(XF[..., 0], XB[..., 0]), np.maximum(XF[..., 1], XB[..., 1])], -1
@@ -704,7 +703,7 @@ def smooth(
                 "dropping; the states are the hull of the forward and backward filters"
             )
             return SmootherResult(
-                te, hull, beta0.copy(), beta0, dropped, rounds, sweeps, note.strip(), link
+                te, hull, beta0.copy(), dropped, rounds, sweeps, note.strip(), link
             )
         # an empty intersection the screening did not catch: drop at that epoch
         g = _group_of(what)
