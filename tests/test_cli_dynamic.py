@@ -90,7 +90,9 @@ def test_dynamic_mode_full_only_and_json(main, layout_dir: Path, tmp_path: Path,
     _schema(doc, {"full"}, TRIP_VERDICTS)
     assert not (out / "steps.csv").exists()
     assert doc["modes"]["full"]["alpha"]["alpha"] == 0.05
+    # one setting, one name: --lateral-speed-bound is vehicle.lateral_speed_bound_mps
     assert doc["modes"]["full"]["vehicle"]["lateral_speed_bound_mps"] == 0.2
+    assert doc["modes"]["full"]["vehicle"]["sources"]["lateral_speed_bound_mps"] == "option"
 
 
 def test_dynamic_static_noise_json(main, layout_dir: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]

@@ -42,7 +42,7 @@ def test_informative_gnss_position_and_velocity() -> None:
     assert m164 <= 0.05, f"median half-width at 164 s: {m164:.4f} m/s^2"
     assert m82 < m10 / 2
     # a tighter non-holonomic bound (|v| <= 0.1 m/s) reaches 0.05 m/s^2 at 82 s
-    d2 = dynamic_margins(res.drive, lateral_bound=0.1).to_dict()
+    d2 = dynamic_margins(res.drive, lateral_speed_bound_mps=0.1).to_dict()
     assert margin_at(d2, "accel_x", 82.0) <= 0.05
 
 

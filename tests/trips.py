@@ -75,7 +75,7 @@ class TripConfig:
     attitude_bound_deg: float = 0.1
     dvl_sigma: float = 0.02
     dvl_bound: float = 0.1
-    lateral_bound: float | None = 0.3
+    lateral_speed_bound_mps: float | None = 0.3
     state_drift: bool = False
     scale_bound: float = 0.002
     imu_noise_scale: float = 1.0
@@ -326,7 +326,7 @@ def make_trip(variant: str = "paper", seed: int = 0, **kw: Any) -> tuple[Drive, 
     settings.vehicle.max_jerk_mps3 = 20.0
     settings.vehicle.max_yaw_rate_dps = 90.0
     settings.vehicle.max_tilt_deg = 10.0
-    settings.vehicle.lateral_speed_bound_mps = cfg.lateral_bound
+    settings.vehicle.lateral_speed_bound_mps = cfg.lateral_speed_bound_mps
     drive = Drive(imu=imu, settings=settings, source=f"<trip {variant} seed {seed}>")
     pos_err = vel_err = outl = None
     if cfg.gnss_pos:

@@ -84,7 +84,8 @@ def register(sub: Any) -> None:
     f.add_argument("--max-tilt", type=nonneg_float, metavar="DEG",
                    help="roll/pitch bound when there is no attitude stream (vehicle.max_tilt_deg)")
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
-                   help="non-holonomic |lateral velocity| bound of a wheeled vehicle")
+                   help="non-holonomic |lateral velocity| bound of a wheeled vehicle "
+                        "(vehicle.lateral_speed_bound_mps)")
     f.add_argument("--reverses", action="store_true", default=None,
                    help="the vehicle may drive backwards: no heading from the GNSS course")
     f.add_argument("--max-speed", type=positive_float, metavar="M/S")
@@ -184,7 +185,7 @@ def _full_options(args: argparse.Namespace) -> dict[str, Any]:
         "misalignment_deg": args.misalignment,
         "imu_stamp": args.imu_stamp,
         "max_tilt_deg": args.max_tilt,
-        "lateral_bound": args.lateral_speed_bound,
+        "lateral_speed_bound_mps": args.lateral_speed_bound,
         "max_speed": args.max_speed,
         "max_accel": args.max_accel,
         "max_jerk": args.max_jerk,

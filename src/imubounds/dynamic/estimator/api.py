@@ -40,7 +40,7 @@ def dynamic_margins(
     **options:
         Mode options (SI unless named otherwise): for ``full`` see
         :data:`imubounds.dynamic.estimator.full.FULL_DEFAULTS` (``alpha``,
-        ``imu_spec``, ``max_tilt_deg``, ``lateral_bound``, ...); for ``paper`` see
+        ``imu_spec``, ``max_tilt_deg``, ``lateral_speed_bound_mps``, ...); for ``paper`` see
         :class:`imubounds.dynamic.estimator.paper.PaperConfig`.
 
     Returns

@@ -70,7 +70,7 @@ FULL_DEFAULTS: dict[str, Any] = {
     "max_rate_dps": None,
     "max_tilt_deg": None,
     "max_ang_accel_dps2": None,
-    "lateral_bound": None,
+    "lateral_speed_bound_mps": None,
     "gnss_cep_m": None,
     "default_hdop": None,
     "gnss_vel_sigma": None,
@@ -124,7 +124,7 @@ def check_options(opts: dict[str, Any]) -> dict[str, Any]:
         "scale",
         "misalignment_deg",
         "max_tilt_deg",
-        "lateral_bound",
+        "lateral_speed_bound_mps",
         "gnss_vel_sigma",
         "velocity_bound",
         "attitude_bound_deg",
@@ -690,7 +690,7 @@ def _smoother_inputs(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     vm = veh.max_speed
     for iv_ in (SM.VE, SM.VN, SM.UH):
         prior[:, iv_] = (-vm, vm)
-    vl = veh.lateral_bound if veh.lateral_bound is not None else vm
+    vl = veh.lateral_speed_bound_mps if veh.lateral_speed_bound_mps is not None else vm
     prior[:, SM.VH] = (-vl, vl)
     if not ag.has_gnss:
         prior[0, SM.E] = (0.0, 0.0)
@@ -806,7 +806,7 @@ class FullRun:
 
 def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> Any:
     prior, meas, has = _smoother_inputs(ctx)
-    vl = ctx.vehicle.lateral_bound
+    vl = ctx.vehicle.lateral_speed_bound_mps
     return SM.smooth(
         ctx.te,
         prior,

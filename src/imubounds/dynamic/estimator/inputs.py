@@ -85,7 +85,7 @@ class Vehicle:
     max_rate: float = 90.0 * DEG
     max_ang_accel: float = 2.0 * math.pi
     max_tilt: float = 10.0 * DEG
-    lateral_bound: float | None = None
+    lateral_speed_bound_mps: float | None = None
     vertical_bound: float = 0.0
     sources: dict[str, str] = field(default_factory=dict)
 
@@ -117,7 +117,7 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         ("max_jerk", "max_jerk_mps3", 1.0, "max_jerk"),
         ("max_rate", "max_yaw_rate_dps", DEG, "max_rate_dps"),
         ("max_tilt", "max_tilt_deg", DEG, "max_tilt_deg"),
-        ("lateral_bound", "lateral_speed_bound_mps", 1.0, "lateral_bound"),
+        ("lateral_speed_bound_mps", "lateral_speed_bound_mps", 1.0, "lateral_speed_bound_mps"),
     )
     for attr, key, fac, opt in table:
         if opt is not None and opts.get(opt) is not None:
@@ -567,9 +567,10 @@ WHEEL_SCALE_DEFAULT = 0.03
 def lateral_h_bound(vehicle: Vehicle) -> float | None:
     """Bound of the horizontal lateral velocity ``|cos(roll) v - sin(roll) w|`` (m/s),
     None when no lateral bound is stated."""
-    if vehicle.lateral_bound is None:
+    vl = vehicle.lateral_speed_bound_mps
+    if vl is None:
         return None
-    return float(_up(vehicle.lateral_bound + math.sin(vehicle.max_tilt) * vehicle.vertical_bound))
+    return float(_up(vl + math.sin(vehicle.max_tilt) * vehicle.vertical_bound))
 
 
 def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
@@ -608,7 +609,7 @@ def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
             "lateral velocity bound",
             vh,
             "m/s",
-            vehicle.sources.get("lateral_bound", "default"),
+            vehicle.sources.get("lateral_speed_bound_mps", "default"),
             "|horizontal lateral velocity| (vehicle bound, plus sin(max tilt) x vertical bound)",
         ),
         Term(

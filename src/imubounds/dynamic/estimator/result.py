@@ -218,7 +218,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         "max_rate_dps": ctx.vehicle.max_rate * 180 / math.pi,
         "max_ang_accel_dps2": ctx.vehicle.max_ang_accel * 180 / math.pi,
         "max_tilt_deg": ctx.vehicle.max_tilt * 180 / math.pi,
-        "lateral_speed_bound_mps": ctx.vehicle.lateral_bound,
+        "lateral_speed_bound_mps": ctx.vehicle.lateral_speed_bound_mps,
         "sources": ctx.vehicle.sources,
     }
     out["margins"] = {}
@@ -324,8 +324,8 @@ def _assumptions(ctx: Any) -> list[str]:
     ]
     if v.kind == "ground":
         a.append("ground vehicle: no vertical body velocity (w = 0)")
-    if v.lateral_bound is not None:
-        a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_bound:g} m/s")
+    if v.lateral_speed_bound_mps is not None:
+        a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_speed_bound_mps:g} m/s")
     if not ctx.aiding.has_gnss:
         a.append("no GNSS: positions are relative to the start point (0, 0)")
     else:
@@ -371,8 +371,8 @@ def state_intervals(ctx: Any, sm: Any) -> dict[str, Any]:
     wb = veh.vertical_bound
     w = IA(np.full(sm.te.size, -wb), np.full(sm.te.size, wb))
     v = (vh + sr * w) / cr
-    if veh.lateral_bound is not None:
-        lb = veh.lateral_bound
+    if veh.lateral_speed_bound_mps is not None:
+        lb = veh.lateral_speed_bound_mps
         v = v & IA(np.full(v.shape, -lb), np.full(v.shape, lb))
     u = (uh + sr * sp * v + cr * sp * w) / cp
     S2 = IA(X[:, SM.VE, 0], X[:, SM.VE, 1]) ** 2 + IA(X[:, SM.VN, 0], X[:, SM.VN, 1]) ** 2

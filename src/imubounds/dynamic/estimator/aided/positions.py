@@ -112,7 +112,7 @@ def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str
         sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
         sec_r = w.tilt.hull("sec_r_minus_1", a, b).hi
         trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
-        vl = veh.lateral_bound
+        vl = veh.lateral_speed_bound_mps
         vmax = np.minimum(smax, vl) if vl is not None else smax
         u = uh + pm(smax * sec_p + vmax * trp)
         v = vh + pm(smax * sec_r)

@@ -44,7 +44,7 @@ def course(ve: IA, vn: IA) -> IA:
 def _from_body_sensor(w: WindowContext) -> tuple[np.ndarray, IA, IA, IA, str]:
     """u, v, w at the epochs of a body-velocity sensor (DVL, wheel speed)."""
     ag, veh = w.ag, w.veh
-    vl = veh.lateral_bound
+    vl = veh.lateral_speed_bound_mps
     t = ag.bvel_t
     h = ag.bvel_h
     u = IA(ag.bvel_u - h, ag.bvel_u + h)
@@ -98,7 +98,7 @@ def _from_gnss_velocity(w: WindowContext) -> tuple[np.ndarray, IA, IA, IA, str]:
     """u, v, w at the GNSS velocity epochs: the velocity rotated by the heading, then to
     the body frame with the roll/pitch intervals."""
     ag, veh = w.ag, w.veh
-    vl = veh.lateral_bound
+    vl = veh.lateral_speed_bound_mps
     ok = ag.gvel_ok
     t = ag.gnss_t[ok]
     R = ag.gvel_hi[ok]
@@ -125,7 +125,7 @@ def body_velocity(w: WindowContext) -> Any:
     if w.cache.get("bodyvel") is not None:
         return w.cache["bodyvel"]
     ag, veh = w.ag, w.veh
-    vl = veh.lateral_bound
+    vl = veh.lateral_speed_bound_mps
     if ag.has_bvel:
         t, u, v, wz, src = _from_body_sensor(w)
     elif ag.has_gvel:
@@ -180,7 +180,7 @@ def vel_range(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> dict[s
     single = t.size < 2
     g_u = np.where((ext > 0) | single, g, np.minimum(g, gu))
     g_v = np.where((ext > 0) | single, g, np.minimum(g, gv))
-    vl = w.veh.lateral_bound
+    vl = w.veh.lateral_speed_bound_mps
     vmax = vmax + g_v
     if vl is not None:
         vmax = np.minimum(vmax, vl)
@@ -212,7 +212,7 @@ def gap_growth(
     sr = w.tilt.hull("abs_sinr", a, b).hi
     vmax = np.maximum(abs(v).hi[:-1], abs(v).hi[1:])
     umax = np.maximum(abs(u).hi[:-1], abs(u).hi[1:])
-    vl = veh.lateral_bound
+    vl = veh.lateral_speed_bound_mps
     vcap = vl if vl is not None else veh.max_speed
     base = growth(w, g)
     tv_u = fx_int + np.minimum(vmax + base, vcap) * r_int + G_HI * sp * g
@@ -250,7 +250,7 @@ def ranges(w: WindowContext, lp: LevelPlan, bv: Any) -> dict[str, np.ndarray]:
     if bv is not None:
         return vel_range(w, bv, lp.a1, lp.b2)
     s = speed_max(w, lp.a1, lp.b2)
-    vl = w.veh.lateral_bound
+    vl = w.veh.lateral_speed_bound_mps
     return {
         "u_lo": -s,
         "u_hi": s,
