@@ -39,6 +39,7 @@ from imubounds.dynamic.aiding.gps import gps_box_halfwidths, parse_gps_box
 from imubounds.dynamic.estimator import paper_kernel as K
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.geodesy import geodetic_to_enu
+from imubounds.io.drive import DEFAULT_CEP_M, DEFAULT_HDOP  # the GNSS defaults, defined once
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")
@@ -86,9 +87,9 @@ class EstimatorConfig:
     # coefficient B: 0 is the paper's k*sigma_c alone; 1 adds B, so that a
     # sensor whose bias wanders by its bias stability stays inside its bounds.
     bias_margin: float = 0.0
-    gps_cep_m: float = 3.0
+    gps_cep_m: float = DEFAULT_CEP_M
     gps_box: str = "p=0.999"
-    default_hdop: float = 1.0
+    default_hdop: float = DEFAULT_HDOP
     geodesy: str = "wgs84"
     compass_mode: str = "corrected"
     compass_floor_rad: float = 0.5 * math.pi / 180.0
