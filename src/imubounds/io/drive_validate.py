@@ -1,7 +1,8 @@
 """Validation of drive inputs: every problem is a one-line error or a counted warning.
 
-:func:`check_input_path` refuses special files (named pipes, devices, sockets)
-*before* anything opens them, so a pipe given as a log cannot block a run.
+:func:`existing_file` refuses special files (named pipes, devices, sockets) with
+:func:`imubounds.io.validate.check_input_path` *before* anything opens them, so a pipe
+given as a log cannot block a run.
 :func:`validate_drive` checks a :class:`~imubounds.io.drive.Drive` that a
 reader produced, in SI, after the mount rotation:
 
@@ -43,7 +44,7 @@ import numpy as np
 
 from imubounds.errors import InputError, UnitsError
 from imubounds.io.drive import Drive
-from imubounds.io.validate import check_input_path as _check_path
+from imubounds.io.validate import check_input_path
 
 #: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
 GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
@@ -53,21 +54,9 @@ RAD_PER_DEG = math.pi / 180.0
 # ----------------------------------------------------------------------------- paths
 
 
-def check_input_path(
-    path: str | os.PathLike[str], what: str = "input", *, directory: bool | None = None
-) -> Path:
-    """``path`` as a :class:`Path` if it is a regular file (``directory=False``), a directory
-    (``True``) or either (``None``); named pipes, devices and sockets are refused without
-    opening them. The checks are :func:`imubounds.io.validate.check_input_path`'s, which
-    io calls directly; this spelling is left only for ``dynamic/aiding/compass.py`` (delete it
-    when that call uses the one in :mod:`imubounds.io.validate`)."""
-    return _check_path(
-        path, what=what, allow_dir=directory is None, need_dir=directory is True
-    )
-
-
 def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:
-    """The first ``d/stem+suffix`` that exists, checked with :func:`check_input_path`.
+    """The first ``d/stem+suffix`` that exists, checked with
+    :func:`imubounds.io.validate.check_input_path`.
 
     Unlike ``Path.is_file`` this does not silently skip a named pipe called
     ``imu.csv``: a special file is refused with an error.
@@ -75,7 +64,7 @@ def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:
     for suffix in suffixes:
         p = d / f"{stem}{suffix}"
         if os.path.lexists(p):
-            return _check_path(p, what=f"the drive's {stem} table")
+            return check_input_path(p, what=f"the drive's {stem} table")
     return None
 
 

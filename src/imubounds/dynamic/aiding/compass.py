@@ -36,6 +36,7 @@ import numpy as np
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.frames import TWO_PI, compass_to_model, wrap_pi
 from imubounds.geodesy import course_over_ground
+from imubounds.io.validate import check_input_path
 
 
 @dataclass(frozen=True)
@@ -129,9 +130,7 @@ def read_calibration(path: str) -> CompassDeviation:
     """
     import pandas as pd
 
-    from imubounds.io.drive_validate import check_input_path
-
-    check_input_path(path, "compass calibration file", directory=False)
+    check_input_path(path, what="compass calibration file")
     try:
         data = pd.read_csv(path, comment="#", skipinitialspace=True)
     except pd.errors.EmptyDataError:
