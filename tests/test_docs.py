@@ -116,3 +116,66 @@ def test_the_renamed_options_are_gone_from_the_docs() -> None:
     assert "--reverses" in per["dynamic"]
     text = (REPO / "README.md").read_text(encoding="utf-8")
     assert "dynamic" in text and "--gnss-cep" in text
+
+
+# where a short reference of docs/dynamic-method.md (`module.function`) is looked up
+_REF_BASES = ("imubounds.dynamic.estimator.", "imubounds.dynamic.aiding.", "imubounds.dynamic.",
+              "imubounds.")  # fmt: skip
+_FILE_SUFFIXES = {"json", "yaml", "yml", "csv", "py", "md", "png", "svg", "html", "gz"}
+
+
+def _resolve_code_ref(ref: str) -> str | None:
+    """None when ``ref`` names no module (a drive.yaml or dynamic.json key); "ok" when it
+    names an attribute of the module at its head that is defined there (not a re-export);
+    else what is wrong."""
+    import importlib
+    import importlib.util
+    import types
+
+    parts = ref.split(".")
+    bases = ("imubounds.",) if parts[0] == "imubounds" else _REF_BASES
+    if parts[0] == "imubounds":
+        parts = parts[1:]
+    for base in bases:
+        for i in range(len(parts), 0, -1):
+            name = base + ".".join(parts[:i])
+            try:
+                found = importlib.util.find_spec(name) is not None
+            except ModuleNotFoundError:
+                found = False
+            if not found:
+                continue
+            obj: object = importlib.import_module(name)
+            home = obj
+            for a in parts[i:]:
+                if not hasattr(obj, a):
+                    return f"{name} has no {'.'.join(parts[i:])}"
+                obj = getattr(obj, a)
+                if isinstance(obj, types.ModuleType):
+                    home = obj
+                    continue
+                where = getattr(obj, "__module__", None)
+                if (callable(obj) and isinstance(where, str)
+                        and where != getattr(home, "__name__", None)):  # fmt: skip
+                    return f"{a} is defined in {where}, not in {home.__name__}"  # type: ignore[attr-defined]
+                break
+            return "ok"
+    return None
+
+
+def test_every_code_reference_of_the_dynamic_method_exists() -> None:
+    """Every backticked `module.function` of docs/dynamic-method.md names a function where it
+    is defined (issue 23: each equation names the one function that computes it)."""
+    import re
+
+    text = (REPO / "docs" / "dynamic-method.md").read_text(encoding="utf-8")
+    refs = set(re.findall(r"`([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)`", text))
+    refs = {r for r in refs if r.rsplit(".", 1)[1] not in _FILE_SUFFIXES}
+    results = {r: _resolve_code_ref(r) for r in sorted(refs)}
+    bad = [f"{r}: {v}" for r, v in results.items() if v not in (None, "ok")]
+    assert not bad, "\n".join(bad)
+    assert sum(v == "ok" for v in results.values()) >= 60, results
+    # the check itself can fail: a made-up name, and a re-export named in place of the home
+    assert _resolve_code_ref("smoother.no_such_function") not in (None, "ok")
+    assert _resolve_code_ref("inputs.gnss_outliers") not in (None, "ok")
+    assert _resolve_code_ref("gnss_screen.gnss_outliers") == "ok"
