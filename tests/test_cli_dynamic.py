@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 import imubounds.cli as cli
-from imubounds.io.drive_layout import write_layout
+from imubounds.io.drive.layout import write_layout
 from tests.trips import make_trip
 
 

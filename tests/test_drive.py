@@ -16,8 +16,8 @@ from imubounds.errors import InputError
 from imubounds.frames import axes_matrix, wrap_pi
 from imubounds.geodesy import course_over_ground, geodetic_to_enu
 from imubounds.io import Drive, read_drive
-from imubounds.io.drive_mount import mount_check
-from imubounds.io.drive_readers import detect_layout
+from imubounds.io.drive.mount import mount_check
+from imubounds.io.drive.readers import detect_layout
 
 
 @pytest.fixture(scope="module")

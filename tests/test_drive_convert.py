@@ -13,7 +13,7 @@ import pytest
 
 from imubounds.cli import main
 from imubounds.io import Drive, read_drive
-from imubounds.io.drive_layout import settings_to_dict
+from imubounds.io.drive.layout import settings_to_dict
 
 HERE = Path(__file__).parent
 FORMATS = HERE / "data" / "formats"
@@ -48,7 +48,7 @@ CASES: list[tuple[str, list[str], list[str], set[str]]] = [
 
 
 def _inputs(items: list[str], shared: Path) -> list[str]:
-    from imubounds.io.drive_readers import bundled_drive_log
+    from imubounds.io.drive.readers import bundled_drive_log
 
     out = []
     for s in items:
@@ -64,7 +64,7 @@ def _inputs(items: list[str], shared: Path) -> list[str]:
 def _read_kwargs(opts: list[str]) -> dict[str, Any]:
     """The read_drive arguments equal to the convert options of a case."""
     from imubounds.cli._common import parse_topics
-    from imubounds.io.drive_readers import parse_drive_columns
+    from imubounds.io.drive.readers import parse_drive_columns
 
     kw: dict[str, Any] = {}
     it = iter(opts)

@@ -21,7 +21,7 @@ from imubounds.cli import main
 from imubounds.dynamic.estimator import dynamic_margins
 from imubounds.dynamic.scenario import make_trip
 from imubounds.io import read_drive
-from imubounds.io.drive_layout import write_layout
+from imubounds.io.drive.layout import write_layout
 
 
 def _essence(d: dict[str, Any]) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import pytest
 
 from imubounds.errors import InputError
 from imubounds.io.drive import Drive, GnssStream, ImuStream, VelocityStream
-from imubounds.io.drive_layout import axes_matrix, parse_settings, read_layout, write_layout
+from imubounds.io.drive.layout import axes_matrix, parse_settings, read_layout, write_layout
 
 
 def _drive(n: int = 50) -> Drive:
@@ -159,7 +159,7 @@ def test_every_mount_reads_to_the_same_body_imu(tmp_path: Path) -> None:
     import shutil
 
     from imubounds.io import read_drive
-    from imubounds.io.drive_mount import proper_axes
+    from imubounds.io.drive.mount import proper_axes
 
     sys_path = Path(__file__).parent
     import sys

@@ -372,7 +372,7 @@ def test_gnss_jumps_allow_for_the_fixes_own_errors(tmp_path: Path) -> None:
     """A noisy 1 Hz GNSS at 12 m/s (CEP 3 m) gives no jump warning; a 60 m outlier does
     (twice: the jump there and the one back)."""
     from imubounds.dynamic.scenario import make_trip
-    from imubounds.io.drive_layout import write_layout
+    from imubounds.io.drive.layout import write_layout
 
     sim = make_trip("gnss-pos", seed=3, duration_s=120.0, distance_m=1300.0)
     write_layout(sim.drive, tmp_path / "clean")

@@ -12,7 +12,7 @@ import pytest
 import imubounds.cli as cli
 from imubounds.dynamic.imu_mount import fitting_axes, mount_warning
 from imubounds.frames import axes_matrix, rotate_axes
-from imubounds.io.drive_layout import write_layout
+from imubounds.io.drive.layout import write_layout
 from tests.trips import make_trip
 
 

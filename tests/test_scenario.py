@@ -32,7 +32,7 @@ from imubounds.dynamic.scenario.imu import CHANNELS, imu_checks, k_level, simula
 from imubounds.dynamic.scenario.trajectory import Trajectory
 from imubounds.errors import OptionError
 from imubounds.frames import model_to_compass, wrap_pi
-from imubounds.io.drive_layout import quaternion_to_rpy_compass, read_layout
+from imubounds.io.drive.layout import quaternion_to_rpy_compass, read_layout
 from imubounds.units import DEG, G0
 
 SHORT = {"duration_s": 200.0, "distance_m": 2000.0, "corner_length_m": 100.0}

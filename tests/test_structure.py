@@ -41,7 +41,7 @@ COMPLEX_FUNCTIONS: dict[tuple[str, str], int] = {
 }
 
 #: Imports that close a cycle today (importer, imported): none (the format readers take
-#: the mount and time matching from io/drive_mount, not from the drive assembly).
+#: the mount and time matching from io/drive/mount, not from the drive assembly).
 CYCLE_EDGES: set[tuple[str, str]] = set()
 
 #: io modules importing from dynamic or stationary today (importer, imported): none
@@ -290,3 +290,20 @@ def test_drive_formats_register_their_drive_reader_in_the_one_registry() -> None
         reader_entry("parquet").load_drive()
     with pytest.raises(InputError, match="no reader 'furlong'"):
         reader_entry("furlong")
+
+
+def test_drive_reading_is_one_package() -> None:
+    """Drive reading lives in io/drive/ (issue 23): the package holds the model under the
+    names it always had, its modules sit inside it, and the flat io/drive_*.py are gone."""
+    import importlib.util
+
+    import imubounds.io.drive as drive
+
+    assert hasattr(drive, "__path__")
+    assert drive.Drive.__module__ == "imubounds.io.drive"
+    for name in ("Drive", "DriveSettings", "ImuStream", "GnssStream", "DEFAULT_CEP_M",
+                 "DEFAULT_HDOP"):  # fmt: skip
+        assert hasattr(drive, name), name
+    for mod in ("layout", "settings", "readers", "validate", "mount"):
+        assert importlib.util.find_spec(f"imubounds.io.drive.{mod}") is not None, mod
+        assert importlib.util.find_spec(f"imubounds.io.drive_{mod}") is None, mod

@@ -57,8 +57,8 @@ _LAZY: dict[str, str] = {
     "characterize": "imubounds.api",
     "export_noise": "imubounds.api",
     "simulate_trip": "imubounds.api",
-    "read_drive": "imubounds.io.drive_readers",
-    "bundled_drive_log": "imubounds.io.drive_readers",
+    "read_drive": "imubounds.io.drive.readers",
+    "bundled_drive_log": "imubounds.io.drive.readers",
     "bundled_static_log": "imubounds.io.registry",
     "dynamic_margins": "imubounds.dynamic.estimator.api",
     # result and data classes
@@ -122,7 +122,7 @@ if TYPE_CHECKING:
     from imubounds.dynamic.estimator.result import DynamicResult
     from imubounds.dynamic.scenario import SimResult
     from imubounds.io.drive import Drive, DriveSettings
-    from imubounds.io.drive_readers import bundled_drive_log, read_drive
+    from imubounds.io.drive.readers import bundled_drive_log, read_drive
     from imubounds.io.log import ImuLog
     from imubounds.io.registry import bundled_static_log
     from imubounds.io.table import read_frame

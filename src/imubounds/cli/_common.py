@@ -127,10 +127,10 @@ def imu_spec(text: str) -> str:
 
 def noise_json(text: str) -> str:
     """``--static``: a noise.json of ``imubounds static`` (checked when parsed: text, JSON,
-    figures for the accelerometers and the gyros; :func:`imubounds.io.drive_layout.
+    figures for the accelerometers and the gyros; :func:`imubounds.io.drive.layout.
     check_noise_json`)."""
     from imubounds.errors import InputError
-    from imubounds.io.drive_settings import check_noise_json
+    from imubounds.io.drive.settings import check_noise_json
 
     try:
         check_noise_json(text)
@@ -141,9 +141,9 @@ def noise_json(text: str) -> str:
 
 def compass_calibration(text: str) -> str:
     """``--compass-cal``: a swing-calibration CSV whose pairs are all finite (checked when
-    parsed; :func:`imubounds.io.drive_settings.check_calibration`)."""
+    parsed; :func:`imubounds.io.drive.settings.check_calibration`)."""
     from imubounds.errors import InputError
-    from imubounds.io.drive_settings import check_calibration
+    from imubounds.io.drive.settings import check_calibration
 
     try:
         check_calibration(text)
@@ -337,7 +337,7 @@ def parse_topics(items: list[str] | None) -> dict[str, str]:
 
 def drive_read_options(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of ``imubounds.io.read_drive`` from :func:`add_drive_options`."""
-    from imubounds.io.drive_readers import parse_drive_columns
+    from imubounds.io.drive.readers import parse_drive_columns
 
     axes = None
     if args.imu_axes is not None:

@@ -43,7 +43,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.io.drive_layout import (
+    from imubounds.io.drive.layout import (
         CALIBRATION_FILE,
         FILES,
         FORMATS,
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         SETTINGS_FILE,
         write_layout,
     )
-    from imubounds.io.drive_readers import read_drive
+    from imubounds.io.drive.readers import read_drive
     from imubounds.io.outputs import OutputSet
 
     opts = drive_read_options(args)

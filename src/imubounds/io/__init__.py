@@ -4,10 +4,10 @@
   :func:`find_reader`, :func:`register_reader`);
 * :mod:`.log` -- :class:`ImuLog`, a static IMU log in SI units;
 * :mod:`.drive` -- :class:`Drive`, a multi-sensor drive log in SI units, and its settings;
-* :mod:`.drive_readers` -- :func:`read_drive`, the one entry point for drive logs (the
-  generic layout of :mod:`.drive_layout`, VN-100, comma2k19, ROS bags, ULog, NMEA, CSV
-  through a column map), validated by :mod:`.drive_validate`; the mount and the time
-  matching every drive reader shares in :mod:`.drive_mount`;
+* :mod:`.drive.readers` -- :func:`read_drive`, the one entry point for drive logs (the
+  generic layout of :mod:`.drive.layout`, VN-100, comma2k19, ROS bags, ULog, NMEA, CSV
+  through a column map), validated by :mod:`.drive.validate`; the mount and the time
+  matching every drive reader shares in :mod:`.drive.mount`;
 * :mod:`.magic` -- the first bytes of every binary format, for sniffing;
 * :mod:`.table`, :mod:`.columns`, :mod:`.assemble` -- CSV/TSV/Parquet and the
   shared column recognition, unit conversion and assembly into logs;
@@ -65,15 +65,15 @@ __all__ = [
 _LAZY: dict[str, str] = {
     "Drive": "imubounds.io.drive",
     "DriveSettings": "imubounds.io.drive",
-    "read_layout": "imubounds.io.drive_layout",
-    "write_layout": "imubounds.io.drive_layout",
-    "read_drive": "imubounds.io.drive_readers",
+    "read_layout": "imubounds.io.drive.layout",
+    "write_layout": "imubounds.io.drive.layout",
+    "read_drive": "imubounds.io.drive.readers",
 }
 
 if TYPE_CHECKING:
     from imubounds.io.drive import Drive, DriveSettings
-    from imubounds.io.drive_layout import read_layout, write_layout
-    from imubounds.io.drive_readers import read_drive
+    from imubounds.io.drive.layout import read_layout, write_layout
+    from imubounds.io.drive.readers import read_drive
 
 
 def __getattr__(name: str) -> Any:

@@ -1,7 +1,7 @@
 """The first bytes of every binary format imubounds recognises, in one place.
 
 The reader registry (:mod:`.registry`) sniffs a file by these when its suffix says
-nothing, the drive reader (:mod:`.drive_readers`) tells bags from ULogs by them, and
+nothing, the drive reader (:mod:`.drive.readers`) tells bags from ULogs by them, and
 the text readers (:mod:`.table`, :mod:`.chunked`) see gzip by them.
 """
 

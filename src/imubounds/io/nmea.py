@@ -235,7 +235,7 @@ def read_drive_nmea(
         clockwise from north from HDT (true) else HDG (magnetic; true when every
         HDG carries the variation), IMU in FLU.
     """
-    from imubounds.io.drive_mount import apply_mount
+    from imubounds.io.drive.mount import apply_mount
 
     if imu_frame not in ("FLU", "FRD"):
         raise OptionError(f"imu_frame must be FLU or FRD, got {imu_frame!r}")
@@ -362,7 +362,7 @@ def _gnss_from_rows(
 ) -> None:
     """The GNSS stream: GGA fixes (RMC positions without GGA), with the speed and course
     of the RMC (else VTG) nearest in time."""
-    from imubounds.io.drive_mount import match_times
+    from imubounds.io.drive.mount import match_times
 
     gga, rmc, vtg = rows["GGA"], rows["RMC"], rows["VTG"]
     if gga:

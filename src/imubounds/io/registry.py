@@ -56,7 +56,7 @@ ReaderFunc = Callable[[Path, ReadOptions], list[ImuLog]]
 SniffFunc = Callable[[bytes], bool]
 SniffDirFunc = Callable[[Path], bool]
 #: ``read_drive(files, settings, options) -> Drive``: ``files`` as
-#: :func:`imubounds.io.drive_readers.detect_layout` found them, the drive's
+#: :func:`imubounds.io.drive.readers.detect_layout` found them, the drive's
 #: :class:`~imubounds.io.drive.DriveSettings`, and the format's options of
 #: :func:`imubounds.io.read_drive` (``topics``, ``imu_frame``, ...).
 DriveReaderFunc = Callable[[Mapping[str, Any], Any, Mapping[str, Any]], Any]

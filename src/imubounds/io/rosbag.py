@@ -342,7 +342,7 @@ def read_drive_rosbag(
             used["attitude"] = att
     drive.meta["topics"] = {k: v for k, v in used.items() if v is not None}
     drive.meta["files"] = {k: f"{p}:{v}" for k, v in drive.meta["topics"].items()}
-    from imubounds.io.drive_mount import apply_mount
+    from imubounds.io.drive.mount import apply_mount
 
     apply_mount(drive, attitude_of_sensor=drive.meta.get("attitude_from") == "imu")
     return drive
@@ -438,7 +438,7 @@ def _velocities(bag: _Bag, path: Path, tp: dict[str, Any], drive: Drive,
     if gv is not None and drive.gnss is not None:
         t, v = _vectors(bag, path, gv, lambda m: _twist(m).linear, drive.warnings)
         if t.size:
-            from imubounds.io.drive_mount import match_times
+            from imubounds.io.drive.mount import match_times
 
             g = drive.gnss
             k, near = match_times(t, g.t)

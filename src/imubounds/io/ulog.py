@@ -281,7 +281,7 @@ def read_drive_ulog(path: str | Path, *, settings: DriveSettings | None = None) 
         drive.attitude = AttitudeStream(t=at, roll_rad=r, pitch_rad=pt, yaw_rad=y, source="ahrs")
         files["attitude"] = f"{p}:vehicle_attitude"
     drive.meta["files"] = files
-    from imubounds.io.drive_mount import apply_mount
+    from imubounds.io.drive.mount import apply_mount
 
     apply_mount(drive)
     return drive

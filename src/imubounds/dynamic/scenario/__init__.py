@@ -5,7 +5,7 @@ trip as a :class:`~imubounds.io.drive.Drive` (IMU at 100 Hz in the body frame,
 aiding streams, truth, and ``DriveSettings`` stating every bound the data were
 drawn against) and a :class:`Record` of the inputs that fell outside those
 bounds. :func:`write_scenario` writes it in the generic drive layout
-(:mod:`imubounds.io.drive_layout`) with ``compass_cal.csv`` and ``scenario.json``;
+(:mod:`imubounds.io.drive.layout`) with ``compass_cal.csv`` and ``scenario.json``;
 ``imubounds simulate`` does so from the command line.
 
 * :mod:`.trajectory` -- 3-D rigid-body truth (path, speed, hills, attitude, body

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from imubounds.dynamic.scenario.core import SimResult
-from imubounds.io.drive_layout import write_layout
+from imubounds.io.drive.layout import write_layout
 from imubounds.io.outputs import to_jsonable
 
 #: Files a simulation may write (the drive layout's, the calibration, the scenario).
@@ -26,7 +26,7 @@ OUTPUT_FILES: tuple[str, ...] = (
 
 def write_scenario(res: SimResult, out_dir: str | Path) -> Path:
     """Write ``res`` into the directory ``out_dir`` (created if needed): the drive layout
-    (:func:`imubounds.io.drive_layout.write_layout`), the compass swing calibration that
+    (:func:`imubounds.io.drive.layout.write_layout`), the compass swing calibration that
     ``drive.yaml: heading.calibration`` names, and ``scenario.json`` (configuration, seed,
     conventions, every true error term, the record of inputs outside their bounds).
 

@@ -2,12 +2,12 @@
 
 :func:`read_drive` detects the input (see :func:`detect_layout`), reads it,
 applies the mount rotation (``imu_axes``) to the IMU before anything else, and
-validates every stream (:func:`imubounds.io.drive_validate.validate_drive`):
+validates every stream (:func:`imubounds.io.drive.validate.validate_drive`):
 
 ``generic``
     The documented drive layout (``imu.csv``, ``gnss.csv``, ``velocity.csv``,
     ``heading.csv``, ``attitude.csv``, ``truth.csv``, ``drive.yaml``; CSV,
-    CSV.gz or Parquet), :mod:`imubounds.io.drive_layout`.
+    CSV.gz or Parquet), :mod:`imubounds.io.drive.layout`.
 ``vn100``
     The VN-100 + BU-353N layout: ``*_imu.csv`` (t Unix s, ``gyro_*`` rad/s,
     ``acc_*`` m/s^2, ``mag_*`` T, raw ``$VNYMR`` with yaw/pitch/roll in degrees;
@@ -44,7 +44,7 @@ What was verified against the data (the sign conventions):
   body frame in ECEF (the body x axis carries the velocity, body z points
   down); the phone IMU axes agree with it once read as FRD (``gyro_z`` ~ -yaw
   rate, ``accel_x`` follows the forward acceleration, ``accel_z`` ~ -9.7),
-  which :func:`~imubounds.io.drive_mount.mount_check` confirms against the truth on every read. The
+  which :func:`~imubounds.io.drive.mount.mount_check` confirms against the truth on every read. The
   u-blox bearing is degrees clockwise from true north (agrees with the truth's
   heading to about a degree on the highway). There is no HDOP.
 """
@@ -79,21 +79,21 @@ from imubounds.io.drive import (
     Truth,
     VelocityStream,
 )
-from imubounds.io.drive_layout import (
+from imubounds.io.drive.layout import (
     FILES,
     TABLE_COLUMNS,
     drive_from_tables,
     is_layout,
     read_layout,
 )
-from imubounds.io.drive_mount import apply_mount, warn_mount
-from imubounds.io.drive_settings import (
+from imubounds.io.drive.mount import apply_mount, warn_mount
+from imubounds.io.drive.settings import (
     SETTINGS_FILE,
     load_settings_yaml,
     parse_settings,
     read_settings_with_info,
 )
-from imubounds.io.drive_validate import validate_drive
+from imubounds.io.drive.validate import validate_drive
 from imubounds.io.magic import is_bag, is_ulog
 from imubounds.io.registry import reader_entry
 from imubounds.io.validate import check_input_path
@@ -690,7 +690,7 @@ def read_drive(
         Speeds beyond it are dropped and counted (default
         ``vehicle.max_speed_mps`` of the settings).
     validate:
-        Run :func:`~imubounds.io.drive_validate.validate_drive` (default).
+        Run :func:`~imubounds.io.drive.validate.validate_drive` (default).
     """
     if isinstance(paths, str | os.PathLike):
         ps: list[str | Path] = [paths]

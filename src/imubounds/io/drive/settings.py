@@ -1,7 +1,7 @@
 """``drive.yaml`` of a drive layout: every key typed and range-checked against the documented
 set (docs/drive-layout.md), YAML aliases refused before they expand, paths resolved beside the
 file; and the settings written back (:func:`settings_to_dict`). The tables of the layout are
-read by :mod:`imubounds.io.drive_layout`.
+read by :mod:`imubounds.io.drive.layout`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The drive-log model: every sensor stream of a trip in SI units, plus its settings.
 
-Every drive reader (the generic layout of :mod:`imubounds.io.drive_layout`, VN-100,
+Every drive reader (the generic layout of :mod:`imubounds.io.drive.layout`, VN-100,
 comma2k19, ROS bags, NMEA, ULog, the simulator) produces a :class:`Drive`; the
 dynamic estimator consumes nothing else.
 
@@ -23,6 +23,13 @@ Frames and units (see :mod:`imubounds.frames`):
 
 Streams that a log does not have are ``None``; columns that a stream does not
 have are ``None`` (never zeros). Values missing in some rows are NaN.
+
+The package reads drives: this module holds the model (:class:`Drive`, its streams and
+:class:`DriveSettings`); :mod:`.readers` has :func:`~imubounds.io.drive.readers.read_drive`,
+the one entry point; :mod:`.layout` the generic folder layout; :mod:`.settings` drive.yaml;
+:mod:`.validate` the checks every reader's output goes through; :mod:`.mount` the mount
+rotation and time matching every reader shares. It imports none of them, so that they
+can import the model from here.
 """
 
 from __future__ import annotations

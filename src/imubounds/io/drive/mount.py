@@ -3,7 +3,7 @@
 check of the body axes against the truth.
 
 The format readers (:mod:`.nmea`, :mod:`.rosbag`, :mod:`.ulog`) and
-:mod:`.drive_readers` import these from here, so that no reader imports the drive
+:mod:`.readers` import these from here, so that no reader imports the drive
 assembly back.
 """
 

@@ -67,14 +67,14 @@ from imubounds.io.drive import (
     Truth,
     VelocityStream,
 )
-from imubounds.io.drive_settings import (
+from imubounds.io.drive.settings import (
     SETTINGS_FILE,
     parse_settings,
     read_settings,
     read_settings_with_info,
     settings_to_dict,
 )
-from imubounds.io.drive_validate import existing_file
+from imubounds.io.drive.validate import existing_file
 from imubounds.io.validate import check_input_path
 from imubounds.units import unit_factors
 
