@@ -15,6 +15,7 @@ from imubounds.dynamic.scenario.record import Record
 from imubounds.dynamic.scenario.trajectory import Trajectory
 from imubounds.frames import model_to_compass
 from imubounds.io.drive import (
+    DEFAULT_HDOP,
     AttitudeSettings,
     Drive,
     DriveSettings,
@@ -183,7 +184,7 @@ def _settings(
         imu_axes=("x", "y", "z"),
         imu=imu,
         gnss=GnssSettings(
-            cep_m=cfg.gps_cep_m, default_hdop=1.0, vel_sigma_mps=cfg.gps_vel_sigma_mps
+            cep_m=cfg.gps_cep_m, default_hdop=DEFAULT_HDOP, vel_sigma_mps=cfg.gps_vel_sigma_mps
         ),
         velocity=(
             VelocitySettings(bound_mps=vel["bound_mps"], scale=vel["scale"])
