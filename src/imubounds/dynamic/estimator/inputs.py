@@ -627,174 +627,175 @@ def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
     )
 
 
-def build_aiding(
-    drive: Any,
-    t0: float,
-    vehicle: Vehicle,
-    alpha: AlphaPlan,
-    opts: dict[str, Any],
-    heading: Any,
-) -> Aiding:
-    """Aiding intervals (IMU-free) with their budget rows. ``alpha`` must already count
-    the GNSS fixes, GNSS velocity components and heading epochs."""
+def _gnss_positions(
+    ag: Aiding, g: Any, ok: np.ndarray, st: Any, vehicle: Vehicle, alpha: AlphaPlan,
+    opts: dict[str, Any], t0: float,
+) -> tuple[np.ndarray, float]:
+    """GNSS position boxes (Rayleigh radius of each usable fix, plus the lever arm) and
+    the GNSS outlier screen; returns the fixes kept and the horizontal lever arm (m)."""
     from imubounds.dynamic.aiding.gps import cep_to_drms
     from imubounds.geodesy import geodetic_to_enu
 
-    st = drive.settings
-    ag = Aiding(origin=None)
-    g = drive.gnss
-    if g is not None and opts.get("use_gnss", True):
-        ok = g.usable()
-        if np.any(ok):
-            lat, lon = g.lat_deg[ok], g.lon_deg[ok]
-            alt = g.alt_m[ok] if g.alt_m is not None else None
-            e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.get("geodesy", "wgs84"))
-            ag.origin = origin
-            ag.gnss_t = _rel(g.t[ok], t0)
-            ag.gnss_e, ag.gnss_n = e, n
-            cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
-            dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
-            hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
-            hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
-            drms = hd * cep_to_drms(cep)
-            if g.h_acc_m is not None:
-                # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
-                ha = g.h_acc_m[ok].astype(float)
-                drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
-            p = alpha.p_radial("gnss_position")
-            fac = math.sqrt(-math.log(p))
-            lever = getattr(st, "lever_arm_m", None)
-            lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
-            ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
-            ag.gnss_sig = drms / math.sqrt(2.0)
-            ag.gnss_det = lev
-            src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
-            ag.budget["gnss_position"] = [
-                Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
+    lat, lon = g.lat_deg[ok], g.lon_deg[ok]
+    alt = g.alt_m[ok] if g.alt_m is not None else None
+    e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.get("geodesy", "wgs84"))
+    ag.origin = origin
+    ag.gnss_t = _rel(g.t[ok], t0)
+    ag.gnss_e, ag.gnss_n = e, n
+    cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
+    dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
+    hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
+    hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
+    drms = hd * cep_to_drms(cep)
+    if g.h_acc_m is not None:
+        # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
+        ha = g.h_acc_m[ok].astype(float)
+        drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
+    p = alpha.p_radial("gnss_position")
+    fac = math.sqrt(-math.log(p))
+    lever = getattr(st, "lever_arm_m", None)
+    lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
+    ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
+    ag.gnss_sig = drms / math.sqrt(2.0)
+    ag.gnss_det = lev
+    src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
+    ag.budget["gnss_position"] = [
+        Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
+        Term(
+            "box half-width factor",
+            fac,
+            "x DRMS",
+            "alpha plan",
+            f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
+            f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
+            "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
+        ),
+        Term(
+            "lever arm",
+            lev,
+            "m",
+            "drive.yaml" if lever is not None else "default",
+            "horizontal antenna offset from the IMU, added to the position radius "
+            "and (x the yaw-rate bound) to the velocity radius",
+        ),
+        Term(
+            "median box half-width",
+            float(np.median(ag.gnss_h)),
+            "m",
+            "computed",
+            "square box around the circle of that radius",
+        ),
+    ]
+    out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
+    if np.any(out):
+        misses = miss_of(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, out, vehicle.max_accel)
+        ag.gnss_rejected = [
+            (float(ag.gnss_t[i] + t0), float(miss))
+            for i, miss in zip(np.flatnonzero(out), misses, strict=True)
+        ]
+        keep = ~out
+        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig"):
+            setattr(ag, name, getattr(ag, name)[keep])
+        ok_idx = np.flatnonzero(ok)[keep]
+        ok = np.zeros_like(ok)
+        ok[ok_idx] = True
+    return ok, lev
+
+
+def _gnss_velocity(
+    ag: Aiding, g: Any, ok: np.ndarray, lev: float, st: Any, vehicle: Vehicle,
+    alpha: AlphaPlan, opts: dict[str, Any],
+) -> None:
+    """GNSS velocity radii of the kept fixes (Rayleigh, plus omega x lever)."""
+    vel = g.velocity_ne()
+    if vel is not None and opts.get("use_gnss_velocity", True):
+        vn, ve = vel[0][ok], vel[1][ok]
+        good = np.isfinite(vn) & np.isfinite(ve)
+        if np.any(good):
+            sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
+            # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
+            # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
+            p_v = alpha.p_radial("gnss_velocity")
+            k = math.sqrt(-2.0 * math.log(p_v))
+            ag.gvel_ok = good
+            ag.gvel_e = np.where(good, ve, np.nan)
+            ag.gvel_n = np.where(good, vn, np.nan)
+            sig_i = np.full(good.size, sig)
+            va = getattr(g, "vel_acc_mps", None)
+            if va is not None and not opts.get("gnss_vel_sigma"):
+                va = np.asarray(va, dtype=float)[ok]
+                sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
+            # a lever arm adds omega x lever to the antenna velocity
+            lv_v = lev * vehicle.max_rate
+            ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
+            ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
+            ag.gvel_sig = sig_i
+            ag.gvel_det = lv_v
+            ag.budget["gnss_velocity"] = [
                 Term(
-                    "box half-width factor",
-                    fac,
-                    "x DRMS",
+                    "velocity sigma per component",
+                    sig,
+                    "m/s",
+                    "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
+                    "Gaussian error of north and east velocity",
+                ),
+                Term(
+                    "radius factor",
+                    k,
+                    "x sigma",
                     "alpha plan",
-                    f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
-                    f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
-                    "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
+                    f"Rayleigh radial error, P(outside) = {p_v:.3g} per fix "
+                    f"({int(good.sum())} fixes)",
                 ),
                 Term(
-                    "lever arm",
-                    lev,
-                    "m",
-                    "drive.yaml" if lever is not None else "default",
-                    "horizontal antenna offset from the IMU, added to the position radius "
-                    "and (x the yaw-rate bound) to the velocity radius",
-                ),
-                Term(
-                    "median box half-width",
-                    float(np.median(ag.gnss_h)),
-                    "m",
+                    "radius",
+                    ag.gvel_h,
+                    "m/s",
                     "computed",
-                    "square box around the circle of that radius",
+                    "bounds the 2-D velocity error, hence each component, the speed "
+                    "and (asin(radius / speed)) the course",
                 ),
             ]
-            out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
-            if np.any(out):
-                misses = miss_of(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, out, vehicle.max_accel)
-                ag.gnss_rejected = [
-                    (float(ag.gnss_t[i] + t0), float(miss))
-                    for i, miss in zip(np.flatnonzero(out), misses, strict=True)
-                ]
-                keep = ~out
-                for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig"):
-                    setattr(ag, name, getattr(ag, name)[keep])
-                ok_idx = np.flatnonzero(ok)[keep]
-                ok = np.zeros_like(ok)
-                ok[ok_idx] = True
-            vel = g.velocity_ne()
-            if vel is not None and opts.get("use_gnss_velocity", True):
-                vn, ve = vel[0][ok], vel[1][ok]
-                good = np.isfinite(vn) & np.isfinite(ve)
-                if np.any(good):
-                    sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
-                    # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
-                    # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
-                    p_v = alpha.p_radial("gnss_velocity")
-                    k = math.sqrt(-2.0 * math.log(p_v))
-                    ag.gvel_ok = good
-                    ag.gvel_e = np.where(good, ve, np.nan)
-                    ag.gvel_n = np.where(good, vn, np.nan)
-                    sig_i = np.full(good.size, sig)
-                    va = getattr(g, "vel_acc_mps", None)
-                    if va is not None and not opts.get("gnss_vel_sigma"):
-                        va = np.asarray(va, dtype=float)[ok]
-                        sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
-                    # a lever arm adds omega x lever to the antenna velocity
-                    lv_v = lev * vehicle.max_rate
-                    ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
-                    ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
-                    ag.gvel_sig = sig_i
-                    ag.gvel_det = lv_v
-                    ag.budget["gnss_velocity"] = [
-                        Term(
-                            "velocity sigma per component",
-                            sig,
-                            "m/s",
-                            "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
-                            "Gaussian error of north and east velocity",
-                        ),
-                        Term(
-                            "radius factor",
-                            k,
-                            "x sigma",
-                            "alpha plan",
-                            f"Rayleigh radial error, P(outside) = {p_v:.3g} per fix "
-                            f"({int(good.sum())} fixes)",
-                        ),
-                        Term(
-                            "radius",
-                            ag.gvel_h,
-                            "m/s",
-                            "computed",
-                            "bounds the 2-D velocity error, hence each component, the speed "
-                            "and (asin(radius / speed)) the course",
-                        ),
-                    ]
-    # heading
-    if heading is not None and heading.t.size:
-        from imubounds.frames import compass_to_model
 
-        k = alpha.k("heading")
-        ag.head_t = _rel(heading.t, t0)
-        cen = np.unwrap(np.asarray(compass_to_model(heading.heading_rad), dtype=float))
-        ag.head_c = cen
-        half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
-        ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
-        ag.head_sig = heading.noise_sigma_rad * heading.noise_gain
-        ag.head_det = heading.deviation_bound_rad
-        ag.head_source = heading.source
-        ag.head_independent_of_imu = heading.independent_of_imu
-        ag.budget["heading"] = [
-            Term(
-                "deviation bound",
-                heading.deviation_bound_rad / DEG,
-                "deg",
-                heading.deviation_source,
-                "after the one-cycle deviation correction",
-            ),
-            Term(
-                "noise sigma",
-                heading.noise_sigma_rad / DEG,
-                "deg",
-                heading.noise_source,
-                "Gaussian; x (1 + |B| + |C|) for the correction evaluated at the noisy reading",
-            ),
-            Term("k", k, "", "alpha plan", f"Bonferroni over {cen.size} heading epochs"),
-            Term("half-width", half / DEG, "deg", "computed", "deviation + k x noise"),
-        ]
-    if heading is not None:
-        ag.notes += heading.notes
-    if not ag.has_heading and ag.has_gvel:
-        _course_heading(ag, vehicle, opts)
-    # body velocity
+
+def _heading_intervals(ag: Aiding, heading: Any, alpha: AlphaPlan, t0: float) -> None:
+    """Heading intervals: deviation bound + k x noise at each heading epoch."""
+    from imubounds.frames import compass_to_model
+
+    k = alpha.k("heading")
+    ag.head_t = _rel(heading.t, t0)
+    cen = np.unwrap(np.asarray(compass_to_model(heading.heading_rad), dtype=float))
+    ag.head_c = cen
+    half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
+    ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
+    ag.head_sig = heading.noise_sigma_rad * heading.noise_gain
+    ag.head_det = heading.deviation_bound_rad
+    ag.head_source = heading.source
+    ag.head_independent_of_imu = heading.independent_of_imu
+    ag.budget["heading"] = [
+        Term(
+            "deviation bound",
+            heading.deviation_bound_rad / DEG,
+            "deg",
+            heading.deviation_source,
+            "after the one-cycle deviation correction",
+        ),
+        Term(
+            "noise sigma",
+            heading.noise_sigma_rad / DEG,
+            "deg",
+            heading.noise_source,
+            "Gaussian; x (1 + |B| + |C|) for the correction evaluated at the noisy reading",
+        ),
+        Term("k", k, "", "alpha plan", f"Bonferroni over {cen.size} heading epochs"),
+        Term("half-width", half / DEG, "deg", "computed", "deviation + k x noise"),
+    ]
+
+
+def _body_velocity(
+    ag: Aiding, drive: Any, st: Any, opts: dict[str, Any], t0: float
+) -> None:
+    """Body-velocity intervals (DVL, wheel/CAN speed): bound + scale x speed."""
     vel_s = drive.velocity
     if vel_s is not None and opts.get("use_velocity", True):
         bound = float(opts.get("velocity_bound") or st.velocity.bound_mps)
@@ -827,7 +828,12 @@ def build_aiding(
             ),
             Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),
         ]
-    # attitude
+
+
+def _attitude(
+    ag: Aiding, drive: Any, st: Any, vehicle: Vehicle, opts: dict[str, Any], t0: float
+) -> None:
+    """Roll/pitch intervals of an attitude stream, or the vehicle's max tilt."""
     att = drive.attitude
     if att is not None and opts.get("use_attitude", True):
         bd = opts.get("attitude_bound_deg")
@@ -863,6 +869,35 @@ def build_aiding(
                 "no attitude stream: roll and pitch only bounded by the vehicle's max tilt",
             )
         ]
+
+
+def build_aiding(
+    drive: Any,
+    t0: float,
+    vehicle: Vehicle,
+    alpha: AlphaPlan,
+    opts: dict[str, Any],
+    heading: Any,
+) -> Aiding:
+    """Aiding intervals (IMU-free) with their budget rows, one builder per sensor.
+    ``alpha`` must already count the GNSS fixes, GNSS velocity components and heading
+    epochs."""
+    st = drive.settings
+    ag = Aiding(origin=None)
+    g = drive.gnss
+    if g is not None and opts.get("use_gnss", True):
+        ok = g.usable()
+        if np.any(ok):
+            ok, lev = _gnss_positions(ag, g, ok, st, vehicle, alpha, opts, t0)
+            _gnss_velocity(ag, g, ok, lev, st, vehicle, alpha, opts)
+    if heading is not None and heading.t.size:
+        _heading_intervals(ag, heading, alpha, t0)
+    if heading is not None:
+        ag.notes += heading.notes
+    if not ag.has_heading and ag.has_gvel:
+        _course_heading(ag, vehicle, opts)
+    _body_velocity(ag, drive, st, opts, t0)
+    _attitude(ag, drive, st, vehicle, opts, t0)
     return ag
 
 
