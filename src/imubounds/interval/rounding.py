@@ -20,6 +20,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
+
 from imubounds.errors import AnalysisError
 
 FE_TONEAREST = 0  #: glibc/x86-64 and aarch64 value of FE_TONEAREST
@@ -85,3 +87,14 @@ def check_rounding() -> None:
             "(importing codac sets round-upward); call "
             "imubounds.interval.rounding.round_to_nearest() first"
         )
+
+
+def up(x: Any) -> Any:
+    """``x`` (floats) rounded up by one ulp: the outward rounding of an upper bound
+    computed in round-to-nearest."""
+    return np.nextafter(np.asarray(x, dtype=float), np.inf)
+
+
+def down(x: Any) -> Any:
+    """``x`` (floats) rounded down by one ulp: the outward rounding of a lower bound."""
+    return np.nextafter(np.asarray(x, dtype=float), -np.inf)

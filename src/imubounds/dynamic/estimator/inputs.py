@@ -26,18 +26,12 @@ from imubounds.dynamic.estimator.budget import CHANNELS, AlphaPlan, Term
 from imubounds.dynamic.estimator.gnss_screen import gnss_outliers, miss_of
 from imubounds.errors import InputError, OptionError
 from imubounds.interval import IntervalArray as IA
+from imubounds.interval.rounding import down as _dn
+from imubounds.interval.rounding import up as _up
 from imubounds.units import DEG
 
 _U = 2.0**-53
 EARTH_RATE = 7.2921159e-5  #: rad/s
-
-
-def _up(x: Any) -> Any:
-    return np.nextafter(x, np.inf)
-
-
-def _dn(x: np.ndarray) -> np.ndarray:
-    return np.nextafter(x, -np.inf)
 
 
 class RangeExt:
