@@ -336,6 +336,23 @@ def k_sigma(alpha: float, n: int) -> float:
     return float(norm.isf(alpha / (2.0 * max(n, 1))))
 
 
+def _velocity_course(
+    g: Any, ok: np.ndarray, min_speed: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(t, course rad clockwise from true north, speed m/s) from the receiver's velocity
+    where usable and faster than ``min_speed``; None without velocity or with fewer than
+    three such fixes."""
+    ne = g.velocity_ne()
+    if ne is None:
+        return None
+    vn, ve = ne
+    sp = np.hypot(vn, ve)
+    keep = ok & np.isfinite(sp) & (sp >= min_speed)
+    if keep.sum() < 3:
+        return None
+    return g.t[keep], np.mod(np.arctan2(ve[keep], vn[keep]), TWO_PI), sp[keep]
+
+
 def _gnss_course(drive: Any, min_speed: float) -> tuple[np.ndarray, np.ndarray] | None:
     """(t, course rad clockwise from true north) of the GNSS while moving faster than
     ``min_speed``: the receiver's velocity if it has one, else consecutive positions."""
@@ -345,13 +362,9 @@ def _gnss_course(drive: Any, min_speed: float) -> tuple[np.ndarray, np.ndarray] 
     if g is None:
         return None
     ok = g.usable()
-    ne = g.velocity_ne()
-    if ne is not None:
-        vn, ve = ne
-        sp = np.hypot(vn, ve)
-        keep = ok & np.isfinite(sp) & (sp >= min_speed)
-        if keep.sum() >= 3:
-            return g.t[keep], np.mod(np.arctan2(ve[keep], vn[keep]), TWO_PI)
+    vel = _velocity_course(g, ok, min_speed)
+    if vel is not None:
+        return vel[0], vel[1]
     if ok.sum() < 3:
         return None
     e, n, _ = geodetic_to_enu(g.lat_deg[ok], g.lon_deg[ok])
@@ -675,19 +688,10 @@ def course_noise(
         return None
     st = drive.settings.gnss
     ok = g.usable()
-    ne = g.velocity_ne()
-    if ne is not None:
-        vn, ve = ne
-        sp = np.hypot(vn, ve)
-        keep = ok & np.isfinite(sp) & (sp >= min_speed)
-        if keep.sum() >= 3:
-            sv = float(st.vel_sigma_mps)
-            return (
-                g.t[keep],
-                np.mod(np.arctan2(ve[keep], vn[keep]), TWO_PI),
-                sv / sp[keep],
-                sp[keep] - 3.0 * sv,
-            )
+    vel = _velocity_course(g, ok, min_speed)
+    if vel is not None:
+        sv = float(st.vel_sigma_mps)
+        return vel[0], vel[1], sv / vel[2], vel[2] - 3.0 * sv
     if ok.sum() < 3:
         return None
     e, n, _ = geodetic_to_enu(g.lat_deg[ok], g.lon_deg[ok])
