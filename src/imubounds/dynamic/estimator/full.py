@@ -544,50 +544,74 @@ def _plan_windows(ctx: Context) -> None:
 # ----------------------------------------------------------------------- smoother
 
 
+#: IMU segments per call of the preintegration (bounds its per-sample arrays)
+PREINTEGRATE_CHUNK = 1 << 18
+
+
+def _preintegrate(
+    ctx: Context, br_mid: float, YR: np.ndarray, FH: np.ndarray, QH: np.ndarray, AA: np.ndarray
+) -> None:
+    """:func:`~.smoother.preintegrate` over the links in runs of about
+    :data:`PREINTEGRATE_CHUNK` IMU segments: each run gets the interval samples and
+    roll/pitch of its own segments only (every link reads only the segments it
+    overlaps, so the results are those of one call over the whole trip)."""
+    imu, veh, ag = ctx.imu, ctx.vehicle, ctx.aiding
+    te = np.ascontiguousarray(ctx.te)
+    bnd, nseg, sig = imu.bnd, imu.n, imu.sig
+
+    def pt(ch: str, sl: slice, lo_unknown: float, hi_unknown: float) -> np.ndarray:
+        s = sig[ch]
+        out = np.stack([s.y[sl], s.y[sl]], -1)
+        unk = s.unknown[sl]
+        out[unk, 0] = lo_unknown
+        out[unk, 1] = hi_unknown
+        return np.ascontiguousarray(out)
+
+    ax = veh.max_accel + G_HI * math.sin(veh.max_tilt)
+    fz_lo, fz_hi = G_LO * math.cos(veh.max_tilt) - veh.max_accel, G_HI + veh.max_accel
+    # the segment of each epoch: first k with bnd[k + 1] > t (where the kernel starts)
+    first = np.clip(np.searchsorted(bnd, te, side="right") - 1, 0, nseg - 1)
+    j0 = 0
+    while j0 < te.size - 1:
+        j1 = int(np.searchsorted(first, first[j0] + PREINTEGRATE_CHUNK, side="right")) - 1
+        j1 = min(max(j1, j0 + 1), te.size - 1)
+        ka = int(first[j0])
+        # the links' last segment: the last k with bnd[k] < te[j1]
+        kb = max(min(int(np.searchsorted(bnd, te[j1], side="left")), nseg), ka + 1)
+        sl = slice(ka, kb)
+        rl, rh, pl, ph = ag.tilt_range(bnd[ka:kb], bnd[ka + 1 : kb + 1], veh)
+        SM.preintegrate(
+            te[j0 : j1 + 1],
+            bnd[ka : kb + 1],
+            pt("accel_x", sl, -ax, ax),
+            pt("accel_y", sl, -ax, ax),
+            pt("accel_z", sl, fz_lo, fz_hi),
+            pt("gyro_z", sl, -veh.max_rate, veh.max_rate),
+            np.ascontiguousarray(rl),
+            np.ascontiguousarray(rh),
+            np.ascontiguousarray(pl),
+            np.ascontiguousarray(ph),
+            br_mid,
+            YR[j0:j1],
+            FH[j0:j1],
+            QH[j0:j1],
+            AA[j0:j1],
+        )
+        j0 = j1
+
+
 def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     """Preintegrated increments of every link with all errors but the bias states."""
     imu, veh, ag, tilt = ctx.imu, ctx.vehicle, ctx.aiding, ctx.tilt
     te = ctx.te
     n = te.size
     sig = imu.sig
-    nseg = imu.n
-
-    def pt(ch: str, lo_unknown: float, hi_unknown: float) -> np.ndarray:
-        s = sig[ch]
-        out = np.stack([s.y, s.y], -1)
-        out[s.unknown, 0] = lo_unknown
-        out[s.unknown, 1] = hi_unknown
-        return np.ascontiguousarray(out)
-
-    ax = veh.max_accel + G_HI * math.sin(veh.max_tilt)
-    fx = pt("accel_x", -ax, ax)
-    fy = pt("accel_y", -ax, ax)
-    fz = pt("accel_z", G_LO * math.cos(veh.max_tilt) - veh.max_accel, G_HI + veh.max_accel)
-    gr = pt("gyro_z", -veh.max_rate, veh.max_rate)
-    rl, rh, pl, ph = ag.tilt_range(imu.bnd[:-1], imu.bnd[1:], veh)
     YR = np.empty((n - 1, 2))
     FH = np.empty((n - 1, 2, 2))
     QH = np.empty((n - 1, 2, 2))
     AA = np.empty((n - 1, 2))
     br_mid = 0.5 * (beta0[2, 0] + beta0[2, 1])
-    SM.preintegrate(
-        np.ascontiguousarray(te),
-        imu.bnd,
-        fx,
-        fy,
-        fz,
-        gr,
-        np.ascontiguousarray(rl),
-        np.ascontiguousarray(rh),
-        np.ascontiguousarray(pl),
-        np.ascontiguousarray(ph),
-        float(br_mid),
-        YR,
-        FH,
-        QH,
-        AA,
-    )
-    del nseg
+    _preintegrate(ctx, float(br_mid), YR, FH, QH, AA)
     a, b = te[:-1], te[1:]
     D = b - a
     cnt = imu.count(a, b)

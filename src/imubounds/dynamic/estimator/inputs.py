@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.estimator import series_kernels as SK
 from imubounds.dynamic.estimator.budget import CHANNELS, AlphaPlan, Term
 from imubounds.dynamic.estimator.gnss_screen import gnss_outliers, miss_of
 from imubounds.errors import InputError, OptionError
@@ -35,34 +36,37 @@ EARTH_RATE = 7.2921159e-5  #: rad/s
 
 
 class RangeExt:
-    """Range minimum / maximum queries over a fixed array (sparse tables, O(1) query)."""
+    """Range minimum / maximum queries over a fixed array: exact, ``O(n)`` memory (a
+    sparse table over blocks of :data:`~.series_kernels.BLOCK` values, the partial
+    blocks at a query's ends scanned; :mod:`.series_kernels`)."""
 
     def __init__(self, lo: np.ndarray, hi: np.ndarray | None = None) -> None:
-        hi = lo if hi is None else hi
-        self.mn = [np.asarray(lo, dtype=float)]
-        self.mx = [np.asarray(hi, dtype=float)]
-        k = 1
-        while (1 << k) <= self.mn[0].size:
-            h = 1 << (k - 1)
-            self.mn.append(np.minimum(self.mn[-1][:-h], self.mn[-1][h:]))
-            self.mx.append(np.maximum(self.mx[-1][:-h], self.mx[-1][h:]))
-            k += 1
+        self.lo = np.ascontiguousarray(lo, dtype=float)
+        self.hi = self.lo if hi is None else np.ascontiguousarray(hi, dtype=float)
+        self._tmn = SK.block_table(self.lo, SK.BLOCK, True)
+        self._tmx = SK.block_table(self.hi, SK.BLOCK, False)
 
     def query(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(min lo, max hi) over inclusive index ranges ``i..j`` (``i <= j``)."""
         i = np.asarray(i, dtype=np.int64)
         j = np.asarray(j, dtype=np.int64)
-        n = np.maximum(j - i + 1, 1)
-        k = np.floor(np.log2(n)).astype(np.int64)
-        out_mn = np.empty(i.shape)
-        out_mx = np.empty(i.shape)
-        for kk in np.unique(k):
-            s = k == kk
-            a, b = i[s], j[s] - (1 << kk) + 1
-            out_mn[s] = np.minimum(self.mn[kk][a], self.mn[kk][b])
-            out_mx[s] = np.maximum(self.mx[kk][a], self.mx[kk][b])
-        return out_mn, out_mx
+        shape = np.broadcast(i, j).shape
+        ii = np.ascontiguousarray(np.broadcast_to(i, shape).ravel())
+        jj = np.ascontiguousarray(np.broadcast_to(j, shape).ravel())
+        ii, jj = _index_rule(ii, self.lo.size), _index_rule(jj, self.lo.size)
+        mn = SK.range_query(self.lo, self._tmn, SK.BLOCK, ii, jj, True)
+        mx = SK.range_query(self.hi, self._tmx, SK.BLOCK, ii, jj, False)
+        return mn.reshape(shape), mx.reshape(shape)
 
+
+def _index_rule(k: np.ndarray, n: int) -> np.ndarray:
+    """numpy's indexing rules for the compiled queries: negative from the end, else an
+    ``IndexError`` outside ``0..n-1``."""
+    if k.size and (k.min() < 0 or k.max() >= n):
+        if k.min() < -n or k.max() >= n:
+            raise IndexError(f"range query index out of bounds for size {n}")
+        return np.where(k < 0, k + n, k)
+    return k
 
 
 # ------------------------------------------------------------------------ vehicle
@@ -168,7 +172,11 @@ class PiecewiseSignal:
     ``y`` holds the value of each segment (0 where ``unknown``); an unknown segment
     contributes ``+-xmax`` per second. Prefix sums ``S`` (of ``y * length``) and
     ``Z`` (of the integral ``Y``) are kept with the bounds of their rounding errors
-    (recursive summation: ``|error| <= gamma_n sum |terms|``, Higham).
+    (recursive summation: ``|error| <= gamma_n sum |terms|``, Higham): stored every
+    :data:`~.series_kernels.CHECKPOINT` segments and finished from there when asked,
+    the same additions as full arrays (:mod:`.series_kernels`; memory: ``y`` and 1/16
+    of a value per segment). ``y`` is the caller's array (no copy) when no segment is
+    unknown.
     """
 
     def __init__(
@@ -184,45 +192,28 @@ class PiecewiseSignal:
         self.unknown = (
             np.zeros(self.bnd.size - 1, dtype=bool) if unknown is None else np.asarray(unknown)
         )
-        self.y = np.where(self.unknown, 0.0, np.asarray(y, dtype=float))
-        self.xmax = float(xmax)
-        self._len = np.diff(self.bnd)
-        x = self.y * self._len
-        self.S = np.concatenate([[0.0], np.cumsum(x)])
-        self.A = np.concatenate([[0.0], np.cumsum(np.abs(x))])
         self._any_unknown = bool(np.any(self.unknown))
+        y = np.asarray(y, dtype=float)
+        self.y = np.where(self.unknown, 0.0, y) if self._any_unknown else y
+        self.xmax = float(xmax)
+        self._ck = SK.checkpoints(self.bnd, self.y, SK.CHECKPOINT)
+        self._monotone = bool(np.all(self.bnd[1:] >= self.bnd[:-1]))
         self._UL: np.ndarray | None = None
-        self._Z: np.ndarray | None = None
-        self._ZA: np.ndarray | None = None
-        self._AB: np.ndarray | None = None
 
-    # prefix sums computed on first use
+    def _prefix(self, i: np.ndarray, want_z: bool) -> tuple[np.ndarray, ...]:
+        """``S[i], A[i]`` (and ``Z[i], ZA[i]``) at segment indices ``i``."""
+        i = np.asarray(i, dtype=np.int64)
+        flat = np.ascontiguousarray(i.ravel())
+        out = SK.prefix_at(self.bnd, self.y, *self._ck, SK.CHECKPOINT, flat, want_z)
+        return tuple(o.reshape(i.shape) for o in (out if want_z else out[:2]))
+
     @property
     def UL(self) -> np.ndarray:
+        """Prefix sums of the unknown segments' lengths (computed on first use)."""
         if self._UL is None:
-            ul = np.where(self.unknown, self._len, 0.0)
+            ul = np.where(self.unknown, np.diff(self.bnd), 0.0)
             self._UL = np.concatenate([[0.0], np.cumsum(ul)])
         return self._UL
-
-    @property
-    def Z(self) -> np.ndarray:
-        if self._Z is None:
-            inc = self.S[:-1] * self._len + 0.5 * self.y * self._len * self._len
-            self._Z = np.concatenate([[0.0], np.cumsum(inc)])
-            self._ZA = np.concatenate([[0.0], np.cumsum(np.abs(inc))])
-        return self._Z
-
-    @property
-    def ZA(self) -> np.ndarray:
-        self.Z  # noqa: B018 - computes both
-        assert self._ZA is not None
-        return self._ZA
-
-    @property
-    def AB(self) -> np.ndarray:
-        if self._AB is None:
-            self._AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * self._len)])
-        return self._AB
 
     @property
     def n(self) -> int:
@@ -237,8 +228,9 @@ class PiecewiseSignal:
         t = np.clip(np.asarray(t, dtype=float), self.bnd[0], self.bnd[-1])
         i = self.locate(t)
         part = t - self.bnd[i]
-        val = self.S[i] + self.y[i] * part
-        err = 1.01 * _U * ((i + 3) * self.A[i] + 3 * np.abs(self.y[i] * part))
+        S, A = self._prefix(i, False)
+        val = S + self.y[i] * part
+        err = 1.01 * _U * ((i + 3) * A + 3 * np.abs(self.y[i] * part))
         ln = self.bnd[i + 1] - self.bnd[i]
         cut = np.where((part > 0) & (part < ln), np.minimum(part, ln - part), 0.0)
         return val, err, cut
@@ -248,9 +240,10 @@ class PiecewiseSignal:
         t = np.clip(np.asarray(t, dtype=float), self.bnd[0], self.bnd[-1])
         i = self.locate(t)
         p = t - self.bnd[i]
-        inc = self.S[i] * p + 0.5 * self.y[i] * p * p
-        val = self.Z[i] + inc
-        err = 1.01 * _U * ((i + 4) * self.ZA[i] + 4 * np.abs(inc) + (i + 3) * self.A[i] * p)
+        S, A, Z, ZA = self._prefix(i, True)
+        inc = S * p + 0.5 * self.y[i] * p * p
+        val = Z + inc
+        err = 1.01 * _U * ((i + 4) * ZA + 4 * np.abs(inc) + (i + 3) * A * p)
         return val, err
 
     def unknown_len(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -309,7 +302,13 @@ class PiecewiseSignal:
     def abs_integral(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Upper bound of ``int_a^b |y|`` (whole segments touched; unknown: ``xmax``)."""
         ia, ib = self.locate(np.asarray(a, float)), self.locate(np.asarray(b, float))
-        return (self.AB[ib + 1] - self.AB[ia]) * (1 + 1e-12) + self.unknown_len(a, b) * self.xmax
+        if self._monotone:
+            # the running sum of |y| x length is A (|y l| = |y| l: rounding is symmetric)
+            Ab, Aa = self._prefix(ib + 1, False)[1], self._prefix(ia, False)[1]
+        else:
+            AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * np.diff(self.bnd))])
+            Ab, Aa = AB[ib + 1], AB[ia]
+        return (Ab - Aa) * (1 + 1e-12) + self.unknown_len(a, b) * self.xmax
 
 
 @dataclass
@@ -381,15 +380,17 @@ class ImuSeries:
         sig: dict[str, PiecewiseSignal] = {}
         avail: dict[str, bool] = {}
         loc = Locator(bnd)
+        del t, d, per, nxt, start, end, seg_start
+        none_bad = np.zeros(bnd.size - 1, dtype=bool)  # shared by the channels without
         for ch in CHANNELS:
-            vals = np.asarray(raw[ch], dtype=float)
+            vals = np.asarray(raw[ch], dtype=float)  # the drive's column: no copy
             if gaps.size:
                 vals = np.insert(vals, gaps + 1, np.nan)
             bad = ~np.isfinite(vals) | is_gap
             avail[ch] = bool(np.any(~bad))
-            sig[ch] = PiecewiseSignal(
-                bnd, np.where(bad, 0.0, vals), bad, vehicle.signal_bound(ch), locator=loc
-            )
+            if not np.any(bad):
+                bad = none_bad
+            sig[ch] = PiecewiseSignal(bnd, vals, bad, vehicle.signal_bound(ch), locator=loc)
         ln = np.diff(bnd)
         return cls(
             t0=t0,
