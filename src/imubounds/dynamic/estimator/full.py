@@ -430,6 +430,7 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
         c[pos : pos + m] += imu.dt
         var = max(var, kernel_variance(gz, c, imu.dt, True))
     noise = k * math.sqrt(var) + k * gz.K * math.sqrt(2 * W) * b + other
+    del te, G  # per-sample arrays: not held while rate_allowance builds its own
     local = turn + berr + noise
     ok &= np.isfinite(local)  # a gap in the heading or the gyro: the wider bound
     # elsewhere: the bias interval of the windows

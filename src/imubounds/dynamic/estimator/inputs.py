@@ -153,6 +153,14 @@ class Locator:
     def __init__(self, bnd: np.ndarray) -> None:
         self.bnd = bnd
         self._cache: dict[bytes, np.ndarray] = {}
+        self._none: np.ndarray | None = None
+
+    def no_unknown(self) -> np.ndarray:
+        """All False, one per segment: shared by the signals on these segments that have
+        no unknown segment (not to be written)."""
+        if self._none is None:
+            self._none = np.zeros(self.bnd.size - 1, dtype=bool)
+        return self._none
 
     def locate(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
@@ -190,7 +198,7 @@ class PiecewiseSignal:
         self.bnd = np.asarray(bnd, dtype=float)
         self.locator = locator if locator is not None else Locator(self.bnd)
         self.unknown = (
-            np.zeros(self.bnd.size - 1, dtype=bool) if unknown is None else np.asarray(unknown)
+            self.locator.no_unknown() if unknown is None else np.asarray(unknown)
         )
         self._any_unknown = bool(np.any(self.unknown))
         y = np.asarray(y, dtype=float)
@@ -381,7 +389,6 @@ class ImuSeries:
         avail: dict[str, bool] = {}
         loc = Locator(bnd)
         del t, d, per, nxt, start, end, seg_start
-        none_bad = np.zeros(bnd.size - 1, dtype=bool)  # shared by the channels without
         for ch in CHANNELS:
             vals = np.asarray(raw[ch], dtype=float)  # the drive's column: no copy
             if gaps.size:
@@ -389,7 +396,7 @@ class ImuSeries:
             bad = ~np.isfinite(vals) | is_gap
             avail[ch] = bool(np.any(~bad))
             if not np.any(bad):
-                bad = none_bad
+                bad = loc.no_unknown()
             sig[ch] = PiecewiseSignal(bnd, vals, bad, vehicle.signal_bound(ch), locator=loc)
         ln = np.diff(bnd)
         return cls(

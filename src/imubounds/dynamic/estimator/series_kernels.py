@@ -21,9 +21,9 @@ import numpy as np
 from numba import njit
 
 #: segments between two stored checkpoints of a prefix sum
-CHECKPOINT = 16
+CHECKPOINT = 32
 #: values per block of the range-extremum table
-BLOCK = 16
+BLOCK = 64
 
 
 @njit(cache=True, fastmath=False)
