@@ -29,16 +29,16 @@ def _series(n: int, seed: int, gaps: bool) -> tuple[np.ndarray, np.ndarray]:
 def test_prefix_sums_bit_for_bit(n: int, seed: int, gaps: bool) -> None:
     bnd, y = _series(n, seed, gaps)
     ref = prefix_arrays(bnd, y)
-    ck = SK.checkpoints(bnd, y, SK.CHECKPOINT)
+    ck = SK.checkpoints(bnd, y, SK.CHECKPOINT, SK.CHECKPOINT_Z)
     idx = np.arange(n + 1, dtype=np.int64)
-    got = SK.prefix_at(bnd, y, *ck, SK.CHECKPOINT, idx, True)
+    got = SK.prefix_at(bnd, y, *ck, SK.CHECKPOINT, SK.CHECKPOINT_Z, idx, True)
     for r, g in zip(ref, got, strict=True):
         np.testing.assert_array_equal(np.signbit(g), np.signbit(r))
         np.testing.assert_array_equal(g, r)
     # strided y (a column of the drive's (n, 3) array) gives the same sums
     y3 = np.stack([y, -y, y], -1)
-    got3 = SK.prefix_at(bnd, y3[:, 2], *SK.checkpoints(bnd, y3[:, 2], SK.CHECKPOINT),
-                        SK.CHECKPOINT, idx, False)
+    ck3 = SK.checkpoints(bnd, y3[:, 2], SK.CHECKPOINT, SK.CHECKPOINT_Z)
+    got3 = SK.prefix_at(bnd, y3[:, 2], *ck3, SK.CHECKPOINT, SK.CHECKPOINT_Z, idx, False)
     np.testing.assert_array_equal(got3[0], ref[0])
     np.testing.assert_array_equal(got3[1], ref[1])
 

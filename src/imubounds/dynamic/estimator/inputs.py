@@ -181,10 +181,10 @@ class PiecewiseSignal:
     contributes ``+-xmax`` per second. Prefix sums ``S`` (of ``y * length``) and
     ``Z`` (of the integral ``Y``) are kept with the bounds of their rounding errors
     (recursive summation: ``|error| <= gamma_n sum |terms|``, Higham): stored every
-    :data:`~.series_kernels.CHECKPOINT` segments and finished from there when asked,
-    the same additions as full arrays (:mod:`.series_kernels`; memory: ``y`` and 1/16
-    of a value per segment). ``y`` is the caller's array (no copy) when no segment is
-    unknown.
+    :data:`~.series_kernels.CHECKPOINT` (``Z``: :data:`~.series_kernels.CHECKPOINT_Z`)
+    segments and finished from there when asked, the same additions as full arrays
+    (:mod:`.series_kernels`; memory: ``y`` and about 1/6 of a value per segment).
+    ``y`` is the caller's array (no copy) when no segment is unknown.
     """
 
     def __init__(
@@ -204,7 +204,7 @@ class PiecewiseSignal:
         y = np.asarray(y, dtype=float)
         self.y = np.where(self.unknown, 0.0, y) if self._any_unknown else y
         self.xmax = float(xmax)
-        self._ck = SK.checkpoints(self.bnd, self.y, SK.CHECKPOINT)
+        self._ck = SK.checkpoints(self.bnd, self.y, SK.CHECKPOINT, SK.CHECKPOINT_Z)
         self._monotone = bool(np.all(self.bnd[1:] >= self.bnd[:-1]))
         self._UL: np.ndarray | None = None
 
@@ -212,7 +212,9 @@ class PiecewiseSignal:
         """``S[i], A[i]`` (and ``Z[i], ZA[i]``) at segment indices ``i``."""
         i = np.asarray(i, dtype=np.int64)
         flat = np.ascontiguousarray(i.ravel())
-        out = SK.prefix_at(self.bnd, self.y, *self._ck, SK.CHECKPOINT, flat, want_z)
+        out = SK.prefix_at(
+            self.bnd, self.y, *self._ck, SK.CHECKPOINT, SK.CHECKPOINT_Z, flat, want_z
+        )
         return tuple(o.reshape(i.shape) for o in (out if want_z else out[:2]))
 
     @property
@@ -239,9 +241,17 @@ class PiecewiseSignal:
         S, A = self._prefix(i, False)
         val = S + self.y[i] * part
         err = 1.01 * _U * ((i + 3) * A + 3 * np.abs(self.y[i] * part))
+        return val, err, self._cut(i, part)
+
+    def _cut(self, i: np.ndarray, part: np.ndarray) -> np.ndarray:
         ln = self.bnd[i + 1] - self.bnd[i]
-        cut = np.where((part > 0) & (part < ln), np.minimum(part, ln - part), 0.0)
-        return val, err, cut
+        return np.where((part > 0) & (part < ln), np.minimum(part, ln - part), 0.0)
+
+    def cut(self, t: np.ndarray) -> np.ndarray:
+        """The third value of :meth:`cum` alone (no prefix sums)."""
+        t = np.clip(np.asarray(t, dtype=float), self.bnd[0], self.bnd[-1])
+        i = self.locate(t)
+        return self._cut(i, t - self.bnd[i])
 
     def zcum(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``Z(t) = int_{bnd[0]}^t Y`` and its rounding-error bound."""
@@ -420,7 +430,7 @@ class ImuSeries:
 
     def edge(self, t: np.ndarray) -> np.ndarray:
         """Length by which ``t`` cuts a sample (sample-model error at a window end)."""
-        return self.sig["accel_x"].cum(t)[2]
+        return self.sig["accel_x"].cut(t)
 
 
 # -------------------------------------------------------------------------- aiding

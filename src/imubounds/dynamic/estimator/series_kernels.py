@@ -4,9 +4,10 @@ that long trips fit in memory (issue 27: a 24 h trip at 100 Hz is 8.64 M samples
 * Prefix sums by checkpoints: :class:`~imubounds.dynamic.estimator.inputs.PiecewiseSignal`
   keeps its four running sums (``S`` of ``y l``, ``A`` of ``|y l|``, ``Z`` of the
   integral's increments, ``ZA`` of their magnitudes; ``l`` a segment's length) only
-  every :data:`CHECKPOINT` segments and finishes a sum from the checkpoint before it
-  when asked. The additions are those of ``np.cumsum``, in the same order (numpy's
-  accumulate is sequential), so every value is bit for bit the one a full array gives.
+  every :data:`CHECKPOINT` segments (``Z``, ``ZA``: :data:`CHECKPOINT_Z`) and finishes
+  a sum from the checkpoint before it when asked. The additions are those of
+  ``np.cumsum``, in the same order (numpy's accumulate is sequential), so every value
+  is bit for bit the one a full array gives.
 * Range minimum / maximum by blocks: a sparse table over blocks of :data:`BLOCK`
   values and the two partial blocks at a query's ends scanned: exact (min and max do
   not round), ``O(n)`` memory where the full sparse table took ``O(n log n)``.
@@ -20,25 +21,27 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-#: segments between two stored checkpoints of a prefix sum
-CHECKPOINT = 32
+#: segments between two stored checkpoints of the sums S and A (most queries)
+CHECKPOINT = 16
+#: segments between two stored checkpoints of Z and ZA (a multiple of CHECKPOINT)
+CHECKPOINT_Z = 64
 #: values per block of the range-extremum table
 BLOCK = 64
 
 
 @njit(cache=True, fastmath=False)
 def checkpoints(
-    bnd: np.ndarray, y: np.ndarray, every: int
+    bnd: np.ndarray, y: np.ndarray, every: int, every_z: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``S, A, Z, ZA`` at segment indices ``0, every, 2 every, ...`` (and ``n`` where it
-    is not one of them): the running sums of ``x = y l``, ``|x|``, ``inc = S l + 0.5 y l
-    l`` and ``|inc|`` (``l = bnd[k+1] - bnd[k]``), each starting at 0."""
+    """``S, A`` at segment indices ``0, every, 2 every, ...`` and ``Z, ZA`` at ``0,
+    every_z, ...`` (each array's last value: the sum over all ``n`` segments): the
+    running sums of ``x = y l``, ``|x|``, ``inc = S l + 0.5 y l l`` and ``|inc|`` (``l =
+    bnd[k+1] - bnd[k]``), in the order of ``np.cumsum``."""
     n = y.size
-    m = n // every + 2
-    cS = np.empty(m)
-    cA = np.empty(m)
-    cZ = np.empty(m)
-    cZA = np.empty(m)
+    cS = np.empty(n // every + 2)
+    cA = np.empty(n // every + 2)
+    cZ = np.empty(n // every_z + 2)
+    cZA = np.empty(n // every_z + 2)
     s = 0.0
     a = 0.0
     z = 0.0
@@ -56,16 +59,15 @@ def checkpoints(
         else:
             s, a, z, za = s + x, a + abs(x), z + inc, za + abs(inc)
         if (k + 1) % every == 0:
-            c = (k + 1) // every
-            cS[c] = s
-            cA[c] = a
-            cZ[c] = z
-            cZA[c] = za
-    last = n // every + 1
-    cS[last] = s
-    cA[last] = a
-    cZ[last] = z
-    cZA[last] = za
+            cS[(k + 1) // every] = s
+            cA[(k + 1) // every] = a
+        if (k + 1) % every_z == 0:
+            cZ[(k + 1) // every_z] = z
+            cZA[(k + 1) // every_z] = za
+    cS[-1] = s
+    cA[-1] = a
+    cZ[-1] = z
+    cZA[-1] = za
     return cS, cA, cZ, cZA
 
 
@@ -78,6 +80,7 @@ def prefix_at(
     cZ: np.ndarray,
     cZA: np.ndarray,
     every: int,
+    every_z: int,
     idx: np.ndarray,
     want_z: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -92,19 +95,24 @@ def prefix_at(
     for r in range(q):
         i = idx[r]
         if i == n:
-            c = n // every + 1
-            oS[r] = cS[c]
-            oA[r] = cA[c]
+            oS[r] = cS[-1]
+            oA[r] = cA[-1]
             if want_z:
-                oZ[r] = cZ[c]
-                oZA[r] = cZA[c]
+                oZ[r] = cZ[-1]
+                oZA[r] = cZA[-1]
             continue
-        c = i // every
-        s = cS[c]
-        a = cA[c]
-        z = cZ[c]
-        za = cZA[c]
-        for k in range(c * every, i):
+        if want_z:
+            c = i // every_z
+            k0 = c * every_z
+            z = cZ[c]
+            za = cZA[c]
+        else:
+            k0 = (i // every) * every
+            z = 0.0
+            za = 0.0
+        s = cS[k0 // every]
+        a = cA[k0 // every]
+        for k in range(k0, i):
             ln = bnd[k + 1] - bnd[k]
             x = y[k] * ln
             if want_z:
