@@ -13,7 +13,9 @@ The last line is ``full_seconds <t> paper_seconds <t> ratio <full/paper>``; with
 ``--baseline SRC`` (the ``src`` directory of the previous version, e.g. a checkout of
 main) the same trip is analysed by that version in a subprocess in the same run and the
 line ``baseline_full_seconds <t> ratio_to_baseline <this/previous>`` follows. Peak
-memory (max RSS of the process, MiB) is printed too.
+memory (max RSS of the process, MiB) is printed too; it includes the simulator's peak
+(printed after the trip is built): benchmarks/bench_long_trip.py measures the analysis
+alone, in fresh processes, for trips of 1 to 24 h.
 """
 
 from __future__ import annotations
@@ -66,7 +68,8 @@ def main() -> None:
     t0 = time.perf_counter()
     drive, src = make_drive(args.hours)
     print(f"trip: {src}, {args.hours:g} h, {drive.imu.t.size} IMU samples, "
-          f"{drive.gnss.t.size} GNSS fixes (built in {time.perf_counter() - t0:.1f} s)")
+          f"{drive.gnss.t.size} GNSS fixes (built in {time.perf_counter() - t0:.1f} s, "
+          f"peak RSS so far {_peak_mib():.0f} MiB: the simulator's)")
     t_full, full = best_of(lambda: dynamic_margins(drive).to_dict(), args.repeat)
     if args.full_only:
         print(f"full_seconds {t_full:.2f} peak_rss_mib {_peak_mib():.0f}")

@@ -11,8 +11,8 @@ drift restarts each hour, within the day's drift bound). Built once per length a
 rate in ``benchmarks/_data/`` (git-ignored).
 
 Each measurement runs in a fresh process that loads the drive and runs
-``dynamic_margins(drive, mode="full").to_dict()`` once (numba caches loaded by one
-warm-up on a short trip first): wall time of the analysis, the process's peak RSS
+``dynamic_margins(drive, mode="full").to_dict()`` once (numba caches compiled or
+loaded by one warm-up run on the 1 h trip first): wall time of the analysis, the process's peak RSS
 (``ru_maxrss``) and its RSS with the drive loaded before the analysis. With
 ``--baseline SRC`` (the ``src`` of the previous version, e.g. ``git archive main src``)
 the same trips are analysed by that version in the same run, up to
@@ -145,7 +145,7 @@ def main() -> None:
     this = str(HERE.parent / "src")
     versions = [("this", this)] + ([("baseline", str(Path(args.baseline).resolve()))]
                                    if args.baseline else [])
-    warm = build(0.05, args.gps_rate)  # 180 s: loads (or compiles) every numba cache
+    warm = build(1.0, args.gps_rate)  # compiles (or loads) every numba cache the runs use
     for _, src in versions:
         run(src, warm)
     for h in (float(x) for x in args.hours.split(",")):
