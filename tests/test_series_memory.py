@@ -108,3 +108,20 @@ def test_preintegration_in_chunks_equals_one_call(monkeypatch: pytest.MonkeyPatc
         part = F._link_errors(ctx, beta0)
         for k in whole:
             np.testing.assert_array_equal(part[k], whole[k])
+
+
+def test_locator_cache_stays_within_its_byte_budget(monkeypatch: pytest.MonkeyPatch) -> None:
+    from imubounds.dynamic.estimator import inputs as I
+
+    monkeypatch.setattr(I, "LOCATOR_CACHE_BYTES", 1 << 16)
+    bnd = np.arange(0.0, 1000.0, 0.01)
+    loc = I.Locator(bnd)
+    rng = np.random.default_rng(1)
+    for size in (10, 300, 3000, 300, 10):
+        for _ in range(20):
+            t = rng.uniform(-1.0, 1001.0, size)
+            ref = np.clip(np.searchsorted(bnd, t, side="right") - 1, 0, bnd.size - 2)
+            np.testing.assert_array_equal(loc.locate(t), ref)
+            np.testing.assert_array_equal(loc.locate(t.copy()), ref)  # from the cache
+            held = sum(len(k) + v.nbytes for k, v in loc._cache.items())
+            assert held == loc._bytes <= 1 << 16

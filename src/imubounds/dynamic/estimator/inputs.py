@@ -146,6 +146,11 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
 # --------------------------------------------------------------------------- IMU
 
 
+#: bytes of queries and answers a :class:`Locator` keeps (the cache grew to GBs on long
+#: trips with 10 Hz aiding when it was bounded by its number of entries only)
+LOCATOR_CACHE_BYTES = 64 << 20
+
+
 class Locator:
     """Segment index of times on fixed boundaries, cached by the query (several signals
     on the same segments ask for the same window ends)."""
@@ -153,6 +158,7 @@ class Locator:
     def __init__(self, bnd: np.ndarray) -> None:
         self.bnd = bnd
         self._cache: dict[bytes, np.ndarray] = {}
+        self._bytes = 0
         self._none: np.ndarray | None = None
 
     def no_unknown(self) -> np.ndarray:
@@ -168,9 +174,13 @@ class Locator:
         hit = self._cache.get(key)
         if hit is None:
             hit = np.clip(np.searchsorted(self.bnd, t, side="right") - 1, 0, self.bnd.size - 2)
-            if len(self._cache) > 512:
-                self._cache.clear()
-            self._cache[key] = hit
+            size = len(key) + hit.nbytes
+            if size <= LOCATOR_CACHE_BYTES // 4:  # the cache holds at most its byte budget
+                if self._bytes + size > LOCATOR_CACHE_BYTES or len(self._cache) > 512:
+                    self._cache.clear()
+                    self._bytes = 0
+                self._cache[key] = hit
+                self._bytes += size
         return hit
 
 
