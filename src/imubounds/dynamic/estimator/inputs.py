@@ -212,6 +212,8 @@ class PiecewiseSignal:
         )
         self._any_unknown = bool(np.any(self.unknown))
         y = np.asarray(y, dtype=float)
+        if y.shape != self.unknown.shape:  # a constant (broadcast, as np.where did)
+            y = np.array(np.broadcast_to(y, self.unknown.shape))
         self.y = np.where(self.unknown, 0.0, y) if self._any_unknown else y
         self.xmax = float(xmax)
         self._ck = SK.checkpoints(self.bnd, self.y, SK.CHECKPOINT, SK.CHECKPOINT_Z)
