@@ -101,3 +101,37 @@ def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: 
             true = sq.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             assert not (true.lo > bound).any(), lp.tau_s
             assert np.median(bound) < np.median(mb.kernel_mag("gyro_y", lp, lp.tau))
+
+
+def test_heading_envelope_encloses_the_true_heading() -> None:
+    """Positions only: per fix gap, the integrals of |psi - psi0| and (psi - psi0)^2 that
+    bound the projection remainder (``aided.positions._envelope_integrals``) are at least
+    those of the true heading (sharp corners, 100 Hz truth)."""
+    from imubounds.dynamic.estimator.aided import positions as P
+
+    with nearest():
+        res, ctx, mb = _context(
+            ("gnss", "compass"), 45, truth_rate_hz=100.0, corner_length_m=20.0, laps=3
+        )
+        ag = ctx.aiding
+        t = ag.gnss_t
+        a, b = t[:-1], t[1:]
+        psi0 = P.heading_mean(mb, a, b).mid()
+        i1, i2 = P._envelope_integrals(mb, a, b, psi0)
+    tr = res.drive.truth
+    tt = np.asarray(tr.t, dtype=float) - float(np.asarray(res.drive.imu.t)[0])
+    # truth: compass heading (clockwise from north); the model's is pi/2 - it, on the
+    # branch of the unwrapped compass centres
+    psi = np.unwrap(0.5 * np.pi - np.asarray(tr.heading_rad, dtype=float))
+    psi = psi - 2 * np.pi * np.round((np.interp(a[0], tt, psi) - psi0[0]) / (2 * np.pi))
+    checked = 0
+    for k in range(0, a.size, 7):
+        sel = (tt >= a[k]) & (tt <= b[k])
+        if sel.sum() < 10:
+            continue
+        d = psi[sel] - psi0[k]
+        dt = np.gradient(tt[sel])
+        assert np.sum(np.abs(d) * dt) <= i1[k] * 1.05 + 1e-6, k
+        assert np.sum(d * d * dt) <= i2[k] * 1.05 + 1e-9, k
+        checked += 1
+    assert checked > 50
