@@ -46,6 +46,15 @@ def test_within_1p5_of_the_limit(name: str) -> None:
         gz = mb.evaluate(ctx.plans["gyro_z"])
         mb.fine_r = gz.raw_verdict != "exceeds"
         m = mb.evaluate(ctx.plans["accel_x"])
+    # at every tau the tighter of the aided and the vehicle-only enclosure: no level is
+    # wider than the vehicle bounds alone (no spike where the aided level takes over)
+    veh = ctx.vehicle
+    for res_ch, bound in (
+        (m, veh.max_accel + 9.84 * np.sin(veh.max_tilt)),
+        (gz, veh.max_rate),
+    ):
+        for lv in res_ch.levels:
+            assert np.all(lv.halfwidth <= bound * (1 + 1e-6) + 1e-6), (res_ch.channel, lv.tau_s)
     for ch, rows in (("accel_x", accel_x_ratios(ctx, m)), ("gyro_z", gyro_z_ratios(ctx, gz))):
         assert rows, f"{ch}: no aided level"
         table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
