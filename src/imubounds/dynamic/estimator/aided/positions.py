@@ -50,6 +50,13 @@ def _envelope_integrals(
     ``U = min(psi_hi(a) + R (t - a), psi_hi(b) + R (b - t))`` and over the like ``L``, so
     ``|psi - psi0| <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k + y^k``."""
     pa, pb = heading_at(w, a), heading_at(w, b)
+    ok = np.isfinite(pa.lo) & np.isfinite(pa.hi) & np.isfinite(pb.lo) & np.isfinite(pb.hi)
+    ok &= np.isfinite(psi0)
+    if not np.any(ok):
+        return np.full(a.shape, np.inf), np.full(a.shape, np.inf)
+    pa = IA(np.where(ok, pa.lo, 0.0), np.where(ok, pa.hi, 0.0))
+    pb = IA(np.where(ok, pb.lo, 0.0), np.where(ok, pb.hi, 0.0))
+    psi0 = np.where(ok, psi0, 0.0)
     R = np.maximum(psi_dot_abs(w, a, b), 1e-12)
     g = b - a
     out1 = np.zeros(a.shape)
@@ -64,7 +71,7 @@ def _envelope_integrals(
             i1, i2 = _pos_part(v0, v1, ell)
             out1 = out1 + i1
             out2 = out2 + i2
-    fin = np.isfinite(out1) & np.isfinite(out2)
+    fin = np.isfinite(out1) & np.isfinite(out2) & ok
     out1 = np.where(fin, up(out1 * (1 + 1e-9) + 1e-15), np.inf)
     out2 = np.where(fin, up(out2 * (1 + 1e-9) + 1e-15), np.inf)
     return out1, out2
