@@ -270,7 +270,8 @@ def _bound(
     right = _piece(w, tab, right_start, s1, j)
     parts = (left + right) * kmax
     # rounding of the prefix sums
-    guard = (ts.size + 4) * 2.3e-16 * tab["total"] * (1.0 + np.abs(lp.a1) + np.abs(lp.b2)) * kmax
+    scale = kmax + np.where(trap, 1.0 / (L1 * tau) + 1.0 / (L2 * tau), 0.0)
+    guard = (ts.size + 4) * 2.3e-16 * tab["total"] * (1.0 + np.abs(lp.a1) + np.abs(lp.b2)) * scale
     conc = np.sqrt(tab["lam"] * w.imu.dt * kmax * 2.0 * math.log(1.0 / p))
     det = det_mean * (s1 - s0) * kmax
     out = up((full + parts + guard + conc + det) * (1 + 1e-12))
