@@ -26,6 +26,7 @@ AIDING_SETS = {
     "course-heading": ("gnss", "gnss-vel"),
     "dvl+compass": ("dvl", "compass"),
     "wheel+gnss+compass": ("wheel", "gnss", "compass"),
+    "wheel+compass": ("wheel", "compass"),
 }
 TARGET = 1.5
 
