@@ -56,10 +56,13 @@ def run(case: str, seed: int) -> dict[str, Any]:
     from imubounds.dynamic.scenario.faults import FAULTS
 
     dur, kw = 300.0, {}
+    aiding: tuple[str, ...] = ("gnss", "gnss-vel", "compass")
+    if case.startswith(("wheel", "dvl")):
+        aiding = (*aiding, case.split("_")[0])
     if case == "consumer_30min":
         dur, kw = 1800.0, {"imu_preset": "consumer"}
     res = make_trip("paper", seed=seed, duration_s=dur, distance_m=dur * 11.7, rate_hz=50.0,
-                    aiding=("gnss", "gnss-vel", "compass"), **kw)
+                    aiding=aiding, **kw)
     drive = res.drive
     if case in FAULTS:
         fn, fkw = FAULTS[case]
