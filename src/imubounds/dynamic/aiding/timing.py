@@ -16,7 +16,8 @@ noise of the stated sigma. :func:`level_offset` profiles the weighted least squa
 :data:`GRID_STEP_S` within :data:`FINE_HALF_S` of its minimum, refined by a parabola;
 ``c`` and ``s`` eliminated exactly for each ``L``: Frisch-Waugh, the spline projection
 does not depend on ``L``). Its standard deviation is the larger of the linearised one
-``sqrt(max(1, chi2_red) / sum w J^2)`` (``J`` the detrended ``s rho(t_i - L)``) and a
+``sqrt(max(1, chi2_red) / sum w J^2)`` (``J`` the detrended ``s rho(t_i - L)``, rho
+averaged over +-:data:`DERIV_HALF_S`) and a
 heteroscedasticity-and-autocorrelation-consistent one (Bartlett weights over one knot
 span: the reference's coloured errors that the spline leaves); the deterministic error
 moves the estimate by at most ``2 sum w |J| D_i / sum w J^2``. The interval is
@@ -34,6 +35,7 @@ Each stream takes the reference whose interval is narrower.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,6 +51,8 @@ KNOT_S = 10.0
 MAX_EPOCHS = 20000
 #: the lateral-acceleration yaw rate ``a_y / u`` is used at speeds of at least this (m/s)
 MIN_SPEED_MPS = 3.0
+#: the reference's rate in dy/dL is its mean over +-this (s)
+DERIV_HALF_S = 0.5
 #: a fitted scale outside this range: the reference does not describe the stream
 SCALE_RANGE = (0.5, 1.5)
 
@@ -70,6 +74,9 @@ class OffsetEstimate:
     hi: float = float("nan")
     reason: str = ""
     allowance_s: float = 0.0
+    #: the offset taken off the stamps when applied (the estimate, or 0 when the
+    #: interval holds 0 within the allowance: the bound alone is applied)
+    applied_s: float = 0.0
     #: the estimates against the other references (their intervals intersected)
     parts: list[OffsetEstimate] = field(default_factory=list)
 
@@ -109,12 +116,20 @@ class OffsetEstimate:
                            "assumption); on the simulator's MTx-grade trips this estimate "
                            "is off by more than its interval says (two speed ramps per "
                            "trip against a drifting forward acceleration)")
+        elif max(-self.lo, self.hi) < b and self.lo <= 0.0 <= self.hi:
+            # the data bound the offset within the allowance and hold 0: the stamps
+            # stay (shifting them would split the epochs shared with other streams),
+            # the bound shrinks to the interval's farthest end
+            self.applied, self.applied_s = True, 0.0
+            self.reason = (f"applied as a bound: the interval holds 0 and lies within "
+                           f"+-{max(-self.lo, self.hi):.3f} s, inside the stated allowance "
+                           f"(+-{b:g} s); the stamps stay, that bound is budgeted")
         elif half < b:
-            self.applied = True
+            self.applied, self.applied_s = True, self.offset_s
             self.reason = (f"applied: the interval (+-{half:.3f} s) is narrower than the "
                            f"stated allowance (+-{b:g} s); its half-width is budgeted")
         elif self.lo > b or self.hi < -b:
-            self.applied = True
+            self.applied, self.applied_s = True, self.offset_s
             self.reason = (f"applied: the data put the offset outside the stated allowance "
                            f"(+-{b:g} s); the interval's half-width (+-{half:.3f} s) is "
                            "budgeted")
@@ -130,7 +145,7 @@ class OffsetEstimate:
         """An offset stated in drive.yaml (applied; the bound budgeted)."""
         return cls(offset_s, 0.0, "drive.yaml", True, 0, 0.0, offset_s - bound_s,
                    offset_s + bound_s, "stated in drive.yaml: applied, the bound budgeted",
-                   bound_s)
+                   bound_s, offset_s)
 
     @property
     def remainder_s(self) -> float:
@@ -138,11 +153,11 @@ class OffsetEstimate:
         allowance otherwise."""
         if not self.applied:
             return self.allowance_s
-        return max(self.hi - self.offset_s, self.offset_s - self.lo)
+        return max(self.hi - self.applied_s, self.applied_s - self.lo)
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "offset_s": self.offset_s if self.applied else 0.0,
+            "offset_s": self.applied_s if self.applied else 0.0,
             "estimate_s": self.offset_s,
             "interval_s": [self.lo, self.hi],
             "method": self.method,
@@ -287,7 +302,10 @@ def level_offset(
     sse, sc, e = fit(L)
     if not SCALE_RANGE[0] <= sc <= SCALE_RANGE[1]:
         return None
-    J = sc * P(np.interp(t - L, it, r, left=0.0, right=0.0))
+    # dy/dL from the reference averaged over +-DERIV_HALF_S (its noise would otherwise
+    # add to sum w J^2 information that the timing does not have)
+    h = DERIV_HALF_S
+    J = sc * P((np.interp(t - L + h, it, Y) - np.interp(t - L - h, it, Y)) / (2 * h))
     info = float(np.sum(w * J * J))
     if not info > 0:
         return None
@@ -493,36 +511,37 @@ def shifted(obj: Any, name: str | None, est: OffsetEstimate) -> Any:
     if not est.applied:
         return obj
     if name is None:
-        return dataclasses.replace(obj, t=obj.t - est.offset_s)
+        return dataclasses.replace(obj, t=obj.t - est.applied_s)
     stream = getattr(obj, name)
     return dataclasses.replace(obj, **{name: shifted(stream, None, est)})
 
 
+#: the alpha plan's family whose Bonferroni count an applied offset's intervals join
+#: (the bound it rests on fails with them); the body velocity's is reported only
+ALPHA_FAMILY: dict[str, str | None] = {"gnss": "gnss_position", "heading": "heading",
+                                       "velocity": None}
+
+
 def apply_offsets(
-    drive: Any, timing: dict[str, OffsetEstimate], k: float
+    drive: Any, timing: dict[str, OffsetEstimate], k_of: Callable[[str, int], float]
 ) -> tuple[Any, bool]:
-    """Finalize the estimated offsets (k of the timing family; the heading against the
-    default clock allowance, the GNSS against exact stamps, the body velocity reported
-    only) and take the applied ones off the drive's stamps (the heading: its compass
-    and magnetometer streams): (drive, whether any stream moved)."""
+    """Finalize the estimated offsets (``k_of(stream, n_intervals)`` their k; the heading
+    against the default clock allowance, the GNSS against exact stamps, the body
+    velocity reported only) and take the applied ones off the drive's stamps (the
+    heading: its compass and magnetometer streams): (drive, whether any stream moved)."""
     allowance = {"gnss": 0.0, "heading": DEFAULT_HEADING_CLOCK_BOUND_S, "velocity": None}
     moved = False
     for name, est in timing.items():
         if est.method == "drive.yaml" or name not in allowance:
             continue
-        est.finalize(k, allowance[name])
-        if not est.applied:
+        est.finalize(k_of(name, 1 + len(est.parts)), allowance[name])
+        if not est.applied or est.applied_s == 0.0:
             continue
         moved = True
         for stream in ("heading", "mag") if name == "heading" else (name,):
             if getattr(drive, stream, None) is not None:
                 drive = shifted(drive, stream, est)
     return drive, moved
-
-
-def timing_tests(timing: dict[str, OffsetEstimate]) -> int:
-    """How many intervals the timing family holds (one per stream and reference)."""
-    return sum(1 + len(e.parts) for e in timing.values() if e.method != "drive.yaml")
 
 
 def heading_clock_bound_s(timing: dict[str, OffsetEstimate]) -> float:
@@ -541,7 +560,7 @@ def heading_clock_assumption(timing: dict[str, OffsetEstimate]) -> str:
            "epoch (+ the bound of its error)")
     if h is not None and h.method != "drive.yaml" and h.applied:
         return (f"heading clock: offset {h.offset_s:+.3f} s estimated from the data "
-                f"({h.method}) and taken off the stamps; the true offset within "
+                f"({h.method}), {h.applied_s:+.3f} s taken off the stamps; the true offset within "
                 f"[{h.lo:+.3f}, {h.hi:+.3f}] s, the remainder +-{h.remainder_s:.3f} s {how}")
     return (f"heading clock: the heading stream's stamps within "
             f"+-{DEFAULT_HEADING_CLOCK_BOUND_S:g} s of the IMU's (default; "

@@ -24,6 +24,7 @@ from imubounds.dynamic.estimator.budget import (
     ChannelNoise,
     Term,
     box_sum_variance,
+    k_two_sided,
     kernel_variance,
     kind_of,
     resolve_noise,
@@ -245,10 +246,21 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     )
     from scipy.special import ndtri
 
-    # the estimated clock offsets: finalized (their own share of alpha), the applied
-    # ones taken off the stamps before the aiding, the windows and the smoother use them
-    k_t = float(-ndtri(alpha.share() / 2 / max(1, TM.timing_tests(timing))))
-    drive, moved = TM.apply_offsets(drive, timing, k_t)
+    # the estimated clock offsets: finalized with the k of the family of the stream they
+    # move (Bonferroni over its count + their intervals; the body velocity's at the
+    # share of a family), the applied ones taken off the stamps before the aiding, the
+    # windows and the smoother use them, and counted in that family
+    def k_of(stream: str, n: int) -> float:
+        fam = TM.ALPHA_FAMILY.get(stream)
+        if fam is None:
+            return float(-ndtri(alpha.share() / 2 / n))
+        return k_two_sided(alpha.share(), alpha.counts.get(fam, 0) + n)
+
+    drive, moved = TM.apply_offsets(drive, timing, k_of)
+    for name, est in timing.items():
+        fam = TM.ALPHA_FAMILY.get(name)
+        if fam is not None and est.applied and est.method != "drive.yaml":
+            alpha.counts[fam] = alpha.counts.get(fam, 0) + 1 + len(est.parts)
     if moved:
         # the heading input again: its calibration and check against the GNSS course
         # see the shifted streams
