@@ -49,6 +49,8 @@ FINE_HALF_S = 0.05
 KNOT_S = 10.0
 #: at most this many epochs of a stream enter the fit (a faster stream is thinned)
 MAX_EPOCHS = 20000
+#: at most this many epochs enter the coarse grid (it finds the basin only)
+COARSE_EPOCHS = 4000
 #: the lateral-acceleration yaw rate ``a_y / u`` is used at speeds of at least this (m/s)
 MIN_SPEED_MPS = 3.0
 #: the reference's rate in dy/dL is its mean over +-this (s)
@@ -280,20 +282,20 @@ def level_offset(
     P = _Detrend(t, w, knot_s)
     if t.size - P.p - 1 < 10:
         return None
-    yt = P(y)
-
-    def fit(L: float) -> tuple[float, float, np.ndarray]:
-        Yt = P(np.interp(t - L, it, Y))
-        a, b = float(np.sum(w * yt * Yt)), float(np.sum(w * Yt * Yt))
-        sc = a / b if b > 0 else 0.0
-        e = yt - sc * Yt
-        return float(np.sum(w * e * e)), sc, e
-
+    fit = _profile(t, y, w, it, Y, P)
+    # the coarse grid on at most COARSE_EPOCHS epochs (the basin), the fine one on all
+    sub = np.unique(np.linspace(0, t.size - 1, min(t.size, COARSE_EPOCHS)).astype(int))
+    cfit = fit if sub.size == t.size else _profile(
+        t[sub], y[sub], w[sub], it, Y, _Detrend(t[sub], w[sub], knot_s))
     coarse = np.arange(-max_abs, max_abs + COARSE_STEP_S / 2, COARSE_STEP_S)
-    c0 = float(coarse[int(np.argmin([fit(float(L))[0] for L in coarse]))])
-    grid = np.arange(c0 - FINE_HALF_S, c0 + FINE_HALF_S + GRID_STEP_S / 2, GRID_STEP_S)
-    cost = np.array([fit(float(L))[0] for L in grid])
-    j = int(np.argmin(cost))
+    c0 = float(coarse[int(np.argmin([cfit(float(L))[0] for L in coarse]))])
+    for _ in range(4):  # re-centred while the minimum sits on the fine grid's edge
+        grid = np.arange(c0 - FINE_HALF_S, c0 + FINE_HALF_S + GRID_STEP_S / 2, GRID_STEP_S)
+        cost = np.array([fit(float(L))[0] for L in grid])
+        j = int(np.argmin(cost))
+        if 0 < j < grid.size - 1 or abs(float(grid[j])) >= max_abs:
+            break
+        c0 = float(grid[j])
     L = float(grid[j])
     if 0 < j < grid.size - 1:
         den = cost[j - 1] - 2 * cost[j] + cost[j + 1]
@@ -326,6 +328,23 @@ def level_offset(
     # J is orthogonal to the spline: <J, P d> = <J, d>, so |dL| <= sum w |J| D / info
     det_s = float(np.sum(w * np.abs(J) * dd)) / info
     return OffsetEstimate(L, math.sqrt(var), method, False, int(t.size), det_s)
+
+
+def _profile(
+    t: np.ndarray, y: np.ndarray, w: np.ndarray, it: np.ndarray, Y: np.ndarray, P: _Detrend
+) -> Callable[[float], tuple[float, float, np.ndarray]]:
+    """``L -> (weighted SSE, scale, residual)`` of ``y`` against ``s Y(t - L)`` with the
+    spline and the scale eliminated (Frisch-Waugh)."""
+    yt = P(y)
+
+    def fit(L: float) -> tuple[float, float, np.ndarray]:
+        Yt = P(np.interp(t - L, it, Y))
+        a, b = float(np.sum(w * yt * Yt)), float(np.sum(w * Yt * Yt))
+        sc = a / b if b > 0 else 0.0
+        e = yt - sc * Yt
+        return float(np.sum(w * e * e)), sc, e
+
+    return fit
 
 
 def _reference_variance(
