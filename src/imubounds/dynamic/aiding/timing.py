@@ -116,8 +116,8 @@ class OffsetEstimate:
             self.applied = False
             self.reason = ("reported, not applied: the stamps are taken as exact (an "
                            "assumption); on the simulator's MTx-grade trips this estimate "
-                           "is off by more than its interval says (two speed ramps per "
-                           "trip against a drifting forward acceleration)")
+                           "is up to 0.5 s off, near its interval's edge (two speed ramps "
+                           "per trip against a drifting forward acceleration)")
         elif max(-self.lo, self.hi) < b and self.lo <= 0.0 <= self.hi:
             # the data bound the offset within the allowance and hold 0: the stamps
             # stay (shifting them would split the epochs shared with other streams),
