@@ -71,7 +71,8 @@ def test_clean_trip_is_guaranteed_and_states_everything(base: Any) -> None:
     assert not bad.any() and guar.all()
     # the GNSS error model and K are stated (issue 27, item 4)
     assert any("isotropic Gaussian" in a for a in d["assumptions"])
-    assert any("rate random walk K taken as 0" in a for a in d["assumptions"])
+    # the simulator states a drift bound but not K: the bound governs (not K = 0)
+    assert any("rate random walk K not given" in a for a in d["assumptions"])
     assert any(a.startswith("heading clock: ") and "+-0.1 s" in a for a in d["assumptions"])
     # the heading check against the course is silent and signed
     for key in ("gnss", "heading"):
@@ -252,6 +253,36 @@ def test_heading_clock_bound_is_budgeted_in_the_turns(base: Any) -> None:
     assert any(a.startswith("heading clock: ") for a in d["assumptions"])
     assert not any(a.startswith("heading clock: ") for a in d0["assumptions"])
     assert d0["timing"]["heading"]["method"] == "drive.yaml"
+
+
+@pytest.mark.parametrize(("seed", "duration_s"), [(1, 1800.0), (2, 1800.0), (2, 7200.0)])
+def test_consumer_imu_bias_inside_over_trip_and_the_smoother_states(
+    seed: int, duration_s: float
+) -> None:
+    """A consumer-grade IMU (rate random walk K in the simulator, not in drive.yaml, which
+    states the drift bound) for 30 min and 2 h: the true bias (turn-on + wander, the
+    simulator's series) inside bias.over_trip at every sample of every channel, the true
+    turn-on bias inside the smoother's bias states (constant_part), the truth inside the
+    states at every epoch (issue 27 item 4; seed 2 at 2 h put the gyro z bias state
+    beside the turn-on before the drift bound entered the links and windows)."""
+    from imubounds.dynamic.scenario.imu import CHANNELS as SIM_CHANNELS
+
+    res = make_trip("paper", seed=seed, duration_s=duration_s, distance_m=duration_s * 11.7,
+                    rate_hz=50.0, aiding=AIDING, imu_preset="consumer")  # fmt: skip
+    drive = res.drive
+    assert drive.settings.imu.gyro_rrw is None and drive.settings.imu.gyro_bias_drift_dps
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any() and d["guaranteed"], d["violations"]
+    turn_on = np.asarray(res.imu_errors.turn_on, float)
+    for j, ch in enumerate(SIM_CHANNELS):
+        lo, hi = d["bias"][ch]["over_trip"]
+        x = np.asarray(drive.truth.extra[f"bias_{ch}"], float)
+        assert np.all((lo <= x) & (x <= hi)), (ch, float(x.min()), float(x.max()), lo, hi)
+        clo, chi = d["bias"][ch]["constant_part"]
+        assert clo <= turn_on[j] <= chi, (ch, turn_on[j], clo, chi)
+    assert any(a.startswith("rate random walk K not given") for a in d["assumptions"])
 
 
 def test_step_check_variance_is_exact() -> None:

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,10 +24,14 @@ from imubounds.dynamic.estimator.budget import (
     AlphaPlan,
     ChannelNoise,
     Term,
+    Wander,
     box_sum_variance,
+    drift_rule,
     kernel_variance,
     kind_of,
     resolve_noise,
+    sample_bound,
+    wander_of,
 )
 from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import (
@@ -158,6 +163,8 @@ class Context:
     E0: dict[str, float]
     D_KR: dict[str, float]
     k_ps: float
+    #: the bound of each channel's in-run bias wander (budget.Wander)
+    wander: dict[str, Wander]
     tilt: TiltSignals
     te: np.ndarray
     assumptions: list[str] = field(default_factory=list)
@@ -213,10 +220,12 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             f"({imu.bnd[0] + imu.t0:.3f}..{imu.bnd[-1] + imu.t0:.3f} s); check the clocks"
         )
     any_k = any(noise_terms[c].K > 0 or noise_terms[c].R > 0 for c in CHANNELS)
+    # a stated drift bound: + each sample's flicker deviation from its window mean
+    any_d = any(drift_rule(noise_terms[c]) != "model" for c in CHANNELS)
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
-            "imu_samples": imu.n * 6,
+            "imu_samples": imu.n * 6 * (2 if any_d else 1),
             "imu_windows": 1,
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
@@ -229,7 +238,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         },
         descriptions={
             "imu_samples": "each sample's error (per-sample bounds: magnitudes, bias over "
-            "the trip)",
+            "the trip)" + (" and, under a stated drift bound, each sample's flicker "
+                           "deviation from its window mean" if any_d else ""),
             "imu_windows": "the noise of each window mean (split equally over the tau levels)",
             "imu_changes": "the noise change between each pair of adjacent windows (the "
             "change test; split equally over the tau levels)",
@@ -250,12 +260,13 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     k_K = float(-ndtri(alpha.share() / (4 * 6))) if any_k else 0.0
     D_KR: dict[str, float] = {}
     E0: dict[str, float] = {}
+    wander: dict[str, Wander] = {}
     dt = imu.dt
     for ch in CHANNELS:
         cn = noise_terms[ch]
-        D_KR[ch] = k_K * cn.K * math.sqrt(T) + cn.R * T
-        s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2 + cn.turn_on_var()
-        E0[ch] = k_ps * math.sqrt(s2) + D_KR[ch] + cn.turn_on_det()
+        wander[ch] = wd = wander_of(cn, k_K, T, k_ps, dt)
+        D_KR[ch] = wd.kr
+        E0[ch] = sample_bound(cn, wd, k_ps, dt)
     # misalignment in the per-sample bound: other axes' largest measured magnitude
     for ch in CHANNELS:
         cn = noise_terms[ch]
@@ -302,6 +313,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         E0=E0,
         D_KR=D_KR,
         k_ps=k_ps,
+        wander=wander,
         tilt=None,  # type: ignore[arg-type]
         te=te,
         assumptions=assumed + vnotes,
@@ -442,8 +454,13 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
 
 
 def D_KR_of(ctx: Context) -> float:
-    """The rate random walk's bound of gyro z over the trip (rad/s)."""
-    return float(ctx.D_KR.get("gyro_z", 0.0))
+    """The bound of gyro z's bias wander beyond the flicker model over the trip (rad/s):
+    the rate random walk's, or under a stated drift bound without K its pointwise bound
+    (which holds the flicker too: conservative)."""
+    wd = ctx.wander.get("gyro_z")
+    if wd is None:
+        return float(ctx.D_KR.get("gyro_z", 0.0))
+    return float(wd.point if wd.rule == "stated" else wd.kr)
 
 
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
@@ -595,8 +612,8 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     ratio = max(1.0, imu.max_len / imu.dt)
     uc, inv = np.unique(cnt, return_inverse=True)
 
-    def gauss(ch: str, ramp: bool) -> np.ndarray:
-        cn = ctx.noise[ch]
+    def gauss(ch: str, ramp: bool, flicker: bool = True) -> np.ndarray:
+        cn = ctx.noise[ch] if flicker else dataclasses.replace(ctx.noise[ch], B=0.0)
         vals = []
         for m in uc:
             if ramp:
@@ -606,6 +623,19 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
                 vals.append(math.sqrt(box_sum_variance(cn, int(m), imu.dt, False)))
         return np.asarray(vals)[inv] * ratio * k_int
 
+    def wander(ch: str, ramp: bool) -> np.ndarray:
+        """The noise and the bias wander integrated over each link (flat or ramp
+        weights): the model's (Gaussian with the flicker + K, R over the trip) or the
+        stated drift bound's (Gaussian without the flicker + |d| <= point, or D_s for a
+        link of at least its window), as :class:`budget.Wander` picks."""
+        wd = ctx.wander[ch]
+        w = 0.5 * D * D if ramp else D  # the integral of the weights
+        model = gauss(ch, ramp) + wd.kr * w
+        if wd.rule == "model":
+            return model
+        lvl = wd.point if ramp else wd.over(D)
+        return np.asarray(wd.pick(model, gauss(ch, ramp, False) + lvl * w))
+
     def absint(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
         return (sig[ch].abs_integral(a, b) + ctx.E0[ch] * D) / (1.0 - cn.scale)
@@ -614,7 +644,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
 
     def det(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
-        out = ctx.D_KR[ch] * D + cn.scale * absint(ch)
+        out = cn.scale * absint(ch)
         kind = kind_of(ch)
         for other in CHANNELS:
             if other != ch and kind_of(other) == kind:
@@ -633,15 +663,15 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     c_dev = np.maximum(np.abs(inv_c - 1.0), np.abs(1.0 / np.maximum(cpr.hi, 1e-9) - 1.0))
     sec_p = 1.0 + tilt.hull("sec_p_minus_1", a, b).hi
     e_phi = (
-        gauss("gyro_z", False)
+        wander("gyro_z", False)
         + det("gyro_z")
         + r_abs * c_dev
         + q_abs * sr * sec_p
         + (EARTH_RATE + veh.max_speed / R_EARTH) * D
     )
     # heading-frame specific force errors (bias of x, y excluded: states)
-    gx, gy, gz = gauss("accel_x", False), gauss("accel_y", False), gauss("accel_z", False)
-    rx, ry, rz = gauss("accel_x", True), gauss("accel_y", True), gauss("accel_z", True)
+    gx, gy, gz = wander("accel_x", False), wander("accel_y", False), wander("accel_z", False)
+    rx, ry, rz = wander("accel_x", True), wander("accel_y", True), wander("accel_z", True)
     dx, dy, dz = det("accel_x"), det("accel_y"), det("accel_z")
     k_to = ctx.alpha.k("imu_turn_on")
     to_z = ctx.noise["accel_z"].turn_on_bound(k_to)

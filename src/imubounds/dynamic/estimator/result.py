@@ -247,11 +247,10 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     rows = {"accel_x": 0, "accel_y": 1, "gyro_z": 2}
     for ch in CHANNELS:
         cn = ctx.noise[ch]
-        wander = ctx.k_ps * cn.flicker_sigma() + ctx.D_KR[ch]
-        if cn.drift_bound is not None:
-            # a stated bound on the in-run wander holds even where the noise model
-            # (flicker, K) understates it: the larger of the two
-            wander = max(wander, float(cn.drift_bound))
+        # the in-run wander at every sample: the model's (flicker + K, R) or the stated
+        # drift bound's (its window mean + the sample's deviation), budget.Wander
+        wd = ctx.wander[ch]
+        wander = float(wd.pick(ctx.k_ps * cn.flicker_sigma() + wd.kr, wd.point))
         if sm is not None and ch in rows:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
@@ -267,6 +266,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "over_trip": [float(np.nextafter(lo - wander, -np.inf)),
                           float(np.nextafter(hi + wander, np.inf))],
             "wander_bound": wander,
+            "wander_rule": wd.rule,
             "constant_part_prior": [-cn.turn_on_bound(k_to), cn.turn_on_bound(k_to)],
             "source": src,
         }
