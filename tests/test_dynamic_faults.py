@@ -135,6 +135,23 @@ def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> No
         assert f"{off:+.0f}." in cc["detail"] or f"{off:+.1f}" in cc["detail"], cc
 
 
+@pytest.mark.parametrize("off", [0.0, 3.0, -3.0, 8.0])
+def test_heading_sensor_offset_interval_is_signed(base: Any, off: float) -> None:
+    """modes.full.heading_sensor.offset: the compass's constant offset from the check
+    against the GNSS course, signed (compass frame), its interval holding the injected
+    offset and excluding 0 at 3 deg either way; reported, not applied."""
+    d = dynamic_margins(F.heading_offset(base, off) if off else base).to_dict()
+    hs = d["heading_sensor"]
+    o = hs["offset"]
+    assert o["applied"] is False and o["epochs"] > 100
+    lo, hi = o["interval_deg"]
+    assert lo <= off <= hi, o
+    assert abs(o["estimate_deg"] - off) < 1.0
+    assert hs["course_check_passed"] is (off == 0.0)
+    if off:
+        assert not (lo <= 0.0 <= hi)
+
+
 def test_stated_clock_offset_is_applied_and_budgeted(base: Any) -> None:
     """drive.yaml gnss.time_offset_s / time_offset_bound_s: the stamps are shifted, the
     bound budgeted (the GNSS radius grows by bound x max speed), the truth inside."""
