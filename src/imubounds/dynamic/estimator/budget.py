@@ -180,6 +180,69 @@ def drift_deviation_sd(cn: ChannelNoise, dt: float) -> float:
     return math.sqrt(var)
 
 
+def link_wander(
+    cn: ChannelNoise, wd: Wander, cnt: np.ndarray, D: np.ndarray, dt: float, k: float,
+    ramp: bool,
+) -> np.ndarray:
+    """The noise and the bias wander integrated over each smoother link (``cnt`` samples,
+    length ``D``) with flat or ramp weights (``t_{j+1} - s``), as :meth:`Wander.pick`
+    combines: the model's ``k sigma(white + flicker) + kr int w`` or the stated drift
+    bound's: ``k sigma(white) + D_s D`` (flat, a link at least its window), the link's
+    share of a window's mean + the flicker on what that mean leaves (flat, shorter:
+    :func:`split_sd`), ``D_s D^2/2`` + the flicker on the centred ramp (ramp, one to two
+    windows), else ``k sigma(white) + point int w``; ``int w`` = D flat, D^2/2 ramp.
+    ``k`` includes the ratio of the longest sample to the nominal period."""
+    uc, inv = np.unique(cnt, return_inverse=True)
+
+    def per_count(f: Any) -> np.ndarray:
+        return np.asarray([f(int(m)) for m in uc])[inv] * k
+
+    def gauss(c: ChannelNoise) -> np.ndarray:
+        if ramp:
+            return per_count(lambda m: math.sqrt(kernel_variance(
+                c, dt * dt * (np.arange(m)[::-1] + 1.0), dt, False)))
+        return per_count(lambda m: math.sqrt(box_sum_variance(c, m, dt, False)))
+
+    w = 0.5 * D * D if ramp else D
+    model = gauss(cn) + wd.kr * w
+    if wd.rule == "model":
+        return model
+    white = gauss(ChannelNoise(cn.channel, N=cn.N, Q=cn.Q))
+    if ramp:
+        stated = white + wd.point * w
+        sel = (D >= wd.window_s) & (D <= 2 * wd.window_s)
+    else:
+        stated = white + wd.over(D) * D
+        sel = D < wd.window_s
+    if sel.any():
+        split = per_count(lambda m: split_sd(cn, m, dt, ramp)) + wd.stated * w
+        stated = np.where(sel, np.minimum(stated, split), stated)
+    return np.asarray(wd.pick(model, stated))
+
+
+def split_sd(cn: ChannelNoise, m: int, dt: float, ramp: bool) -> float:
+    """Standard deviation of the noise over a smoother link of ``m`` samples with the
+    wander's mean part taken out (the stated drift bound bounds it): white noise and
+    quantization on the link's weights plus the flicker on what the mean leaves. Ramp
+    (weights ``dt^2 (m - i)``): the flicker on the centred ramp. Flat, for a link shorter
+    than the drift window (``M`` samples, the link at its end, the largest of the
+    positions end, centre): the flicker on ``box(link) - (m/M) box(window)``."""
+    white = ChannelNoise(cn.channel, N=cn.N, Q=cn.Q)
+    fl = ChannelNoise(cn.channel, B=cn.B, flicker_tau_range_s=cn.flicker_tau_range_s)
+    if ramp:
+        wts = dt * dt * (np.arange(m)[::-1] + 1.0)
+        v = kernel_variance(white, wts, dt, False)
+        return math.sqrt(v + kernel_variance(fl, wts - wts.mean(), dt, False))
+    v = box_sum_variance(white, m, dt, False)
+    M = max(m, int(math.ceil(cn.drift_window_s / dt)))
+    worst = 0.0
+    for pos in {M - m, (M - m) // 2}:
+        c = np.full(M, -dt * m / M)
+        c[pos : pos + m] += dt
+        worst = max(worst, kernel_variance(fl, c, dt, False))
+    return math.sqrt(v + worst)
+
+
 @dataclass(frozen=True)
 class Wander:
     """The bound of one channel's in-run bias wander ``d(t)`` (bias minus its turn-on
@@ -486,10 +549,11 @@ def _default_assumptions(out: dict[str, ChannelNoise]) -> list[str]:
             + ": the in-run bias wander is bounded by the stated drift bound "
             "(drive.yaml imu.*_bias_drift_*, window means) wherever the bias enters a "
             "guaranteed interval (the per-sample bound, the windows' bias constraint, the "
-            "smoother links, bias.over_trip), with the flicker model only for a sample's "
-            "deviation from its window mean; the default K = 0 is used only by the "
-            "verdicts' tests (the level band where smaller than the drift bound, the change "
-            "between adjacent windows)"
+            "smoother links, bias.over_trip), with the flicker model only for the wander's "
+            "changes within a drift window or a link (a sample's deviation from its window "
+            "mean) and within the heading clock's local window; the default K = 0 is used "
+            "otherwise only by the verdicts' tests (the level band where smaller than the "
+            "drift bound, the change between adjacent windows)"
         )
     return assumed
 

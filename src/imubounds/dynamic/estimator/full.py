@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,10 +24,9 @@ from imubounds.dynamic.estimator.budget import (
     ChannelNoise,
     Term,
     Wander,
-    box_sum_variance,
     drift_rule,
-    kernel_variance,
     kind_of,
+    link_wander,
     resolve_noise,
     sample_bound,
     wander_of,
@@ -609,32 +607,11 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     D = b - a
     cnt = imu.count(a, b)
     k_int = ctx.alpha.k("imu_intervals")
-    ratio = max(1.0, imu.max_len / imu.dt)
-    uc, inv = np.unique(cnt, return_inverse=True)
-
-    def gauss(ch: str, ramp: bool, flicker: bool = True) -> np.ndarray:
-        cn = ctx.noise[ch] if flicker else dataclasses.replace(ctx.noise[ch], B=0.0)
-        vals = []
-        for m in uc:
-            if ramp:
-                wts = imu.dt * imu.dt * (np.arange(int(m))[::-1] + 1.0)
-                vals.append(math.sqrt(kernel_variance(cn, wts, imu.dt, False)))
-            else:
-                vals.append(math.sqrt(box_sum_variance(cn, int(m), imu.dt, False)))
-        return np.asarray(vals)[inv] * ratio * k_int
+    scale = max(1.0, imu.max_len / imu.dt) * k_int
 
     def wander(ch: str, ramp: bool) -> np.ndarray:
-        """The noise and the bias wander integrated over each link (flat or ramp
-        weights): the model's (Gaussian with the flicker + K, R over the trip) or the
-        stated drift bound's (Gaussian without the flicker + |d| <= point, or D_s for a
-        link of at least its window), as :class:`budget.Wander` picks."""
-        wd = ctx.wander[ch]
-        w = 0.5 * D * D if ramp else D  # the integral of the weights
-        model = gauss(ch, ramp) + wd.kr * w
-        if wd.rule == "model":
-            return model
-        lvl = wd.point if ramp else wd.over(D)
-        return np.asarray(wd.pick(model, gauss(ch, ramp, False) + lvl * w))
+        """The noise and the bias wander over each link (budget.link_wander)."""
+        return link_wander(ctx.noise[ch], ctx.wander[ch], cnt, D, imu.dt, scale, ramp)
 
     def absint(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
