@@ -184,6 +184,30 @@ def test_budget_defaults_stated_and_rrw_from_drive_yaml() -> None:
     assert not any("K taken as 0 for gyro" in a for a in assumed)
 
 
+def test_drift_rule_stated_bound_governs_without_k() -> None:
+    """The wander rule (budget.drift_rule / Wander): no drift bound -> the model; a drift
+    bound and no K -> the bound alone (the default K = 0 never narrows it), pointwise
+    D_s + k sigma_dev; both stated -> the smaller, term by term."""
+    from imubounds.dynamic.estimator.budget import drift_deviation_sd, drift_rule, wander_of
+
+    st = DriveSettings(imu=ImuSettings(accel_nd=0.002, accel_bs=0.02, gyro_nd=0.05, gyro_bs=1.0))
+    noise, _ = resolve_noise(st, None, {})
+    assert drift_rule(noise["gyro_z"]) == "model"
+    st.imu.gyro_bias_drift_dps = 0.5
+    noise, assumed = resolve_noise(st, None, {})
+    gz = noise["gyro_z"]
+    assert drift_rule(gz) == "stated"
+    assert any(a.startswith("rate random walk K not given for gyro_x") for a in assumed)
+    wd = wander_of(gz, 3.0, 600.0, 5.0, 0.01)
+    assert wd.kr == 0.0 and wd.stated == pytest.approx(math.radians(0.5))
+    assert wd.point == pytest.approx(wd.stated + 5.0 * drift_deviation_sd(gz, 0.01))
+    assert wd.point > wd.stated and float(wd.pick(0.0, 1.0)) == 1.0
+    st.imu.gyro_rrw = 0.01
+    noise, _ = resolve_noise(st, None, {})
+    wd = wander_of(noise["gyro_z"], 3.0, 600.0, 5.0, 0.01)
+    assert wd.rule == "both" and wd.kr > 0 and float(wd.pick(0.2, 0.1)) == 0.1
+
+
 def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, capsys: Any) -> None:
     import pandas as pd
 
@@ -272,7 +296,10 @@ def test_heading_clock_bound_is_budgeted_in_the_turns(base: Any) -> None:
     assert d0["timing"]["heading"]["method"] == "drive.yaml"
 
 
-@pytest.mark.parametrize(("seed", "duration_s"), [(1, 1800.0), (2, 1800.0), (2, 7200.0)])
+@pytest.mark.parametrize(
+    ("seed", "duration_s"),
+    [(1, 1800.0), (2, 1800.0), (3, 1800.0), (4, 1800.0), (1, 7200.0), (2, 7200.0), (3, 7200.0)],
+)
 def test_consumer_imu_bias_inside_over_trip_and_the_smoother_states(
     seed: int, duration_s: float
 ) -> None:
