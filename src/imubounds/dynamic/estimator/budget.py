@@ -246,7 +246,7 @@ def split_sd(cn: ChannelNoise, m: int, dt: float, ramp: bool) -> float:
 @dataclass(frozen=True)
 class Wander:
     """The bound of one channel's in-run bias wander ``d(t)`` (bias minus its turn-on
-    value) used everywhere the bias enters: the per-sample bound, the window bands and the
+    value) wherever the bias enters a guaranteed interval: the per-sample bound, the
     windows' bias constraint, the smoother links and ``bias.over_trip``
     (:func:`wander_of`; docs/dynamic-method.md, section 1).
 

@@ -939,6 +939,14 @@ def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:
             f"over T = {ctx.imu.duration:.1f} s",
         ),
         Term(
+            "bias wander at a sample under the drift bound D_s + k sigma_dev",
+            ctx.wander[ch].point if ctx.wander[ch].rule != "model" else float("nan"),
+            unit,
+            "computed",
+            f"rule {ctx.wander[ch].rule} (model: flicker + K, R; stated: the drift bound "
+            "alone, no K given; both: the smaller), docs/dynamic-method.md section 1",
+        ),
+        Term(
             "scale-factor error",
             cn.scale,
             "fraction",
