@@ -23,11 +23,16 @@ from imubounds.dynamic.estimator.budget import (
     AlphaPlan,
     ChannelNoise,
     Term,
+    Wander,
     box_sum_variance,
+    drift_rule,
     k_two_sided,
     kernel_variance,
     kind_of,
+    link_wander,
     resolve_noise,
+    sample_bound,
+    wander_of,
 )
 from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import (
@@ -159,6 +164,8 @@ class Context:
     E0: dict[str, float]
     D_KR: dict[str, float]
     k_ps: float
+    #: the bound of each channel's in-run bias wander (budget.Wander)
+    wander: dict[str, Wander]
     tilt: TiltSignals
     te: np.ndarray
     assumptions: list[str] = field(default_factory=list)
@@ -214,10 +221,12 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             f"({imu.bnd[0] + imu.t0:.3f}..{imu.bnd[-1] + imu.t0:.3f} s); check the clocks"
         )
     any_k = any(noise_terms[c].K > 0 or noise_terms[c].R > 0 for c in CHANNELS)
+    # a stated drift bound: + each sample's flicker deviation from its window mean
+    any_d = any(drift_rule(noise_terms[c]) != "model" for c in CHANNELS)
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
-            "imu_samples": imu.n * 6,
+            "imu_samples": imu.n * 6 * (2 if any_d else 1),
             "imu_windows": 1,
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
@@ -230,7 +239,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         },
         descriptions={
             "imu_samples": "each sample's error (per-sample bounds: magnitudes, bias over "
-            "the trip)",
+            "the trip)" + (" and, under a stated drift bound, each sample's flicker "
+                           "deviation from its window mean" if any_d else ""),
             "imu_windows": "the noise of each window mean (split equally over the tau levels)",
             "imu_changes": "the noise change between each pair of adjacent windows (the "
             "change test; split equally over the tau levels)",
@@ -276,12 +286,13 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     k_K = float(-ndtri(alpha.share() / (4 * 6))) if any_k else 0.0
     D_KR: dict[str, float] = {}
     E0: dict[str, float] = {}
+    wander: dict[str, Wander] = {}
     dt = imu.dt
     for ch in CHANNELS:
         cn = noise_terms[ch]
-        D_KR[ch] = k_K * cn.K * math.sqrt(T) + cn.R * T
-        s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2 + cn.turn_on_var()
-        E0[ch] = k_ps * math.sqrt(s2) + D_KR[ch] + cn.turn_on_det()
+        wander[ch] = wd = wander_of(cn, k_K, T, k_ps, dt)
+        D_KR[ch] = wd.kr
+        E0[ch] = sample_bound(cn, wd, k_ps, dt)
     # misalignment in the per-sample bound: other axes' largest measured magnitude
     for ch in CHANNELS:
         cn = noise_terms[ch]
@@ -318,6 +329,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         E0=E0,
         D_KR=D_KR,
         k_ps=k_ps,
+        wander=wander,
         tilt=None,  # type: ignore[arg-type]
         te=te,
         assumptions=assumed + vnotes,
@@ -435,7 +447,6 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     interval ``beta0``, + its half-width x b + k of the noise integrated over b
     (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
     from imubounds.dynamic.aiding import timing as TM
-    from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
 
     ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
     if not _heading_clock_default(ag, ctx.timing):
@@ -469,8 +480,13 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
 
 
 def D_KR_of(ctx: Context) -> float:
-    """The rate random walk's bound of gyro z over the trip (rad/s)."""
-    return float(ctx.D_KR.get("gyro_z", 0.0))
+    """The bound of gyro z's bias wander beyond the flicker model over the trip (rad/s):
+    the rate random walk's, or under a stated drift bound without K its pointwise bound
+    (which holds the flicker too: conservative)."""
+    wd = ctx.wander.get("gyro_z")
+    if wd is None:
+        return float(ctx.D_KR.get("gyro_z", 0.0))
+    return float(wd.point if wd.rule == "stated" else wd.kr)
 
 
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
@@ -602,19 +618,11 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     D = b - a
     cnt = imu.count(a, b)
     k_int = ctx.alpha.k("imu_intervals")
-    ratio = max(1.0, imu.max_len / imu.dt)
-    uc, inv = np.unique(cnt, return_inverse=True)
+    scale = max(1.0, imu.max_len / imu.dt) * k_int
 
-    def gauss(ch: str, ramp: bool) -> np.ndarray:
-        cn = ctx.noise[ch]
-        vals = []
-        for m in uc:
-            if ramp:
-                wts = imu.dt * imu.dt * (np.arange(int(m))[::-1] + 1.0)
-                vals.append(math.sqrt(kernel_variance(cn, wts, imu.dt, False)))
-            else:
-                vals.append(math.sqrt(box_sum_variance(cn, int(m), imu.dt, False)))
-        return np.asarray(vals)[inv] * ratio * k_int
+    def wander(ch: str, ramp: bool) -> np.ndarray:
+        """The noise and the bias wander over each link (budget.link_wander)."""
+        return link_wander(ctx.noise[ch], ctx.wander[ch], cnt, D, imu.dt, scale, ramp)
 
     def absint(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
@@ -624,7 +632,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
 
     def det(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
-        out = ctx.D_KR[ch] * D + cn.scale * absint(ch)
+        out = cn.scale * absint(ch)
         kind = kind_of(ch)
         for other in CHANNELS:
             if other != ch and kind_of(other) == kind:
@@ -643,15 +651,15 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     c_dev = np.maximum(np.abs(inv_c - 1.0), np.abs(1.0 / np.maximum(cpr.hi, 1e-9) - 1.0))
     sec_p = 1.0 + tilt.hull("sec_p_minus_1", a, b).hi
     e_phi = (
-        gauss("gyro_z", False)
+        wander("gyro_z", False)
         + det("gyro_z")
         + r_abs * c_dev
         + q_abs * sr * sec_p
         + (EARTH_RATE + veh.max_speed / R_EARTH) * D
     )
     # heading-frame specific force errors (bias of x, y excluded: states)
-    gx, gy, gz = gauss("accel_x", False), gauss("accel_y", False), gauss("accel_z", False)
-    rx, ry, rz = gauss("accel_x", True), gauss("accel_y", True), gauss("accel_z", True)
+    gx, gy, gz = wander("accel_x", False), wander("accel_y", False), wander("accel_z", False)
+    rx, ry, rz = wander("accel_x", True), wander("accel_y", True), wander("accel_z", True)
     dx, dy, dz = det("accel_x"), det("accel_y"), det("accel_z")
     k_to = ctx.alpha.k("imu_turn_on")
     to_z = ctx.noise["accel_z"].turn_on_bound(k_to)
@@ -940,6 +948,14 @@ def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:
             unit,
             "computed",
             f"over T = {ctx.imu.duration:.1f} s",
+        ),
+        Term(
+            "bias wander at a sample under the drift bound D_s + k sigma_dev",
+            ctx.wander[ch].point if ctx.wander[ch].rule != "model" else float("nan"),
+            unit,
+            "computed",
+            f"rule {ctx.wander[ch].rule} (model: flicker + K, R; stated: the drift bound "
+            "alone, no K given; both: the smaller), docs/dynamic-method.md section 1",
         ),
         Term(
             "scale-factor error",
