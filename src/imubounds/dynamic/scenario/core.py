@@ -139,7 +139,7 @@ def _vehicle(cfg: ScenarioConfig, tru: dict[str, Array], dt: float) -> VehicleSe
     acc = tru["acc_enu"]
     jerk = np.linalg.norm(np.diff(acc, axis=0), axis=1) / dt
     return VehicleSettings(
-        kind="ground",
+        kind=cfg.vehicle_kind,
         max_speed_mps=_round_up(float(tru["speed"].max())),
         max_accel_mps2=_round_up(float(np.linalg.norm(acc, axis=1).max())),
         max_jerk_mps3=_round_up(float(jerk.max())),
