@@ -115,3 +115,55 @@ def test_quadrotor_pitch_beyond_the_tilt_cap(main, tmp_path: Path) -> None:  # t
         assert rows, ch
         hw = np.array([r["halfwidth_median"] for r in rows])
         assert np.all(np.isfinite(hw)), ch
+
+
+# ------------------------------------------------------------------------- comma2k19
+
+
+def _comma_pitch(d: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """From ``global_pose`` alone (no imubounds code): the phone's pitch (its x axis above
+    the local horizontal), the elevation of its velocity, and the times."""
+
+    def load(rel: str) -> np.ndarray:
+        with open(d / rel, "rb") as fh:
+            return np.asarray(np.load(fh, allow_pickle=False), dtype=float)
+
+    t = load("global_pose/frame_times")
+    pos = load("global_pose/frame_positions")
+    vel = load("global_pose/frame_velocities")
+    w, x, y, z = load("global_pose/frame_orientations").T  # (w, x, y, z), body -> ECEF
+    fwd = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], -1)
+    up = pos / np.linalg.norm(pos, axis=1)[:, None]  # local vertical (sphere: < 0.2 deg)
+    pitch = np.arcsin(np.einsum("ij,ij->i", fwd, up))
+    v_up = np.einsum("ij,ij->i", vel, up)
+    v_h = np.linalg.norm(vel - v_up[:, None] * up, axis=1)
+    return t, pitch, np.arctan2(v_up, v_h)
+
+
+@pytest.mark.slow
+def test_comma2k19_tilt_bound_and_what_bounds_accel_x(shared_data: Path) -> None:
+    """comma2k19 (issue 24's "done when": accel_x <= 0.5 m/s^2 at tau = 10 s): the tilt
+    bound used encloses the phone's true pitch at every epoch, the accel_x interval at
+    tau ~ 10 s is gravity through the default tilt plus ~0.2 m/s^2, and the notes name the
+    default tilt as the dominant term. The truth shows why the data cannot give a tighter
+    tilt: the phone sits ~3.75 deg nose-down against its velocity (a constant the
+    accelerometer cannot tell from its bias), so a zero-centred bound needs >= 6 deg,
+    and 0.5 m/s^2 would need the pitch to +-1.76 deg at every epoch."""
+    from imubounds.cli.dynamic import load_drive
+    from imubounds.dynamic.estimator import dynamic_margins
+
+    d = shared_data / "dynamic" / "comma2k19_example1"
+    t, pitch, elev = _comma_pitch(d)
+    beta = pitch - elev
+    assert -4.5 < float(np.degrees(beta.mean())) < -3.0  # the mount, not the road
+    assert float(np.degrees(np.abs(pitch).max())) > 6.0
+    full = dynamic_margins(load_drive([str(d)])).to_dict()
+    tilt = math.radians(full["vehicle"]["max_tilt_deg"])
+    assert np.all(np.abs(pitch) <= tilt)  # the tilt input encloses the truth
+    row = _at(full, "accel_x", 10.0)
+    grav = 9.84 * math.sin(tilt)
+    assert grav <= row["halfwidth_median"] <= grav + 0.3, row
+    notes = full["verdict_detail"]["accel_x"]["notes"]
+    assert any("default maximum tilt" in n and "mount pitch" in n for n in notes), notes
+    for q in ("position", "heading", "speed", "u", "v"):
+        assert full["enclosure"][q] == 1.0, q
