@@ -71,6 +71,17 @@ def test_rotated_imu_is_written_in_sensor_axes(main, tmp_path: Path) -> None:  #
     assert scen["true_values"]["aiding"]["velocity"]["lag_s"] == 0.3
     vel = pd.read_csv(d / "velocity.csv")
     assert float(vel["time_s"].iloc[0]) == pytest.approx(0.3)
+    # the same drive with imu_axes left out of drive.yaml: the rotated mount does not pass
+    # silently (the input warnings name the imu_axes that fits; not guaranteed)
+    y = d / "drive.yaml"
+    lines = y.read_text().splitlines(True)
+    i = next(k for k, x in enumerate(lines) if x.startswith("imu_axes:"))
+    y.write_text("".join(lines[:i] + lines[i + 4:]))
+    out = tmp_path / "out"
+    assert main(["dynamic", str(d), "--mode", "full", "-o", str(out), "--no-report"]) == 0
+    doc = json.loads((out / "dynamic.json").read_text())
+    assert any("imu_axes [x, -z, y]" in w for w in doc["input"]["warnings"])
+    assert doc["modes"]["full"]["guaranteed"] is False
 
 
 def test_ground_robot_clean(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
@@ -167,3 +178,16 @@ def test_comma2k19_tilt_bound_and_what_bounds_accel_x(shared_data: Path) -> None
     assert any("default maximum tilt" in n and "mount pitch" in n for n in notes), notes
     for q in ("position", "heading", "speed", "u", "v"):
         assert full["enclosure"][q] == 1.0, q
+
+
+def test_simulator_mount_options_are_checked() -> None:
+    from imubounds.dynamic.scenario import ScenarioConfig
+    from imubounds.errors import OptionError
+
+    with pytest.raises(OptionError, match="imu-axes"):
+        ScenarioConfig(imu_axes=("x", "x", "z")).check()
+    with pytest.raises(OptionError, match="vehicle kind"):
+        ScenarioConfig(vehicle_kind="boat").check()
+    with pytest.raises(OptionError, match="velocity_lag_s"):
+        ScenarioConfig(velocity_lag_s=-0.1).check()
+    ScenarioConfig(imu_axes=("x", "-z", "y"), vehicle_kind="air", velocity_lag_s=0.3).check()
