@@ -69,6 +69,7 @@ def test_rotated_imu_is_written_in_sensor_axes(main, tmp_path: Path) -> None:  #
     assert "- -z" in (d / "drive.yaml").read_text()
     scen = json.loads((d / "scenario.json").read_text())
     assert scen["true_values"]["aiding"]["velocity"]["lag_s"] == 0.3
+    assert any(f["kind"] == "lag" for f in scen["record"]["faults"])  # not a clean record
     vel = pd.read_csv(d / "velocity.csv")
     assert float(vel["time_s"].iloc[0]) == pytest.approx(0.3)
     # the same drive with imu_axes left out of drive.yaml: the rotated mount does not pass

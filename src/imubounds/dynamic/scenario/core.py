@@ -270,6 +270,18 @@ def simulate(cfg: ScenarioConfig | None = None) -> SimResult:
                 "first_index": int(hit[0]) if hit.size else None,
             }
         )
+    if cfg.velocity_lag_s > 0 and aid.velocity is not None:
+        # an unstated timing error: the record is not clean
+        record.faults.append(
+            {
+                "label": f"velocity:lag={cfg.velocity_lag_s:g}",
+                "channel": "velocity",
+                "kind": "lag",
+                "value": cfg.velocity_lag_s,
+                "t0_s": 0.0,
+                "first_index": 0,
+            }
+        )
     drive = Drive(
         imu=ImuStream(
             t=t, accel=meas[:, :3], gyro=meas[:, 3:], input_units={"gyro": "rads", "accel": "mps2"}
