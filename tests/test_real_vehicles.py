@@ -105,6 +105,20 @@ def test_ground_robot_fault_from_mid_log(main, tmp_path: Path, ch: str, value: f
     assert "exceeds" not in others.values(), full["verdict"]
 
 
+@pytest.mark.slow
+def test_lagging_odometry_on_a_fast_vehicle_is_not_silent(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """On the robot the 0.3 s lag moves the speed by < 0.02 m/s (inside the odometry's
+    bound); on a 10 m/s vehicle braking for 20 m corners it is ~0.6 m/s: the run is then
+    not guaranteed (the smoother's checks fail), never silently wrong."""
+    fast = [*ROBOT, "--distance", "3000"]
+    full = _run(main, tmp_path / "lag", fast)
+    assert full["guaranteed"] is False
+    assert full["violations"]
+    ok = _run(main, tmp_path / "no_lag", [*fast, "--velocity-lag", "0"])  # the control
+    assert ok["guaranteed"] is True
+    assert ok["enclosure"]["u"] == 1.0
+
+
 def _drop_stated_tilt(d: Path) -> None:
     y = d / "drive.yaml"
     y.write_text("".join(x for x in y.read_text().splitlines(True) if "max_tilt_deg" not in x))
