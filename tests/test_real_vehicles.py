@@ -226,6 +226,8 @@ def test_vn100_what_dominates_accel_x(shared_data: Path) -> None:
     notes = full["verdict_detail"]["accel_x"]["notes"]
     assert any("lateral_speed_bound_mps" in n for n in notes), notes
     assert full["aiding_budget"]["attitude"][0]["source"] == "default"
+    # gyro_x's psi' sin(pitch) from the heading's mean rate: +-0.013 rad/s (was +-0.032)
+    assert _at(full, "gyro_x", 12.6)["halfwidth_median"] < 0.02
     car = dynamic_margins(load_drive([str(d)]), lateral_speed_bound_mps=0.5).to_dict()
     assert _at(car, "accel_x", 12.6)["halfwidth_median"] < 2.5
     for ch, rows in car["margins"].items():

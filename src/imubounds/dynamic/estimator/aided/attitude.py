@@ -13,7 +13,7 @@ import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import psi_dot_abs
+from imubounds.dynamic.estimator.aided.heading import heading_at, psi_dot_abs
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -48,13 +48,32 @@ def q_mean(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p1: IA, p2: IA) -> 
     return (p1 - p2) / IA(tau) * IA(c0) + pm(rate * cdev) + pm(psid * sr)
 
 
+def _psidot_sinp(w: WindowContext, lp: LevelPlan, tau: np.ndarray, psid: np.ndarray) -> IA:
+    """Kernel mean of ``psi' sin(pitch)`` (boxcar ``[a1, a2]``): ``+- mean|psi'| max|sin
+    pitch|``, intersected where there is a heading with ``s0 (psi(a2) - psi(a1))/tau +-
+    mean|psi'| max|sin pitch - s0|`` (``s0`` the middle of sin(pitch) over the window):
+    the yaw rate's mean from the heading, only the pitch's variation times |psi'|."""
+    sp = w.tilt.hull("abs_sinp", lp.a1, lp.b2).hi
+    out = pm(psid * sp)
+    if not w.ag.has_heading:
+        return out
+    h = w.tilt.hull("sinp", lp.a1, lp.b2)
+    s0 = h.mid()
+    ds = up(np.maximum(h.hi - s0, s0 - h.lo))
+    mean_psid = (heading_at(w, lp.a2) - heading_at(w, lp.a1)) / IA(tau)
+    alt = mean_psid * IA(s0) + pm(psid * ds)
+    lo = np.maximum(out.lo, alt.lo)
+    hi = np.minimum(out.hi, alt.hi)
+    ok = np.isfinite(lo) & np.isfinite(hi) & (lo <= hi)
+    return IA(np.where(ok, lo, out.lo), np.where(ok, hi, out.hi))
+
+
 def gyro_x(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
     """``[x_W]`` of gyro_x: ``p = roll' + psi' sin(pitch)``."""
     r1, r2, _, _ = _ends(w, lp)
     supp = lp.b2 - lp.a1
     psid = up(psi_dot_abs(w, lp.a1, lp.b2) * supp / tau)
-    sp = w.tilt.hull("abs_sinp", lp.a1, lp.b2).hi
-    return (r2 - r1) / IA(tau) + pm(psid * sp) + _earth_rate(w)
+    return (r2 - r1) / IA(tau) + _psidot_sinp(w, lp, tau, psid) + _earth_rate(w)
 
 
 def gyro_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
