@@ -33,7 +33,7 @@ from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.aided.yaw import gyro_z
 from imubounds.dynamic.estimator.band import change_band, level_band
 from imubounds.dynamic.estimator.budget import UNITS, k_two_sided
-from imubounds.dynamic.estimator.vehicle_bounds import dominant_default
+from imubounds.dynamic.estimator.vehicle_bounds import dominant_default, dominant_transport
 from imubounds.dynamic.estimator.verdicts import (
     HOW_TO_REFERENCE,
     NO_REFERENCE,
@@ -156,6 +156,13 @@ class MarginBuilder(WindowContext):
         if aided:
             last = aided[-1].summary()
             note = dominant_default(ch, self.veh, last["halfwidth_median"], last["tau_s"])
+            if note:
+                out.notes.append(note)
+            gz = self.ctx.imu.sig["gyro_z"]
+            mean_r = float(gz.AB[-1]) / max(self.ctx.imu.duration, 1e-300)
+            note = dominant_transport(
+                ch, self.veh, last["halfwidth_median"], last["tau_s"], mean_r
+            )
             if note:
                 out.notes.append(note)
         return out
