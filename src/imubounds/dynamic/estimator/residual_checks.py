@@ -163,10 +163,12 @@ def imu_trapezoid(
     smoothed heading at ``t_l`` + the gyro z integrated from ``t_l``, less the centre of
     the smoothed yaw-rate bias; ``b^`` the centre of the smoothed accel bias). Returns
     per pair (``c^`` (n-1, 2); the variance of its noise error per axis, the larger of
-    accel x's and y's ``budget.kernel_variance`` for the weights ``(s_k - t_m) len_k``
-    (white: ``N^2 sum (s_k - t_m)^2 len_k``, and flicker; the turn-on bias is in the
-    bias term below; pairs are taken as independent: each kernel has zero mean); a
-    bound ``det`` of the rest):
+    accel x's and y's for the weights ``c_k = (s_k - t_m) len_k``: white ``N^2 sum
+    (s_k - t_m)^2 len_k``, quantization ``Q^2 sum (diff c)^2 / h^2``, and the slow
+    processes (flicker ``sum sigma_i^2`` of its Gauss-Markov terms, rate random walk
+    ``K^2 dt / 2``) at most ``(sum |c_k|)^2`` times their variance; the turn-on bias is
+    in the bias term below; pairs are taken as independent: each kernel has zero mean);
+    a bound ``det`` of the rest):
 
     * heading error ``Delta(t) = d0 + e (t - t_l) + GYRO_K N_g sqrt(dt) + (s_g + m_g)
       int |gyro z|`` (``d0`` the smoothed heading's half-width at ``t_l``, ``e`` the
@@ -201,8 +203,6 @@ def imu_trapezoid(
     bx, by, bg = (0.5 * (beta[i, 0] + beta[i, 1]) for i in range(3))
     bw = float(max(0.5 * (beta[0, 1] - beta[0, 0]), 0.5 * (beta[1, 1] - beta[1, 0])))
     eps = float(0.5 * (beta[2, 1] - beta[2, 0]))
-    from imubounds.dynamic.estimator.budget import kernel_variance
-
     nx, ny = ctx.noise["accel_x"], ctx.noise["accel_y"]
     ng = ctx.noise["gyro_z"].N
     sgz = ctx.noise["gyro_z"].scale + ctx.noise["gyro_z"].misalignment_rad
@@ -216,37 +216,62 @@ def imu_trapezoid(
     ie = np.searchsorted(sm.te, t).clip(0, sm.te.size - 1)
     psi = sm.X[ie, SM.PSI]
     has = (sm.te[ie] == t) & np.all(np.isfinite(psi), axis=1)
-    k0 = np.searchsorted(bnd, t, side="right") - 1
-    for j in range(n - 1):
-        a, b = max(int(k0[j]), 0), min(int(k0[j + 1]) + 1, bnd.size - 1)
-        if not has[j] or b <= a or bnd[a] > t[j] or bnd[b] < t[j + 1] or unk[a:b].any():
-            continue
-        s0 = np.maximum(bnd[a:b], t[j])
-        s1 = np.minimum(bnd[a + 1:b + 1], t[j + 1])
-        ln = np.maximum(s1 - s0, 0.0)
-        gz = sg.y[a:b] - bg
-        ph = 0.5 * (psi[j, 0] + psi[j, 1]) + np.cumsum(gz * ln) - 0.5 * gz * ln
-        fx, fy = sx.y[a:b] - bx, sy.y[a:b] - by
-        ae = np.cos(ph) * fx - np.sin(ph) * fy
-        an = np.sin(ph) * fx + np.cos(ph) * fy
-        u = 0.5 * (s0 + s1) - 0.5 * (t[j] + t[j + 1])
-        fa = np.hypot(fx, fy) + math.sqrt(2.0) * bw
-        A1 = float(np.sum(np.abs(u) * fa * ln))
-        A2 = float(np.sum(u * u * fa * ln))
-        d0 = 0.5 * float(psi[j, 1] - psi[j, 0])
-        D = (d0 + eps * dt[j] + GYRO_K * ng * math.sqrt(dt[j])
-             + sgz * float(np.sum(np.abs(sg.y[a:b]) * ln)))  # fmt: skip
-        dj = (
-            d0 * cb[j] + eps * (A2 + 0.5 * dt[j] * cb[j]) + 0.5 * D * D * A1
-            + (sc + mis + 1.0 - math.cos(tilt)) * A1 + 0.5 * g * math.sin(tilt) * dt[j] ** 2
-            + math.sqrt(2.0) * bw * rmax * dt[j] ** 3 / 12.0 + jerk * float(np.sum(ln**3)) / 12.0
-        )  # fmt: skip
-        if dj < cb[j]:
-            chat[j] = (float(np.sum(u * ae * ln)), float(np.sum(u * an * ln)))
-            ck = u * ln
-            h = float(np.median(ln))
-            var[j] = max(kernel_variance(nx, ck, h, False), kernel_variance(ny, ck, h, False))
-            det[j] = dj
+    psi = np.where(has[:, None], psi, 0.0)
+    # sub-segments: the IMU segments cut at the fixes; j = their pair, k = their segment
+    inner = t[(t > bnd[0]) & (t < bnd[-1])]
+    cuts = np.union1d(bnd, inner)
+    s0, s1 = cuts[:-1], cuts[1:]
+    mid_s = 0.5 * (s0 + s1)
+    j = np.searchsorted(t, mid_s, side="right") - 1
+    k = (np.searchsorted(bnd, mid_s, side="right") - 1).clip(0, bnd.size - 2)
+    sel = (j >= 0) & (j < n - 1) & (s1 > s0)
+    j, k, s0, s1, mid_s = j[sel], k[sel], s0[sel], s1[sel], mid_s[sel]
+    ln = s1 - s0
+    npair = n - 1
+    covered = np.bincount(j, ln, npair)
+    bad = np.bincount(j, unk[k].astype(float), npair) > 0
+    ok = has[:-1] & ~bad & (np.abs(covered - dt) <= 1e-9 * np.maximum(dt, 1.0))
+    gz = sg.y[k] - bg
+    cg = np.cumsum(gz * ln)
+    first = np.r_[True, j[1:] != j[:-1]]
+    base = np.maximum.accumulate(np.where(first, np.arange(j.size), 0))
+    ph = (0.5 * (psi[j, 0] + psi[j, 1]) + cg - (cg[base] - gz[base] * ln[base])
+          - 0.5 * gz * ln)  # fmt: skip
+    fx, fy = sx.y[k] - bx, sy.y[k] - by
+    u = mid_s - 0.5 * (t[j] + t[j + 1])
+    ce, cn = np.cos(ph), np.sin(ph)
+    cu = u * ln
+    ch_e = np.bincount(j, cu * (ce * fx - cn * fy), npair)
+    ch_n = np.bincount(j, cu * (cn * fx + ce * fy), npair)
+    fa = np.hypot(fx, fy) + math.sqrt(2.0) * bw
+    A1 = np.bincount(j, np.abs(cu) * fa, npair)
+    A2 = np.bincount(j, u * cu * fa, npair)
+    turn = np.bincount(j, np.abs(sg.y[k]) * ln, npair)
+    cube = np.bincount(j, ln**3, npair)
+    # noise of c^: white exactly, the rest (flicker, rate random walk) by sum |c_k|
+    u2 = np.bincount(j, u * cu, npair)
+    c1 = np.bincount(j, np.abs(cu), npair)
+    last = np.r_[j[1:] != j[:-1], True]
+    dc = np.where(first, cu, cu - np.r_[0.0, cu[:-1]])
+    dq = np.bincount(j, dc**2 + np.where(last, cu**2, 0.0), npair)
+    h = float(np.median(ln)) if ln.size else 1.0
+
+    def noise_var(cn_: Any) -> np.ndarray:
+        slow = sum(sg_ * sg_ for sg_, _ in cn_.gm_terms()) + 0.5 * cn_.K**2 * dt
+        return np.asarray(cn_.N**2 * u2 + cn_.Q**2 * dq / h**2 + c1**2 * slow)
+
+    D = (0.5 * (psi[:-1, 1] - psi[:-1, 0]) + eps * dt + GYRO_K * ng * np.sqrt(dt)
+         + sgz * turn)  # fmt: skip
+    d0 = 0.5 * (psi[:-1, 1] - psi[:-1, 0])
+    dj = (
+        d0 * cb + eps * (A2 + 0.5 * dt * cb) + 0.5 * D * D * A1
+        + (sc + mis + 1.0 - math.cos(tilt)) * A1 + 0.5 * g * math.sin(tilt) * dt**2
+        + math.sqrt(2.0) * bw * rmax * dt**3 / 12.0 + jerk * cube / 12.0
+    )  # fmt: skip
+    use = ok & np.isfinite(dj) & (dj < cb)
+    chat[use, 0], chat[use, 1] = ch_e[use], ch_n[use]
+    var[use] = np.maximum(noise_var(nx), noise_var(ny))[use]
+    det[use] = dj[use]
     return chat, var, det
 
 
