@@ -332,3 +332,24 @@ def test_imu_trapezoid_correction_holds_the_truth() -> None:
     jerk = ctx.vehicle.max_jerk * dt**3 / 12.0
     assert np.all(det <= jerk + 1e-15) and np.median(det) < 0.5 * np.median(jerk)
     assert float(np.max(np.abs(chat))) > 0.01  # the trip accelerates: a real correction
+
+
+def test_clean_sweep_command_counts_per_check(capsys: Any) -> None:
+    """``benchmarks/sweep_faults.py --clean N [FIRST]`` (the 50-trip clean sweep of issue
+    27's done-when, by hand) on 2 trips: every trip enclosed and guaranteed, and the
+    summary counts the trips per check against what its stated level allows."""
+    import importlib.util
+    import json
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "sweep_faults.py"
+    spec = importlib.util.spec_from_file_location("sweep_faults", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    summary = mod.clean_sweep(2, 9)
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [r["seed"] for r in lines] == [9, 10]
+    assert summary["enclosed"] == 2 and summary["silent"] == 0 and summary["guaranteed"] == 2
+    checks = summary["per_check"]
+    assert checks["residual checks (every test of residual_checks)"]["level_alpha"] == 0.25
+    assert all(0 <= c["trips"] <= c["allowed"] for c in checks.values()), checks
