@@ -6,8 +6,8 @@ Each case must end with the truth inside at every epoch, or with ``guaranteed: f
 and violations whose spans cover every epoch that misses. The truth is checked here,
 independently of the estimator's own enclosure code: the simulator's truth is moved
 into the estimator's ENU frame with pymap3d and compared with states.csv's intervals.
-A larger sweep (more seeds, lags, steps, a 30-min consumer-grade IMU) is run by hand
-(see the issue-27 note) to keep this file within its CI budget.
+A larger sweep (more seeds, lags, steps) is run by hand (benchmarks/sweep_faults.py) to
+keep this file within its CI budget; the consumer-grade IMU (30 min and 2 h) is here.
 """
 
 from __future__ import annotations
@@ -71,7 +71,8 @@ def test_clean_trip_is_guaranteed_and_states_everything(base: Any) -> None:
     assert not bad.any() and guar.all()
     # the GNSS error model and K are stated (issue 27, item 4)
     assert any("isotropic Gaussian" in a for a in d["assumptions"])
-    assert any("rate random walk K taken as 0" in a for a in d["assumptions"])
+    # the simulator states a drift bound but not K: the bound governs (not K = 0)
+    assert any("rate random walk K not given" in a for a in d["assumptions"])
     assert any(a.startswith("heading clock: ") and "+-0.1 s" in a for a in d["assumptions"])
     # the heading check against the course is silent and signed
     for key in ("gnss", "heading"):
@@ -88,11 +89,13 @@ CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
     "compass offset +3 deg": (F.heading_offset, {"offset_deg": 3.0}, "heading sensor"),
     "compass offset -3 deg": (F.heading_offset, {"offset_deg": -3.0}, "heading sensor"),
     "compass offset 8 deg": (F.heading_offset, {"offset_deg": 8.0}, "heading sensor"),
+    "multipath 5 m": (F.multipath, {"step_m": 5.0, "t0_s": 100.0}, "GNSS position step"),
     "multipath 8 m": (F.multipath, {"step_m": 8.0, "t0_s": 100.0}, "GNSS position step"),
     "multipath 12 m": (F.multipath, {"step_m": 12.0, "t0_s": 60.0}, "GNSS position step"),
-    "GNSS lag 0.3 s": (F.gnss_lag, {"lag_s": 0.3}, "heading sensor"),
+    # the clock offsets are estimated from the data and applied (aiding/timing.py)
+    "GNSS lag 0.3 s": (F.gnss_lag, {"lag_s": 0.3}, None),
     "GNSS lag 0.5 s": (F.gnss_lag, {"lag_s": 0.5}, None),
-    "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, "heading sensor"),
+    "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, None),
     "compass lag 0.5 s": (F.heading_lag, {"lag_s": 0.5}, None),
     # within the default heading clock bound (0.1 s): enclosed, budgeted in the turns
     "compass lag 0.1 s": (F.heading_lag, {"lag_s": 0.1}, None),
@@ -122,6 +125,20 @@ def test_fault_is_enclosed_or_withdrawn(base: Any, case: str) -> None:
         assert v["t_start_s"] <= v["t_end_s"] and v["detail"]
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["wheel", "dvl"])
+def test_body_velocity_lag_is_enclosed_or_withdrawn(kind: str) -> None:
+    """Wheel speed or DVL stamps 0.3 s late: the offset is reported (not applied) and
+    the truth is inside at every guaranteed epoch."""
+    drive = make_trip("paper", seed=7, aiding=(*AIDING, kind), **TRIP).drive
+    bad_drive = F.velocity_lag(drive, 0.3)
+    r = dynamic_margins(bad_drive)
+    d = r.to_dict()
+    assert d["timing"]["velocity"]["applied"] is False
+    bad, guar = truth_misses(r, bad_drive)
+    assert not (bad & guar).any(), f"{kind}: {int((bad & guar).sum())} silent"
+
+
 def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> None:
     """Positions only (the course from consecutive fixes, whose own noise is large at
     1 Hz): the check passes on the clean trip, fails at +-3 deg, and says which way."""
@@ -132,6 +149,23 @@ def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> No
         d = dynamic_margins(F.heading_offset(drive, off)).to_dict()
         cc = next(v for v in d["violations"] if v["stream"] == "heading")
         assert f"{off:+.0f}." in cc["detail"] or f"{off:+.1f}" in cc["detail"], cc
+
+
+@pytest.mark.parametrize("off", [0.0, 3.0, -3.0, 8.0])
+def test_heading_sensor_offset_interval_is_signed(base: Any, off: float) -> None:
+    """modes.full.heading_sensor.offset: the compass's constant offset from the check
+    against the GNSS course, signed (compass frame), its interval holding the injected
+    offset and excluding 0 at 3 deg either way; reported, not applied."""
+    d = dynamic_margins(F.heading_offset(base, off) if off else base).to_dict()
+    hs = d["heading_sensor"]
+    o = hs["offset"]
+    assert o["applied"] is False and o["epochs"] > 100
+    lo, hi = o["interval_deg"]
+    assert lo <= off <= hi, o
+    assert abs(o["estimate_deg"] - off) < 1.0
+    assert hs["course_check_passed"] is (off == 0.0)
+    if off:
+        assert not (lo <= 0.0 <= hi)
 
 
 def test_stated_clock_offset_is_applied_and_budgeted(base: Any) -> None:
@@ -164,6 +198,30 @@ def test_budget_defaults_stated_and_rrw_from_drive_yaml() -> None:
     assert noise["gyro_z"].K == pytest.approx(math.radians(0.01))
     assert noise["gyro_z"].sources["K"] == "drive.yaml imu.gyro_rrw"
     assert not any("K taken as 0 for gyro" in a for a in assumed)
+
+
+def test_drift_rule_stated_bound_governs_without_k() -> None:
+    """The wander rule (budget.drift_rule / Wander): no drift bound -> the model; a drift
+    bound and no K -> the bound alone (the default K = 0 never narrows it), pointwise
+    D_s + k sigma_dev; both stated -> the smaller, term by term."""
+    from imubounds.dynamic.estimator.budget import drift_deviation_sd, drift_rule, wander_of
+
+    st = DriveSettings(imu=ImuSettings(accel_nd=0.002, accel_bs=0.02, gyro_nd=0.05, gyro_bs=1.0))
+    noise, _ = resolve_noise(st, None, {})
+    assert drift_rule(noise["gyro_z"]) == "model"
+    st.imu.gyro_bias_drift_dps = 0.5
+    noise, assumed = resolve_noise(st, None, {})
+    gz = noise["gyro_z"]
+    assert drift_rule(gz) == "stated"
+    assert any(a.startswith("rate random walk K not given for gyro_x") for a in assumed)
+    wd = wander_of(gz, 3.0, 600.0, 5.0, 0.01)
+    assert wd.kr == 0.0 and wd.stated == pytest.approx(math.radians(0.5))
+    assert wd.point == pytest.approx(wd.stated + 5.0 * drift_deviation_sd(gz, 0.01))
+    assert wd.point > wd.stated and float(wd.pick(0.0, 1.0)) == 1.0
+    st.imu.gyro_rrw = 0.01
+    noise, _ = resolve_noise(st, None, {})
+    wd = wander_of(noise["gyro_z"], 3.0, 600.0, 5.0, 0.01)
+    assert wd.rule == "both" and wd.kr > 0 and float(wd.pick(0.2, 0.1)) == 0.1
 
 
 def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, capsys: Any) -> None:
@@ -200,15 +258,21 @@ def test_cli_says_not_guaranteed_first_and_marks_states_csv(tmp_path: Path, caps
     assert "guaranteed" in st.columns and (st["guaranteed"] == 0).all()
 
 
-@pytest.mark.parametrize("lag", [0.0, 0.3])
+@pytest.mark.parametrize("lag", [0.0, 0.5])
 def test_relative_clock_offset_of_the_heading(base: Any, lag: float) -> None:
-    """The heading's offset relative to the GNSS, from the turns: a compass 0.3 s late is
-    estimated within 0.05 s, and the interval holds the injected lag."""
+    """A compass 0.5 s late: its offset against the IMU is estimated within 0.05 s and
+    applied (outside the default allowance), after which the heading's offset relative
+    to the GNSS, from the turns, is within 0.05 s of 0; the clean trip's is not
+    applied (its interval holds the allowance)."""
     d = dynamic_margins(F.heading_lag(base, lag) if lag else base).to_dict()
+    tm = d["timing"]["heading"]
+    assert abs(tm["estimate_s"] - lag) <= 0.05, tm
+    assert tm["interval_s"][0] <= lag <= tm["interval_s"][1]
+    assert tm["applied"] is bool(lag) and tm["offset_s"] == (tm["estimate_s"] if lag else 0.0)
     rel = d["timing"]["heading_vs_gnss"]
     assert rel["applied"] is False and rel["offset_s"] == 0.0
-    assert abs(rel["estimate_s"] - lag) <= 0.05, rel
-    assert rel["interval_s"][0] <= lag <= rel["interval_s"][1]
+    assert abs(rel["estimate_s"]) <= 0.05, rel
+    assert d["guaranteed"] is True
 
 
 @pytest.mark.parametrize("seed", [3, 11])
@@ -254,6 +318,39 @@ def test_heading_clock_bound_is_budgeted_in_the_turns(base: Any) -> None:
     assert d0["timing"]["heading"]["method"] == "drive.yaml"
 
 
+@pytest.mark.parametrize(
+    ("seed", "duration_s"),
+    [(1, 1800.0), (2, 1800.0), (3, 1800.0), (4, 1800.0), (1, 7200.0), (2, 7200.0), (3, 7200.0)],
+)
+def test_consumer_imu_bias_inside_over_trip_and_the_smoother_states(
+    seed: int, duration_s: float
+) -> None:
+    """A consumer-grade IMU (rate random walk K in the simulator, not in drive.yaml, which
+    states the drift bound) for 30 min and 2 h: the true bias (turn-on + wander, the
+    simulator's series) inside bias.over_trip at every sample of every channel, the true
+    turn-on bias inside the smoother's bias states (constant_part), the truth inside the
+    states at every epoch (issue 27 item 4; seed 2 at 2 h put the gyro z bias state
+    beside the turn-on before the drift bound entered the links and windows)."""
+    from imubounds.dynamic.scenario.imu import CHANNELS as SIM_CHANNELS
+
+    res = make_trip("paper", seed=seed, duration_s=duration_s, distance_m=duration_s * 11.7,
+                    rate_hz=50.0, aiding=AIDING, imu_preset="consumer")  # fmt: skip
+    drive = res.drive
+    assert drive.settings.imu.gyro_rrw is None and drive.settings.imu.gyro_bias_drift_dps
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any() and d["guaranteed"], d["violations"]
+    turn_on = np.asarray(res.imu_errors.turn_on, float)
+    for j, ch in enumerate(SIM_CHANNELS):
+        lo, hi = d["bias"][ch]["over_trip"]
+        x = np.asarray(drive.truth.extra[f"bias_{ch}"], float)
+        assert np.all((lo <= x) & (x <= hi)), (ch, float(x.min()), float(x.max()), lo, hi)
+        clo, chi = d["bias"][ch]["constant_part"]
+        assert clo <= turn_on[j] <= chi, (ch, turn_on[j], clo, chi)
+    assert any(a.startswith("rate random walk K not given") for a in d["assumptions"])
+
+
 def test_step_check_variance_is_exact() -> None:
     """The variance of the velocity part of the step statistic (residual_checks._vel_var)
     and its trapezoid weights, against a Monte Carlo of the integrated velocity noise."""
@@ -273,3 +370,82 @@ def test_step_check_variance_is_exact() -> None:
     # the weights sum to m (uniform spacing: sum w d^3 = m)
     assert np.allclose(_vel_var(i, m, np.ones(n - 1), sv)[1], m)
     assert np.all(dw <= m * d.max() ** 3)
+
+
+def _sweep_trip(seed: int) -> Any:
+    """The trip of benchmarks/sweep_faults.py (5 min, 3510 m, 50 Hz)."""
+    return make_trip(
+        "paper", seed=seed, duration_s=300.0, distance_m=3510.0, rate_hz=50.0, aiding=AIDING
+    ).drive
+
+
+@pytest.mark.parametrize("seed", [5, 8])
+def test_multipath_5m_former_silent_misses_and_clean_trips(seed: int) -> None:
+    """A 5 m multipath step for 60 s: on seeds 5 and 8 the truth left the position
+    intervals at 6 and 2 epochs with ``guaranteed: true`` before the IMU corrected the
+    step test's trapezoid; now the step test withdraws the guarantee. The same clean
+    trips stay guaranteed with no violation (the 50-trip clean sweep is
+    ``benchmarks/sweep_faults.py --clean 50``)."""
+    clean = _sweep_trip(seed)
+    r = dynamic_margins(clean)
+    d = r.to_dict()
+    assert d["guaranteed"] is True and d["violations"] == [], d["violations"]
+    bad, _ = truth_misses(r, clean)
+    assert not bad.any()
+    steps = d["residual_checks"]["gnss position step"]["steps_unnoticed"]
+    assert steps["16"] < 5.0 and steps["32"] < 5.0, steps
+    drive = F.multipath(clean, step_m=5.0, t0_s=100.0)
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any()
+    assert any(v["test"].startswith("GNSS position step") for v in d["violations"])
+
+
+def test_imu_trapezoid_correction_holds_the_truth() -> None:
+    """residual_checks.imu_trapezoid: the IMU's estimate of the trapezoid error
+    ``c_l = dt (v_l + v_{l+1}) / 2 - int v`` between fixes, against the simulator's true
+    ``c_l`` (from the true track): within its bound + 5 sigma at every pair, and its
+    bound below the jerk bound ``j dt^3 / 12`` (else the test gains nothing)."""
+    from imubounds.dynamic.estimator.residual_checks import imu_trapezoid
+
+    drive = _sweep_trip(3)
+    r = dynamic_margins(drive)
+    ctx, sm = r.full.ctx, r.full.smoother
+    t = ctx.aiding.gnss_t
+    chat, var, det = imu_trapezoid(ctx, sm, t)
+    tr = drive.truth
+    tt = np.asarray(tr.t, float) - ctx.imu.t0
+    dt = np.diff(t)
+    for ax, p in enumerate((np.asarray(tr.east_m, float), np.asarray(tr.north_m, float))):
+        v = np.gradient(p, tt)
+        P, V = np.interp(t, tt, p), np.interp(t, tt, v)
+        c_true = 0.5 * dt * (V[1:] + V[:-1]) - np.diff(P)
+        inside = (t[1:] < tt[-1] - 0.1) & (t[:-1] > tt[0] + 0.1)
+        err = np.abs(chat[:, ax] - c_true)[inside]
+        lim = (det + 5.0 * np.sqrt(var) + 2e-3)[inside]  # + the truth's own differencing
+        assert np.all(err <= lim), float(np.max(err - lim))
+    jerk = ctx.vehicle.max_jerk * dt**3 / 12.0
+    assert np.all(det <= jerk + 1e-15) and np.median(det) < 0.5 * np.median(jerk)
+    assert float(np.max(np.abs(chat))) > 0.01  # the trip accelerates: a real correction
+
+
+def test_clean_sweep_command_counts_per_check(capsys: Any) -> None:
+    """``benchmarks/sweep_faults.py --clean N [FIRST]`` (the 50-trip clean sweep of issue
+    27's done-when, by hand) on 2 trips: every trip enclosed and guaranteed, and the
+    summary counts the trips per check against what its stated level allows."""
+    import importlib.util
+    import json
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "sweep_faults.py"
+    spec = importlib.util.spec_from_file_location("sweep_faults", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    summary = mod.clean_sweep(2, 9)
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [r["seed"] for r in lines] == [9, 10]
+    assert summary["enclosed"] == 2 and summary["silent"] == 0 and summary["guaranteed"] == 2
+    checks = summary["per_check"]
+    assert checks["residual checks (every test of residual_checks)"]["level_alpha"] == 0.25
+    assert all(0 <= c["trips"] <= c["allowed"] for c in checks.values()), checks

@@ -31,19 +31,20 @@ def margin_at(d: dict, ch: str, tau: float) -> float:
 def test_informative_gnss_position_and_velocity() -> None:
     """GNSS position + velocity at 1 Hz (0.1 m/s per component), flat trip: the 10 s
     mean of the accel-x error is known to well under the issue's 0.5 m/s^2 and the mean
-    over 100-160 s to about 0.05 m/s^2 (floor: the 0.1 deg tilt bound, 0.017 m/s^2, and
-    the transport term)."""
+    over 100-160 s to about 0.04-0.05 m/s^2 (floor: the 0.1 deg tilt bound, 0.017 m/s^2,
+    and the transport term; 0.049 and 0.040 at 82 and 164 s since the per-heading-gap
+    bound of mean |r|, 0.052 and 0.045 before)."""
     res = make_trip("gnss-posvel", seed=21)
     assert res.record.clean, res.record.summary()
     d = dynamic_margins(res.drive).to_dict()
     m10, m82, m164 = (margin_at(d, "accel_x", t) for t in (10.0, 82.0, 164.0))
     assert m10 <= 0.5, f"median half-width at 10 s: {m10:.3f} m/s^2"
-    assert m82 <= 0.06, f"median half-width at 82 s: {m82:.4f} m/s^2"
-    assert m164 <= 0.05, f"median half-width at 164 s: {m164:.4f} m/s^2"
+    assert m82 <= 0.053, f"median half-width at 82 s: {m82:.4f} m/s^2"
+    assert m164 <= 0.043, f"median half-width at 164 s: {m164:.4f} m/s^2"
     assert m82 < m10 / 2
-    # a tighter non-holonomic bound (|v| <= 0.1 m/s) reaches 0.05 m/s^2 at 82 s
+    # a tighter non-holonomic bound (|v| <= 0.1 m/s) reaches 0.04 m/s^2 at 82 s
     d2 = dynamic_margins(res.drive, lateral_speed_bound_mps=0.1).to_dict()
-    assert margin_at(d2, "accel_x", 82.0) <= 0.05
+    assert margin_at(d2, "accel_x", 82.0) <= 0.043
 
 
 def test_informative_dvl() -> None:
@@ -56,7 +57,7 @@ def test_informative_dvl() -> None:
     d = dynamic_margins(res.drive).to_dict()
     m10 = margin_at(d, "accel_x", 10.0)
     assert m10 <= 0.06, f"DVL: median half-width at 10 s: {m10:.4f} m/s^2"
-    assert margin_at(d, "accel_x", 82.0) <= 0.045
+    assert margin_at(d, "accel_x", 82.0) <= 0.036  # 0.033 (0.038 before issue 24 item 4)
 
 
 @pytest.mark.parametrize(
@@ -97,6 +98,10 @@ def test_fault_detected_with_the_papers_sensors(fault: tuple[str, float] | None)
     expected = set() if fault is None else {fault[0]}
     assert exceeding == expected, d["verdict"]
     if fault is None:
-        # the position-mean kernel: under 0.1 m/s^2 from 82 s on (0.23-0.27 before)
-        assert margin_at(d, "accel_x", 82.0) <= 0.1
-        assert margin_at(d, "accel_x", 164.0) <= 0.1
+        # the position-mean kernel: 0.050 and 0.038 m/s^2 at 82 and 164 s (0.23-0.27 with
+        # the first-order projection, 0.076 and 0.065 before issue 24 item 4)
+        assert margin_at(d, "accel_x", 82.0) <= 0.055
+        assert margin_at(d, "accel_x", 164.0) <= 0.042
+        # gyro_z: the tilt coupling from gyro_y's window means (0.0009 rad/s at 164 s
+        # with the per-sample bound)
+        assert margin_at(d, "gyro_z", 164.0) <= 0.0006

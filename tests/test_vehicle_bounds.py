@@ -78,3 +78,18 @@ def test_an_attitude_on_its_side_is_a_user_error_naming_the_mount() -> None:
     att.roll_rad = np.full_like(np.asarray(att.roll_rad, dtype=float), math.radians(89.5))
     with pytest.raises(InputError, match="imu_axes"):
         dynamic_margins(drive)
+
+
+def test_transport_without_a_lateral_bound_is_named() -> None:
+    """accel_x's transport term through the speed bound (no lateral-velocity bound) is
+    named when it is at least half the interval, and only then."""
+    from imubounds.dynamic.estimator.inputs import Vehicle
+    from imubounds.dynamic.estimator.vehicle_bounds import dominant_transport
+
+    veh = Vehicle(max_speed=36.6, lateral_speed_bound_mps=None)
+    note = dominant_transport("accel_x", veh, 10.2, 12.6, 0.31)
+    assert note is not None and "lateral_speed_bound_mps" in note and "11.3" in note
+    assert dominant_transport("accel_x", veh, 30.0, 12.6, 0.31) is None
+    assert dominant_transport("accel_y", veh, 10.2, 12.6, 0.31) is None
+    veh.lateral_speed_bound_mps = 0.5
+    assert dominant_transport("accel_x", veh, 10.2, 12.6, 0.31) is None

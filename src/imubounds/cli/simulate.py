@@ -193,8 +193,39 @@ def register(sub: Any) -> None:
         help="draw every error inside its stated bound (the record is then clean "
         "unless there are outliers or faults)",
     )
+    g.add_argument(
+        "--attitude-yaw",
+        type=nonneg_float,
+        metavar="DEG",
+        help="the attitude stream carries an AHRS yaw with this error sigma (0: none)",
+    )
+    g.add_argument(
+        "--velocity-lag",
+        type=nonneg_float,
+        metavar="S",
+        help="the wheel/DVL stamps are this late, not stated in drive.yaml (0 s)",
+    )
+    g.add_argument(
+        "--imu-axes",
+        type=_axes,
+        metavar="AX,AX,AX",
+        help="the IMU's mount, as drive.yaml imu_axes (the sensor axis along body x, y, z, "
+        "e.g. x,-z,y: on its side); imu.csv is written in the sensor's axes (x,y,z)",
+    )
+    g.add_argument(
+        "--vehicle-kind",
+        choices=("ground", "air", "marine"),
+        help="vehicle.kind in drive.yaml (ground)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="print no summary")
     p.set_defaults(func=run)
+
+
+def _axes(text: str) -> tuple[str, ...]:
+    parts = tuple(x.strip() for x in text.split(",") if x.strip())
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"{text!r}: give three axes, e.g. x,-z,y")
+    return parts
 
 
 _OPTIONS = {
@@ -224,6 +255,10 @@ _OPTIONS = {
     "attitude_sigma": "attitude_sigma_deg",
     "dvl_sigma": "dvl_sigma_mps",
     "wheel_sigma": "wheel_sigma_mps",
+    "velocity_lag": "velocity_lag_s",
+    "attitude_yaw": "attitude_yaw_sigma_deg",
+    "imu_axes": "imu_axes",
+    "vehicle_kind": "vehicle_kind",
     "alpha": "alpha",
 }
 

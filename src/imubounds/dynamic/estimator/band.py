@@ -2,16 +2,19 @@
 method.md, section 4): what the IMU error's window mean may be when the sensor behaves as
 its budget says.
 
-Level band: ``k_W sigma_W + D_KR + s mean|x| + m mean|x_perp| + edge`` (+ the turn-on
+Level band: ``k_W sigma_W + kr + s mean|x| + m mean|x_perp| + edge`` (+ the turn-on
 bound when stated), ``sigma_W`` the standard deviation of the kernel mean of white noise,
 quantization, flicker and turn-on bias (:func:`~imubounds.dynamic.estimator.budget.
-box_sum_variance`, :func:`~imubounds.dynamic.estimator.budget.kernel_variance`).
+box_sum_variance`, :func:`~imubounds.dynamic.estimator.budget.kernel_variance`); under a
+stated drift bound ``k_W sigma_W(no flicker) + D_s`` (or ``point``) by the rule of
+:class:`~imubounds.dynamic.estimator.budget.Wander`.
 Change band: the turn-on bias cancels; ``Var(e2 - e1) = V1/t1^2 + V2/t2^2 -
 (V12 - V1 - V2)/(t1 t2)``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -57,7 +60,8 @@ def trapezoid_weights(lp: LevelPlan, tau: np.ndarray, dt: float) -> np.ndarray:
 def _boxcar_noise(
     w: WindowContext, ch: str, lp: LevelPlan, tau: np.ndarray, k: float
 ) -> tuple[Any, Any]:
-    """``k sigma_W`` of boxcar windows, with and without the turn-on bias."""
+    """``k sigma_W`` + the wander of boxcar windows: with the turn-on bias for the
+    verdict's band, without it (by the rule of budget.Wander) for the bias constraint."""
     cn = w.ctx.noise[ch]
     imu = w.imu
     dt = imu.dt
@@ -68,24 +72,27 @@ def _boxcar_noise(
     v_no = np.array([box_sum_variance(cn, int(m), dt, False) for m in uc])[inv]
     sd_to = np.sqrt(v_to) * ratio / tau
     sd_no = np.sqrt(v_no) * ratio / tau
-    noise_to, noise_no = k * sd_to, k * sd_no
-    if cn.drift_bound is not None:
-        # the stated drift bound replaces the flicker model for windows as long as
-        # its window (where it is the smaller)
+    wd = w.ctx.wander[ch]
+    noise_to, noise_no = k * sd_to + wd.kr, k * sd_no + wd.kr
+    if wd.rule != "model":
         w_to = np.array([box_sum_variance(cn, int(m), dt, True, False) for m in uc])[inv]
         w_no = np.array([box_sum_variance(cn, int(m), dt, False, False) for m in uc])[inv]
-        long_ = tau >= cn.drift_window_s
-        alt_to = k * np.sqrt(w_to) * ratio / tau + cn.drift_bound
-        alt_no = k * np.sqrt(w_no) * ratio / tau + cn.drift_bound
+        # the verdict's band (a test of the budget: every stated figure, the tightest):
+        # the drift bound in place of the flicker where smaller, windows >= its window
+        long_ = tau >= wd.window_s
+        alt_to = k * np.sqrt(w_to) * ratio / tau + wd.stated + wd.kr
         noise_to = np.where(long_, np.minimum(noise_to, alt_to), noise_to)
-        noise_no = np.where(long_, np.minimum(noise_no, alt_no), noise_no)
+        # the bias constraint (a bound of the guarantee): the one rule of budget.Wander
+        noise_no = wd.pick(noise_no, k * np.sqrt(w_no) * ratio / tau + wd.over(tau))
     return noise_to, noise_no
 
 
 def level_band(
     w: WindowContext, ch: str, lp: LevelPlan, tau: np.ndarray, k: float
 ) -> tuple[Any, Any]:
-    """Stationary band per window, with and without the turn-on bias."""
+    """Stationary band per window, with the turn-on bias (the verdict's: the drift bound
+    where smaller than the flicker model, K as given) and without it (the windows' bias
+    constraint: the wander by the rule of budget.Wander, as the smoother links)."""
     cn = w.ctx.noise[ch]
     imu = w.imu
     dt = imu.dt
@@ -97,10 +104,19 @@ def level_band(
         c = trapezoid_weights(lp, tau, dt)
         sd_to = math.sqrt(kernel_variance(cn, c, dt, True)) * 1.01 * ratio
         sd_no = math.sqrt(kernel_variance(cn, c, dt, False)) * 1.01 * ratio
-        noise_to = np.full(tau.shape, k * sd_to)
-        noise_no = np.full(tau.shape, k * sd_no)
-    det = w.ctx.D_KR[ch]
-    det = det + cn.scale * w.kernel_mag(ch, lp, tau)
+        wd = w.ctx.wander[ch]
+        noise_to = np.full(tau.shape, k * sd_to + wd.kr)
+        noise_no = np.full(tau.shape, k * sd_no + wd.kr)
+        if wd.rule != "model":
+            # the bias constraint: the rule of budget.Wander. The kernel is a mixture of
+            # boxcars [x1, x2] (x_i uniform on the fix intervals I_i), each at least
+            # a2 - b1 long: D_s when that is at least the drift bound's window
+            cw = dataclasses.replace(cn, B=0.0)
+            sw_no = math.sqrt(kernel_variance(cw, c, dt, False)) * 1.01 * ratio
+            lvl = wd.over(np.full(tau.shape, float(np.min(lp.a2 - lp.b1))))
+            noise_no = wd.pick(noise_no, k * sw_no + lvl)
+    # the bias wander (K, R or the stated drift bound) is in the noise terms above
+    det = cn.scale * w.kernel_mag(ch, lp, tau)
     for other in perp(ch):
         det = det + cn.misalignment_rad * w.kernel_mag(other, lp, tau)
     edge = (imu.edge(lp.a1) + imu.edge(lp.b2)) * imu.rate_bound[ch] * imu.max_len / tau
@@ -180,6 +196,8 @@ def change_band(
     t1, t2 = tau[w1], tau[w2]
     noise = k * pair_noise_sd(w, ch, m[w1], m[w2], t1, t2, True)
     if cn.drift_bound is not None:
+        # the stated drift bound bounds window means, not their changes: the flicker
+        # model's change (K as given, 0 by default) where smaller
         long_ = np.minimum(t1, t2) >= cn.drift_window_s
         alt = k * pair_noise_sd(w, ch, m[w1], m[w2], t1, t2, False) + 2 * cn.drift_bound
         noise = np.where(long_, np.minimum(noise, alt), noise)

@@ -17,7 +17,8 @@ sample period)::
   of first-order Gauss-Markov processes of :func:`imubounds.stationary.noise_sim.
   flicker_gm_terms` (what ``imubounds simulate-noise`` generates); where drive.yaml
   states a drift bound (``imu.accel_bias_drift_mps2``, over windows of at least
-  ``bias_drift_window_s``) a window at least that long may use it instead;
+  ``bias_drift_window_s``) the wander is bounded by the one rule of :class:`Wander`
+  (:func:`drift_rule`) wherever the bias enters;
 * ``d_KR``: rate random walk ``K`` from the trip start and rate ramp ``R``, bounded
   uniformly over the trip by ``k_K K sqrt(T) + R T``;
 * ``w``: white noise of density ``N``; ``q``: quantization ``Q``;
@@ -144,6 +145,159 @@ class ChannelNoise:
     def flicker_sigma(self) -> float:
         """Marginal standard deviation of the flicker process (signal units)."""
         return math.sqrt(sum(s * s for s, _ in self.gm_terms()))
+
+
+def k_stated(cn: ChannelNoise) -> bool:
+    """Whether the rate random walk K (or the ramp R) of a channel comes from a source
+    (noise.json, drive.yaml, preset), not the default 0."""
+    return not cn.sources.get("K", "default").startswith("default") or cn.R > 0
+
+
+def drift_rule(cn: ChannelNoise) -> str:
+    """How the in-run wander of the bias is bounded (docs/dynamic-method.md, section 1):
+    ``"model"`` (no drift bound stated: flicker B + the bound of K, R), ``"stated"`` (a
+    drift bound and no K or R figure: the stated bound, never the default K = 0) or
+    ``"both"`` (both stated: the smaller of the two, term by term)."""
+    if cn.drift_bound is None:
+        return "model"
+    return "both" if k_stated(cn) else "stated"
+
+
+def drift_deviation_sd(cn: ChannelNoise, dt: float) -> float:
+    """Standard deviation of one sample's flicker wander minus its mean over a window of
+    ``drift_window_s`` holding the sample (the largest over the sample's positions in
+    the window: end, quarter, centre); what the stated drift bound (a bound of window
+    means) leaves of a sample's wander."""
+    if cn.B <= 0:
+        return 0.0
+    m = max(1, int(math.ceil(cn.drift_window_s / dt)))
+    fl = ChannelNoise(cn.channel, B=cn.B, flicker_tau_range_s=cn.flicker_tau_range_s)
+    var = 0.0
+    for pos in {0, m // 4, m // 2}:
+        c = np.full(m, -1.0 / m)
+        c[pos] += 1.0
+        var = max(var, kernel_variance(fl, c, dt, False))
+    return math.sqrt(var)
+
+
+def link_wander(
+    cn: ChannelNoise, wd: Wander, cnt: np.ndarray, D: np.ndarray, dt: float, k: float,
+    ramp: bool,
+) -> np.ndarray:
+    """The noise and the bias wander integrated over each smoother link (``cnt`` samples,
+    length ``D``) with flat or ramp weights (``t_{j+1} - s``), as :meth:`Wander.pick`
+    combines: the model's ``k sigma(white + flicker) + kr int w`` or the stated drift
+    bound's: ``k sigma(white) + D_s D`` (flat, a link at least its window), the link's
+    share of a window's mean + the flicker on what that mean leaves (flat, shorter:
+    :func:`split_sd`), ``D_s D^2/2`` + the flicker on the centred ramp (ramp, one to two
+    windows), else ``k sigma(white) + point int w``; ``int w`` = D flat, D^2/2 ramp.
+    ``k`` includes the ratio of the longest sample to the nominal period."""
+    uc, inv = np.unique(cnt, return_inverse=True)
+
+    def per_count(f: Any) -> np.ndarray:
+        return np.asarray([f(int(m)) for m in uc])[inv] * k
+
+    def gauss(c: ChannelNoise) -> np.ndarray:
+        if ramp:
+            return per_count(lambda m: math.sqrt(kernel_variance(
+                c, dt * dt * (np.arange(m)[::-1] + 1.0), dt, False)))
+        return per_count(lambda m: math.sqrt(box_sum_variance(c, m, dt, False)))
+
+    w = 0.5 * D * D if ramp else D
+    model = gauss(cn) + wd.kr * w
+    if wd.rule == "model":
+        return model
+    white = gauss(ChannelNoise(cn.channel, N=cn.N, Q=cn.Q))
+    if ramp:
+        stated = white + wd.point * w
+        sel = (D >= wd.window_s) & (D <= 2 * wd.window_s)
+    else:
+        stated = white + wd.over(D) * D
+        sel = D < wd.window_s
+    if sel.any():
+        split = per_count(lambda m: split_sd(cn, m, dt, ramp)) + wd.stated * w
+        stated = np.where(sel, np.minimum(stated, split), stated)
+    return np.asarray(wd.pick(model, stated))
+
+
+def split_sd(cn: ChannelNoise, m: int, dt: float, ramp: bool) -> float:
+    """Standard deviation of the noise over a smoother link of ``m`` samples with the
+    wander's mean part taken out (the stated drift bound bounds it): white noise and
+    quantization on the link's weights plus the flicker on what the mean leaves. Ramp
+    (weights ``dt^2 (m - i)``): the flicker on the centred ramp. Flat, for a link shorter
+    than the drift window (``M`` samples, the link at its end, the largest of the
+    positions end, centre): the flicker on ``box(link) - (m/M) box(window)``."""
+    white = ChannelNoise(cn.channel, N=cn.N, Q=cn.Q)
+    fl = ChannelNoise(cn.channel, B=cn.B, flicker_tau_range_s=cn.flicker_tau_range_s)
+    if ramp:
+        wts = dt * dt * (np.arange(m)[::-1] + 1.0)
+        v = kernel_variance(white, wts, dt, False)
+        return math.sqrt(v + kernel_variance(fl, wts - wts.mean(), dt, False))
+    v = box_sum_variance(white, m, dt, False)
+    M = max(m, int(math.ceil(cn.drift_window_s / dt)))
+    worst = 0.0
+    for pos in {M - m, (M - m) // 2}:
+        c = np.full(M, -dt * m / M)
+        c[pos : pos + m] += dt
+        worst = max(worst, kernel_variance(fl, c, dt, False))
+    return math.sqrt(v + worst)
+
+
+@dataclass(frozen=True)
+class Wander:
+    """The bound of one channel's in-run bias wander ``d(t)`` (bias minus its turn-on
+    value) wherever the bias enters a guaranteed interval: the per-sample bound, the
+    windows' bias constraint, the smoother links and ``bias.over_trip``
+    (:func:`wander_of`; docs/dynamic-method.md, section 1).
+
+    Two descriptions: the model (flicker ``B``, a Gaussian term of each bound, plus
+    ``kr = k_K K sqrt(T) + R T``, the rate random walk and ramp over the trip) and, where
+    drive.yaml states a drift bound ``D_s`` (``imu.*_bias_drift_*``, window means of at
+    least ``window_s``), ``point = D_s + k sigma_dev`` bounding ``|d|`` at every sample.
+    :meth:`pick` combines a bound of each per :func:`drift_rule`."""
+
+    rule: str
+    kr: float
+    stated: float
+    window_s: float
+    point: float
+
+    def pick(self, model: Any, stated: Any) -> Any:
+        """The bound under the rule: model, stated, or the smaller (both stated)."""
+        if self.rule == "model":
+            return model
+        if self.rule == "stated":
+            return stated
+        return np.minimum(model, stated)
+
+    def over(self, length: Any) -> Any:
+        """The stated bound of a mean over ``length`` s: ``D_s`` for at least the stated
+        window, else ``point``."""
+        return np.where(np.asarray(length) >= self.window_s, self.stated, self.point)
+
+
+def sample_bound(cn: ChannelNoise, wd: Wander, k_ps: float, dt: float) -> float:
+    """The per-sample error bound E0 of a channel (magnitude terms): the model's
+    ``k_ps sqrt(white + flicker + turn-on) + kr`` or, under a stated drift bound, its
+    window mean plus the sample's deviation, ``k_ps sqrt(white + sigma_dev^2 + turn-on)
+    + D_s`` (:meth:`Wander.pick`), + a stated turn-on bound."""
+    s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.turn_on_var()
+    e_model = k_ps * math.sqrt(s2 + cn.flicker_sigma() ** 2) + wd.kr
+    e_stated = math.inf
+    if wd.rule != "model":
+        e_stated = k_ps * math.sqrt(s2 + drift_deviation_sd(cn, dt) ** 2) + wd.stated
+    return float(wd.pick(e_model, e_stated)) + cn.turn_on_det()
+
+
+def wander_of(cn: ChannelNoise, k_K: float, T: float, k_dev: float, dt: float) -> Wander:
+    """The :class:`Wander` of a channel over a trip of ``T`` s (``k_K`` the reflection
+    factor of K, ``k_dev`` the per-sample factor of the deviation from the window mean)."""
+    kr = k_K * cn.K * math.sqrt(T) + cn.R * T
+    if cn.drift_bound is None:
+        return Wander("model", kr, math.inf, math.inf, math.inf)
+    ds = float(cn.drift_bound)
+    point = ds + k_dev * drift_deviation_sd(cn, dt)
+    return Wander(drift_rule(cn), kr, ds, float(cn.drift_window_s), point)
 
 
 @lru_cache(maxsize=64)
@@ -379,14 +533,27 @@ def _default_assumptions(out: dict[str, ChannelNoise]) -> list[str]:
         assumed.append(
             f"axis misalignment within +-{DEFAULT_MISALIGNMENT_RAD / DEG:g} deg (no figure given)"
         )
-    no_k = [ch for ch, cn in out.items() if cn.sources["K"].startswith("default")]
+    no_k = [ch for ch, cn in out.items() if not k_stated(cn) and cn.drift_bound is None]
     if no_k:
         assumed.append(
             "rate random walk K taken as 0 for "
             + ", ".join(no_k)
             + " (no figure in noise.json, drive.yaml imu.accel_rrw / imu.gyro_rrw or the "
-            "preset): the bias wander beyond the flicker model is bounded only by a stated "
-            "imu.*_bias_drift_* bound, where given"
+            "preset, and no imu.*_bias_drift_* bound): the bias wander is the flicker model's"
+        )
+    by_d = [ch for ch, cn in out.items() if drift_rule(cn) == "stated"]
+    if by_d:
+        assumed.append(
+            "rate random walk K not given for "
+            + ", ".join(by_d)
+            + ": the in-run bias wander is bounded by the stated drift bound "
+            "(drive.yaml imu.*_bias_drift_*, window means) wherever the bias enters a "
+            "guaranteed interval (the per-sample bound, the windows' bias constraint, the "
+            "smoother links, bias.over_trip), with the flicker model only for the wander's "
+            "changes within a drift window or a link (a sample's deviation from its window "
+            "mean) and within the heading clock's local window; the default K = 0 is used "
+            "otherwise only by the verdicts' tests (the level band where smaller than the "
+            "drift bound, the change between adjacent windows)"
         )
     return assumed
 

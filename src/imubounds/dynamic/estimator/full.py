@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as TM_HEADING_BOUND_S
+from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
@@ -23,10 +23,16 @@ from imubounds.dynamic.estimator.budget import (
     AlphaPlan,
     ChannelNoise,
     Term,
+    Wander,
     box_sum_variance,
+    drift_rule,
+    k_two_sided,
     kernel_variance,
     kind_of,
+    link_wander,
     resolve_noise,
+    sample_bound,
+    wander_of,
 )
 from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import (
@@ -158,6 +164,8 @@ class Context:
     E0: dict[str, float]
     D_KR: dict[str, float]
     k_ps: float
+    #: the bound of each channel's in-run bias wander (budget.Wander)
+    wander: dict[str, Wander]
     tilt: TiltSignals
     te: np.ndarray
     assumptions: list[str] = field(default_factory=list)
@@ -204,7 +212,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     base = Path(drive.source) if Path(str(drive.source)).is_dir() else None
     noise_terms, assumed = resolve_noise(drive.settings, noise, o, base)
     imu = ImuSeries.from_drive(drive, o["imu_stamp"], vehicle)
-    drive, heading, timing = _clock_offsets(drive, o)
+    drive, heading, timing = _clock_offsets(drive, o, noise_terms)
     te, n_fix, n_vel, n_head = _epochs(drive, heading, imu.t0, o)
     te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
     if te.size < 2:
@@ -213,10 +221,12 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             f"({imu.bnd[0] + imu.t0:.3f}..{imu.bnd[-1] + imu.t0:.3f} s); check the clocks"
         )
     any_k = any(noise_terms[c].K > 0 or noise_terms[c].R > 0 for c in CHANNELS)
+    # a stated drift bound: + each sample's flicker deviation from its window mean
+    any_d = any(drift_rule(noise_terms[c]) != "model" for c in CHANNELS)
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
-            "imu_samples": imu.n * 6,
+            "imu_samples": imu.n * 6 * (2 if any_d else 1),
             "imu_windows": 1,
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
@@ -229,7 +239,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         },
         descriptions={
             "imu_samples": "each sample's error (per-sample bounds: magnitudes, bias over "
-            "the trip)",
+            "the trip)" + (" and, under a stated drift bound, each sample's flicker "
+                           "deviation from its window mean" if any_d else ""),
             "imu_windows": "the noise of each window mean (split equally over the tau levels)",
             "imu_changes": "the noise change between each pair of adjacent windows (the "
             "change test; split equally over the tau levels)",
@@ -243,19 +254,45 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "heading": "each heading epoch's noise",
         },
     )
+    from scipy.special import ndtri
+
+    # the estimated clock offsets: finalized with the k of the family of the stream they
+    # move (Bonferroni over its count + their intervals; the body velocity's at the
+    # share of a family), the applied ones taken off the stamps before the aiding, the
+    # windows and the smoother use them, and counted in that family
+    def k_of(stream: str, n: int) -> float:
+        fam = TM.ALPHA_FAMILY.get(stream)
+        if fam is None:
+            return float(-ndtri(alpha.share() / 2 / n))
+        return k_two_sided(alpha.share(), alpha.counts.get(fam, 0) + n)
+
+    drive, moved = TM.apply_offsets(drive, timing, k_of)
+    for name, est in timing.items():
+        fam = TM.ALPHA_FAMILY.get(name)
+        if fam is not None and est.applied and est.method != "drive.yaml":
+            alpha.counts[fam] = alpha.counts.get(fam, 0) + 1 + len(est.parts)
+    if moved:
+        # the heading input again: its calibration and check against the GNSS course
+        # see the shifted streams
+        heading = _heading_stated(drive, o, timing)
+        if heading is not None and (rel := _relative_offset(heading)) is not None:
+            timing["heading_vs_gnss"] = rel
+        te = _epochs(drive, heading, imu.t0, o)[0]
+        te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
+        alpha.counts["imu_intervals"] = 7 * (te.size - 1) + _clock_bound_events(heading, timing)
     k_ps = alpha.k("imu_samples")
     T = imu.duration
-    from scipy.special import ndtri
 
     k_K = float(-ndtri(alpha.share() / (4 * 6))) if any_k else 0.0
     D_KR: dict[str, float] = {}
     E0: dict[str, float] = {}
+    wander: dict[str, Wander] = {}
     dt = imu.dt
     for ch in CHANNELS:
         cn = noise_terms[ch]
-        D_KR[ch] = k_K * cn.K * math.sqrt(T) + cn.R * T
-        s2 = cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2 + cn.turn_on_var()
-        E0[ch] = k_ps * math.sqrt(s2) + D_KR[ch] + cn.turn_on_det()
+        wander[ch] = wd = wander_of(cn, k_K, T, k_ps, dt)
+        D_KR[ch] = wd.kr
+        E0[ch] = sample_bound(cn, wd, k_ps, dt)
     # misalignment in the per-sample bound: other axes' largest measured magnitude
     for ch in CHANNELS:
         cn = noise_terms[ch]
@@ -266,10 +303,6 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 extra += float(np.max(np.abs(imu.sig[other].y))) + E0[other]
         E0[ch] += cn.misalignment_rad * extra
     aiding = build_aiding(drive, imu.t0, vehicle, alpha, o, heading)
-    k_t = float(-ndtri(alpha.share() / 2 / max(1, len(timing))))
-    for est in timing.values():
-        if est.method != "drive.yaml":
-            est.finalize(k_t)
     imu, aiding, vnotes_data = refine_vehicle(drive, vehicle, imu, aiding, alpha, o, heading)
     # after refine_vehicle, which may rebuild the aiding
     _budget_timing(aiding, vehicle, timing)
@@ -282,13 +315,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "the GNSS radius"
         )
     if _heading_clock_default(aiding, timing):
-        assumed.append(
-            f"heading clock: the heading stream's stamps within +-{TM_HEADING_BOUND_S:g} s "
-            "of the IMU's (default; heading.time_offset_s / time_offset_bound_s state it), "
-            "budgeted as the largest turn the gyro z measures within that bound of each "
-            "epoch (+ the bound of its error); a larger offset is tested by the check "
-            "against the GNSS course in the turns"
-        )
+        assumed.append(TM.heading_clock_assumption(timing))
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -302,6 +329,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         E0=E0,
         D_KR=D_KR,
         k_ps=k_ps,
+        wander=wander,
         tilt=None,  # type: ignore[arg-type]
         te=te,
         assumptions=assumed + vnotes,
@@ -324,13 +352,13 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     return ctx
 
 
-def _clock_offsets(drive: Any, o: dict[str, Any]) -> tuple[Any, HeadingInput | None, Any]:
+def _clock_offsets(
+    drive: Any, o: dict[str, Any], noise: dict[str, Any] | None = None
+) -> tuple[Any, HeadingInput | None, Any]:
     """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
     ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
     stamps, the heading input, and every stream's offset (stated, or estimated from the
-    data as a diagnostic: :mod:`imubounds.dynamic.aiding.timing`)."""
-    from imubounds.dynamic.aiding import timing as TM
-
+    data: :mod:`imubounds.dynamic.aiding.timing`, applied by ``TM.apply_offsets``)."""
     st = drive.settings
     timing: dict[str, Any] = {}
     est: TM.OffsetEstimate | None
@@ -340,24 +368,37 @@ def _clock_offsets(drive: Any, o: dict[str, Any]) -> tuple[Any, HeadingInput | N
             est = TM.OffsetEstimate.stated(float(st.gnss.time_offset_s), float(b or 0.0))
             drive = TM.shifted(drive, "gnss", est)
         else:
-            est = TM.estimate_gnss(drive, o["imu_stamp"])
+            est = TM.estimate_gnss(drive, o["imu_stamp"], noise)
         if est is not None:
             timing["gnss"] = est
+    heading = _heading_stated(drive, o, timing)
+    if heading is not None and heading.t.size:
+        if "heading" not in timing:
+            est = TM.estimate_heading(drive, o["imu_stamp"], heading, noise)
+            if est is not None:
+                timing["heading"] = est
+        rel = _relative_offset(heading)
+        if rel is not None:
+            timing["heading_vs_gnss"] = rel
+    if drive.velocity is not None and o.get("use_velocity", True):
+        est = TM.estimate_velocity(drive, o["imu_stamp"], noise)
+        if est is not None:
+            timing["velocity"] = est
+    return drive, heading, timing
+
+
+def _heading_stated(drive: Any, o: dict[str, Any], timing: dict[str, Any]) -> Any:
+    """The heading input, with the offset stated in drive.yaml (``heading.time_offset_s``
+    / ``time_offset_bound_s``) taken off its stamps and put in ``timing``."""
     heading = heading_input(drive, o)
     if heading is not None and heading.t.size:
-        hs = st.heading
+        hs = drive.settings.heading
         b = hs.time_offset_bound_s
         if hs.time_offset_s or b is not None:
             est = TM.OffsetEstimate.stated(float(hs.time_offset_s), float(b or 0.0))
             heading = TM.shifted(heading, None, est)
-        else:
-            est = TM.estimate_heading(drive, o["imu_stamp"], heading)
-        if est is not None:
             timing["heading"] = est
-        rel = _relative_offset(heading)
-        if rel is not None:
-            timing["heading_vs_gnss"] = rel
-    return drive, heading, timing
+    return heading
 
 
 def _relative_offset(heading: HeadingInput) -> Any:
@@ -366,8 +407,6 @@ def _relative_offset(heading: HeadingInput) -> Any:
     ``d x sign(r) = offset x |r|`` within the check's limit, so the offset is the mean
     over the mean turn rate, its interval the limit over that rate. Reported (a
     diagnostic), not applied."""
-    from imubounds.dynamic.aiding import timing as TM
-
     cc = heading.course_check or {}
     tu = cc.get("turns")
     if not tu or not tu.get("mean_rate_dps"):
@@ -408,12 +447,11 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     interval ``beta0``, + its half-width x b + k of the noise integrated over b
     (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
     from imubounds.dynamic.aiding import timing as TM
-    from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
 
     ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
     if not _heading_clock_default(ag, ctx.timing):
         return
-    b, W = TM_HEADING_BOUND_S, TM.LOCAL_BIAS_HALF_S
+    b, W = TM.heading_clock_bound_s(ctx.timing), TM.LOCAL_BIAS_HALF_S
     gz = ctx.noise["gyro_z"]
     k = ctx.alpha.k("imu_intervals")
     m = int(math.ceil(b / imu.dt)) + 1
@@ -443,30 +481,18 @@ def _heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
 
 
 def D_KR_of(ctx: Context) -> float:
-    """The rate random walk's bound of gyro z over the trip (rad/s)."""
-    return float(ctx.D_KR.get("gyro_z", 0.0))
+    """The bound of gyro z's bias wander beyond the flicker model over the trip (rad/s):
+    the rate random walk's, or under a stated drift bound without K its pointwise bound
+    (which holds the flicker too: conservative)."""
+    wd = ctx.wander.get("gyro_z")
+    if wd is None:
+        return float(ctx.D_KR.get("gyro_z", 0.0))
+    return float(wd.point if wd.rule == "stated" else wd.kr)
 
 
 def _budget_timing(ag: Aiding, veh: Vehicle, timing: dict[str, Any]) -> None:
-    """What remains of an applied clock offset, times the stream's rate bound, added to
-    its intervals: heading + r_max dt, position + v_max dt, velocity + a_max dt (the
-    default heading clock bound: :func:`_heading_clock_allowance`)."""
-    g = timing.get("gnss")
-    if g is not None and g.remainder_s > 0 and ag.has_gnss:
-        dtr = g.remainder_s
-        ag.gnss_h = ag.gnss_h + dtr * veh.max_speed
-        ag.gnss_det += dtr * veh.max_speed
-        if ag.has_gvel:
-            ag.gvel_hi = ag.gvel_hi + dtr * veh.max_accel
-            ag.gvel_h += dtr * veh.max_accel
-            ag.gvel_det += dtr * veh.max_accel
-        if ag.has_heading and ag.head_from_course:
-            # the heading from the GNSS course turns with the vehicle: + r_max dt
-            ag.head_h = ag.head_h + dtr * veh.max_rate
-    h = timing.get("heading")
-    if h is not None and h.remainder_s > 0 and ag.has_heading:
-        ag.head_h = ag.head_h + h.remainder_s * veh.max_rate
-        ag.head_det += h.remainder_s * veh.max_rate
+    """The remainders of the clock offsets in the aiding (``timing.budget_timing``)."""
+    TM.budget_timing(ag, veh, timing)
 
 
 def _plan_windows(ctx: Context) -> None:
@@ -617,19 +643,11 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     D = b - a
     cnt = imu.count(a, b)
     k_int = ctx.alpha.k("imu_intervals")
-    ratio = max(1.0, imu.max_len / imu.dt)
-    uc, inv = np.unique(cnt, return_inverse=True)
+    scale = max(1.0, imu.max_len / imu.dt) * k_int
 
-    def gauss(ch: str, ramp: bool) -> np.ndarray:
-        cn = ctx.noise[ch]
-        vals = []
-        for m in uc:
-            if ramp:
-                wts = imu.dt * imu.dt * (np.arange(int(m))[::-1] + 1.0)
-                vals.append(math.sqrt(kernel_variance(cn, wts, imu.dt, False)))
-            else:
-                vals.append(math.sqrt(box_sum_variance(cn, int(m), imu.dt, False)))
-        return np.asarray(vals)[inv] * ratio * k_int
+    def wander(ch: str, ramp: bool) -> np.ndarray:
+        """The noise and the bias wander over each link (budget.link_wander)."""
+        return link_wander(ctx.noise[ch], ctx.wander[ch], cnt, D, imu.dt, scale, ramp)
 
     def absint(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
@@ -639,7 +657,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
 
     def det(ch: str) -> np.ndarray:
         cn = ctx.noise[ch]
-        out = ctx.D_KR[ch] * D + cn.scale * absint(ch)
+        out = cn.scale * absint(ch)
         kind = kind_of(ch)
         for other in CHANNELS:
             if other != ch and kind_of(other) == kind:
@@ -658,15 +676,15 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     c_dev = np.maximum(np.abs(inv_c - 1.0), np.abs(1.0 / np.maximum(cpr.hi, 1e-9) - 1.0))
     sec_p = 1.0 + tilt.hull("sec_p_minus_1", a, b).hi
     e_phi = (
-        gauss("gyro_z", False)
+        wander("gyro_z", False)
         + det("gyro_z")
         + r_abs * c_dev
         + q_abs * sr * sec_p
         + (EARTH_RATE + veh.max_speed / R_EARTH) * D
     )
     # heading-frame specific force errors (bias of x, y excluded: states)
-    gx, gy, gz = gauss("accel_x", False), gauss("accel_y", False), gauss("accel_z", False)
-    rx, ry, rz = gauss("accel_x", True), gauss("accel_y", True), gauss("accel_z", True)
+    gx, gy, gz = wander("accel_x", False), wander("accel_y", False), wander("accel_z", False)
+    rx, ry, rz = wander("accel_x", True), wander("accel_y", True), wander("accel_z", True)
     dx, dy, dz = det("accel_x"), det("accel_y"), det("accel_z")
     k_to = ctx.alpha.k("imu_turn_on")
     to_z = ctx.noise["accel_z"].turn_on_bound(k_to)
@@ -955,6 +973,14 @@ def noise_budget_rows(ctx: Context, ch: str) -> list[Term]:
             unit,
             "computed",
             f"over T = {ctx.imu.duration:.1f} s",
+        ),
+        Term(
+            "bias wander at a sample under the drift bound D_s + k sigma_dev",
+            ctx.wander[ch].point if ctx.wander[ch].rule != "model" else float("nan"),
+            unit,
+            "computed",
+            f"rule {ctx.wander[ch].rule} (model: flicker + K, R; stated: the drift bound "
+            "alone, no K given; both: the smaller), docs/dynamic-method.md section 1",
         ),
         Term(
             "scale-factor error",

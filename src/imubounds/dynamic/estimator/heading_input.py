@@ -45,7 +45,9 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
     """
     from imubounds.dynamic.aiding import compass as C
 
-    if drive.heading is None and drive.mag is None:
+    att = drive.attitude
+    ahrs_yaw = att is not None and getattr(att, "yaw_rad", None) is not None
+    if drive.heading is None and drive.mag is None and not ahrs_yaw:
         return None
     st = drive.settings.heading
     cal = opts.get("compass_cal")

@@ -868,12 +868,19 @@ def _attitude(
         ag.att_source = att.source
         ok = np.isfinite(ag.att_roll) & np.isfinite(ag.att_pitch)
         ag.att_t, ag.att_roll, ag.att_pitch = ag.att_t[ok], ag.att_roll[ok], ag.att_pitch[ok]
+        defaulted = bd is None and "attitude.bound_deg" in getattr(drive.settings, "defaulted", [])
+        if defaulted:
+            ag.notes.append(
+                f"attitude stream ({att.source}): its roll/pitch error bound "
+                f"{ag.att_bound / DEG:g} deg is the default (no figure given; state "
+                "attitude.bound_deg in drive.yaml or --attitude-bound)"
+            )
         ag.budget["attitude"] = [
             Term(
                 "roll/pitch bound",
                 ag.att_bound / DEG,
                 "deg",
-                "option" if bd is not None else "drive.yaml",
+                "option" if bd is not None else "default" if defaulted else "drive.yaml",
                 f"attitude stream ({att.source}) error; between samples widened by the "
                 "angular-rate bound",
             )

@@ -145,8 +145,149 @@ def _vel_var(
     return np.asarray(var), np.asarray(2.0 * np.sum(u * dl * dl, axis=1))
 
 
+#: gyro noise over a fix interval taken as at most this many sigma in the heading error
+#: of the IMU's trapezoid correction (its share of the deterministic bound)
+GYRO_K = 5.0
+
+
+def imu_trapezoid(
+    ctx: Any, sm: Any, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The IMU's correction of the trapezoid rule between consecutive fixes ``t``.
+
+    Between fixes ``t_l`` and ``t_{l+1}`` (``dt``, mid ``t_m``) the true velocity's
+    integral is ``dt (v_l + v_{l+1}) / 2 - c_l`` with ``c_l = int (t - t_m) a(t) dt``
+    (by parts; ``a`` the ENU acceleration). The IMU measures it:
+    ``c^_l = sum_k (s_k - t_m) R(psi_k) (f_k - b^) len_k`` over the IMU segments ``k``
+    in the pair (``s_k`` their mid, ``f_k`` = accel x, y, ``psi_k`` = the centre of the
+    smoothed heading at ``t_l`` + the gyro z integrated from ``t_l``, less the centre of
+    the smoothed yaw-rate bias; ``b^`` the centre of the smoothed accel bias). Returns
+    per pair (``c^`` (n-1, 2); the variance of its noise error per axis, the larger of
+    accel x's and y's for the weights ``c_k = (s_k - t_m) len_k``: white ``N^2 sum
+    (s_k - t_m)^2 len_k``, quantization ``Q^2 sum (diff c)^2 / h^2``, and the slow
+    processes (flicker ``sum sigma_i^2`` of its Gauss-Markov terms, rate random walk
+    ``K^2 dt / 2``) at most ``(sum |c_k|)^2`` times their variance; the turn-on bias is
+    in the bias term below; pairs are taken as independent: each kernel has zero mean);
+    a bound ``det`` of the rest):
+
+    * heading error ``Delta(t) = d0 + e (t - t_l) + GYRO_K N_g sqrt(dt) + (s_g + m_g)
+      int |gyro z|`` (``d0`` the smoothed heading's half-width at ``t_l``, ``e`` the
+      yaw-rate bias's, ``s_g, m_g`` the gyro's scale and misalignment bounds): at most
+      ``d0 C + e (A2 + dt C / 2) + Delta^2 A1 / 2`` with ``C = jerk dt^3 / 12`` (the
+      bound of ``|c_l|``), ``A1 = sum |s_k - t_m| |f|_k len_k``, ``A2 = sum (s_k - t_m)^2
+      |f|_k len_k``, ``|f|_k = |f_k| + sqrt 2 b_w`` (``b_w`` the accel bias half-width);
+    * scale, misalignment and tilt (``cos``): ``(s + m + 1 - cos tilt) A1``; gravity
+      through a tilt that varies within the pair: ``2 g sin(tilt) dt^2 / 4``;
+    * the accel bias left (``sqrt 2 b_w``) turned by the yaw within the pair:
+      ``sqrt 2 b_w r_max dt^3 / 12``; a segment's mean against its samples:
+      ``jerk sum len_k^3 / 12``.
+
+    Pairs with unknown IMU segments, no smoothed heading at ``t_l``, or a declared
+    antenna lever arm (``gnss_det > 0``: the antenna's acceleration is not the IMU's)
+    keep the trapezoid's own bound (``c^ = 0``, variance 0, ``det = jerk dt^3 / 12``),
+    as does every pair where that bound is the smaller."""
+    n = t.size
+    dt = np.diff(t)
+    jerk = ctx.vehicle.max_jerk
+    cb = jerk * dt**3 / 12.0
+    chat = np.zeros((max(n - 1, 0), 2))
+    var = np.zeros(max(n - 1, 0))
+    det = cb.copy()
+    imu = getattr(ctx, "imu", None)
+    if imu is None or sm is None or ctx.aiding.gnss_det > 0 or n < 2:
+        return chat, var, det
+    sx, sy, sg = imu.sig["accel_x"], imu.sig["accel_y"], imu.sig["gyro_z"]
+    bnd = imu.bnd
+    unk = sx.unknown | sy.unknown | sg.unknown
+    beta = np.asarray(sm.beta, float)
+    bx, by, bg = (0.5 * (beta[i, 0] + beta[i, 1]) for i in range(3))
+    bw = float(max(0.5 * (beta[0, 1] - beta[0, 0]), 0.5 * (beta[1, 1] - beta[1, 0])))
+    eps = float(0.5 * (beta[2, 1] - beta[2, 0]))
+    nx, ny = ctx.noise["accel_x"], ctx.noise["accel_y"]
+    ng = ctx.noise["gyro_z"].N
+    sgz = ctx.noise["gyro_z"].scale + ctx.noise["gyro_z"].misalignment_rad
+    sc = max(ctx.noise["accel_x"].scale, ctx.noise["accel_y"].scale)
+    mis = max(ctx.noise["accel_x"].misalignment_rad, ctx.noise["accel_y"].misalignment_rad)
+    tilt = ctx.vehicle.max_tilt
+    rmax = ctx.vehicle.max_rate
+    g = 9.80665
+    if not (np.all(np.isfinite(beta)) and math.isfinite(bw + eps)):
+        return chat, var, det
+    ie = np.searchsorted(sm.te, t).clip(0, sm.te.size - 1)
+    psi = sm.X[ie, SM.PSI]
+    has = (sm.te[ie] == t) & np.all(np.isfinite(psi), axis=1)
+    psi = np.where(has[:, None], psi, 0.0)
+    # sub-segments: the IMU segments cut at the fixes; j = their pair, k = their segment
+    inner = t[(t > bnd[0]) & (t < bnd[-1])]
+    cuts = np.union1d(bnd, inner)
+    s0, s1 = cuts[:-1], cuts[1:]
+    mid_s = 0.5 * (s0 + s1)
+    j = np.searchsorted(t, mid_s, side="right") - 1
+    k = (np.searchsorted(bnd, mid_s, side="right") - 1).clip(0, bnd.size - 2)
+    sel = (j >= 0) & (j < n - 1) & (s1 > s0)
+    j, k, s0, s1, mid_s = j[sel], k[sel], s0[sel], s1[sel], mid_s[sel]
+    ln = s1 - s0
+    npair = n - 1
+    covered = np.bincount(j, ln, npair)
+    bad = np.bincount(j, unk[k].astype(float), npair) > 0
+    ok = has[:-1] & ~bad & (np.abs(covered - dt) <= 1e-9 * np.maximum(dt, 1.0))
+    gz = sg.y[k] - bg
+    cg = np.cumsum(gz * ln)
+    first = np.r_[True, j[1:] != j[:-1]]
+    base = np.maximum.accumulate(np.where(first, np.arange(j.size), 0))
+    ph = (0.5 * (psi[j, 0] + psi[j, 1]) + cg - (cg[base] - gz[base] * ln[base])
+          - 0.5 * gz * ln)  # fmt: skip
+    fx, fy = sx.y[k] - bx, sy.y[k] - by
+    u = mid_s - 0.5 * (t[j] + t[j + 1])
+    ce, cn = np.cos(ph), np.sin(ph)
+    cu = u * ln
+    ch_e = np.bincount(j, cu * (ce * fx - cn * fy), npair)
+    ch_n = np.bincount(j, cu * (cn * fx + ce * fy), npair)
+    fa = np.hypot(fx, fy) + math.sqrt(2.0) * bw
+    A1 = np.bincount(j, np.abs(cu) * fa, npair)
+    A2 = np.bincount(j, u * cu * fa, npair)
+    turn = np.bincount(j, np.abs(sg.y[k]) * ln, npair)
+    cube = np.bincount(j, ln**3, npair)
+    # noise of c^: white exactly, the rest (flicker, rate random walk) by sum |c_k|
+    u2 = np.bincount(j, u * cu, npair)
+    c1 = np.bincount(j, np.abs(cu), npair)
+    last = np.r_[j[1:] != j[:-1], True]
+    dc = np.where(first, cu, cu - np.r_[0.0, cu[:-1]])
+    dq = np.bincount(j, dc**2 + np.where(last, cu**2, 0.0), npair)
+    h = float(np.median(ln)) if ln.size else 1.0
+
+    def noise_var(cn_: Any) -> np.ndarray:
+        slow = sum(sg_ * sg_ for sg_, _ in cn_.gm_terms()) + 0.5 * cn_.K**2 * dt
+        return np.asarray(cn_.N**2 * u2 + cn_.Q**2 * dq / h**2 + c1**2 * slow)
+
+    D = (0.5 * (psi[:-1, 1] - psi[:-1, 0]) + eps * dt + GYRO_K * ng * np.sqrt(dt)
+         + sgz * turn)  # fmt: skip
+    d0 = 0.5 * (psi[:-1, 1] - psi[:-1, 0])
+    dj = (
+        d0 * cb + eps * (A2 + 0.5 * dt * cb) + 0.5 * D * D * A1
+        + (sc + mis + 1.0 - math.cos(tilt)) * A1 + 0.5 * g * math.sin(tilt) * dt**2
+        + math.sqrt(2.0) * bw * rmax * dt**3 / 12.0 + jerk * cube / 12.0
+    )  # fmt: skip
+    use = ok & np.isfinite(dj) & (dj < cb)
+    chat[use, 0], chat[use, 1] = ch_e[use], ch_n[use]
+    var[use] = np.maximum(noise_var(nx), noise_var(ny))[use]
+    det[use] = dj[use]
+    return chat, var, det
+
+
+def _pair_sums(i: np.ndarray, m: int, x: np.ndarray, power: int) -> np.ndarray:
+    """``sum_l w_l^power x_l`` over the pairs of the step statistic at the splits ``i``
+    (the triangular weights of :func:`_vel_var`)."""
+    o = np.arange(-m - 1, m + 1)
+    w = np.where(o < 0, (m + 1 + o) / m, (m - 1 - o) / m)
+    w[(o < -m) | (o > m - 1)] = 0.0
+    L = i[:, None] + o[None, :]
+    xl = np.where((L >= 0) & (L < x.size), x[L.clip(0, max(x.size - 1, 0))], 0.0)
+    return np.asarray(np.sum(w[None, :] ** power * xl, axis=1))
+
+
 def step_check(
-    ctx: Any, a_fam: float, t_span: tuple[float, float]
+    ctx: Any, a_fam: float, t_span: tuple[float, float], sm: Any = None
 ) -> tuple[list[Violation], dict[str, Any]]:
     """A step in the GNSS positions (multipath moving a run of fixes) against the GNSS
     velocity integrated by the trapezoid rule: ``q_i = p_i - P_i`` (P the integral) is
@@ -154,8 +295,11 @@ def step_check(
     before and after each split must stay within ``det + k sigma``: ``det`` the
     trapezoid's error bound (max jerk x dt^3 / 12 per pair, weighted by the pair's
     triangular weight in ``D``), sigma from the positions' and the velocities' stated
-    Gaussian errors (exact for those weights, :func:`_vel_var`). Runs of consecutive
-    fixes only (gaps > 2.5 x the median interval split them)."""
+    Gaussian errors (exact for those weights, :func:`_vel_var`). With the smoother's
+    result ``sm``, the IMU corrects the trapezoid (:func:`imu_trapezoid`): its centre
+    enters ``q``, its white noise sigma and its bound replace the jerk bound pair by
+    pair. Runs of consecutive fixes only (gaps > 2.5 x the median interval split
+    them)."""
     from scipy.stats import norm
 
     ag = ctx.aiding
@@ -167,11 +311,11 @@ def step_check(
     if dt.size < 8:
         return [], {}
     med = float(np.median(dt))
-    jerk = ctx.vehicle.max_jerk
     # segments of consecutive fixes with velocities
     brk = np.flatnonzero((dt > 2.5 * med) | ~okv[1:] | ~okv[:-1])
     bounds = np.concatenate([[0], brk + 1, [t.size]])
     steps: dict[str, list[float]] = {str(m): [] for m in STEP_LENGTHS}
+    chat, cvar, cdet = imu_trapezoid(ctx, sm, t)
     cand = []
     single: list[tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray]] = []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
@@ -180,22 +324,24 @@ def step_check(
             continue
         tt = t[a:b]
         d = np.diff(tt)
+        pd_, pv_ = cdet[a:b - 1], cvar[a:b - 1]
         for ax, (p, v) in enumerate(((ag.gnss_e, ag.gvel_e), (ag.gnss_n, ag.gvel_n))):
             pp, vv = p[a:b], v[a:b]
-            P = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * d)])
+            P = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * d - chat[a:b - 1, ax])])
             q = pp - P
             cq = np.concatenate([[0.0], np.cumsum(q)])
             cs = np.concatenate([[0.0], np.cumsum(ag.gnss_sig[a:b] ** 2)])
             cv = np.concatenate([[0.0], np.cumsum((ag.gvel_sig[a:b] * np.r_[d, d[-1]]) ** 2)])
-            cd = np.concatenate([[0.0], np.cumsum(jerk * d**3 / 12.0)])
+            cv = cv + np.concatenate([[0.0], np.cumsum(np.r_[pv_, 0.0])])
+            cd = np.concatenate([[0.0], np.cumsum(pd_)])
             for m in STEP_LENGTHS:
                 if 2 * m > n:
                     break
                 i = np.arange(m, n - m + 1, max(1, m // 2))
                 D = (cq[i + m] - cq[i]) / m - (cq[i] - cq[i - m]) / m
-                vv2, dw = _vel_var(i, m, d, ag.gvel_sig[a:b])
-                var = (cs[i + m] - cs[i - m]) / m**2 + vv2
-                det = jerk * dw / 12.0
+                vv2, _ = _vel_var(i, m, d, ag.gvel_sig[a:b])
+                var = (cs[i + m] - cs[i - m]) / m**2 + vv2 + _pair_sums(i, m, pv_, 2)
+                det = _pair_sums(i, m, pd_, 1)
                 cand.append((a, ax, m, i, D, var, det))
             # each fix against the mean of its NB neighbours on each side
             M = NB
@@ -306,7 +452,7 @@ def residual_checks(
     has_step = ctx.aiding.has_gnss and ctx.aiding.has_gvel
     a_fam = alpha / (2 * len(fams) + int(has_step))  # runs and tails of every family
     if has_step:
-        sv, ss = step_check(ctx, a_fam, t_span)
+        sv, ss = step_check(ctx, a_fam, t_span, sm)
         viol += sv
         if ss:
             summary["gnss position step"] = ss

@@ -173,6 +173,42 @@ class DynamicResult:
 # -------------------------------------------------------------------------- full
 
 
+def heading_sensor(heading: Any) -> dict[str, Any] | None:
+    """The heading sensor's constant offset from the check against the GNSS course
+    (``compass._check_against_course``): the signed mean of ``d = heading - course`` is
+    ``offset + mean(deviation + sideslip + noise)``, whose second part the check bounds,
+    so the offset lies in ``mean d +- limit`` at the check's level (compass frame,
+    clockwise, deg). Reported, not applied: the heading intervals assume the offset
+    within the deviation bound, and a check that fails withdraws the guarantee
+    (docs/dynamic-method.md, section 5b)."""
+    if heading is None or not heading.t.size:
+        return None
+    cc = heading.course_check or {}
+    out: dict[str, Any] = {
+        "source": heading.source,
+        "deviation_bound_deg": math.degrees(heading.deviation_bound_rad),
+        "deviation_source": heading.deviation_source,
+        "noise_sigma_deg": math.degrees(heading.noise_sigma_rad),
+        "course_check_passed": cc.get("passed"),
+        "offset": None,
+        "modelled": "offset within the deviation bound (an assumption, tested); one-cycle "
+        "deviation by the calibration; higher harmonics within the deviation bound or the "
+        "heading clock allowance",
+    }
+    if cc.get("limit_deg") is not None and cc.get("mean_diff_deg") is not None:
+        m, lim = float(cc["mean_diff_deg"]), float(cc["limit_deg"])
+        out["offset"] = {
+            "estimate_deg": m,
+            "interval_deg": [m - lim, m + lim],
+            "epochs": int(cc.get("n", 0)),
+            "method": "signed mean of heading - GNSS course over the epochs >= the check's "
+            "speed, +- the check's limit (deviation bound + mean sideslip bound + k sigma "
+            "of the mean)",
+            "applied": False,
+        }
+    return out
+
+
 def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     """dynamic.json block of mode full from a :class:`~imubounds.dynamic.estimator.full.FullRun`."""
     from imubounds.dynamic.estimator.full import noise_budget_rows
@@ -204,6 +240,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         "violations": [v.to_dict() for v in viol],
         "residual_checks": checks,
         "timing": {k: v.to_dict() for k, v in ctx.timing.items()},
+        "heading_sensor": heading_sensor(ctx.heading),
         "alpha": ctx.alpha.to_dict(),
         "assumptions": _assumptions(ctx),
         "notes": ctx.notes + run.notes,
@@ -247,11 +284,10 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
     rows = {"accel_x": 0, "accel_y": 1, "gyro_z": 2}
     for ch in CHANNELS:
         cn = ctx.noise[ch]
-        wander = ctx.k_ps * cn.flicker_sigma() + ctx.D_KR[ch]
-        if cn.drift_bound is not None:
-            # a stated bound on the in-run wander holds even where the noise model
-            # (flicker, K) understates it: the larger of the two
-            wander = max(wander, float(cn.drift_bound))
+        # the in-run wander at every sample: the model's (flicker + K, R) or the stated
+        # drift bound's (its window mean + the sample's deviation), budget.Wander
+        wd = ctx.wander[ch]
+        wander = float(wd.pick(ctx.k_ps * cn.flicker_sigma() + wd.kr, wd.point))
         if sm is not None and ch in rows:
             lo, hi = (float(x) for x in sm.beta[rows[ch]])
             src = "contracted by the windows and the smoother"
@@ -267,6 +303,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "over_trip": [float(np.nextafter(lo - wander, -np.inf)),
                           float(np.nextafter(hi + wander, np.inf))],
             "wander_bound": wander,
+            "wander_rule": wd.rule,
             "constant_part_prior": [-cn.turn_on_bound(k_to), cn.turn_on_bound(k_to)],
             "source": src,
         }

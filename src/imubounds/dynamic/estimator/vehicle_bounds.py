@@ -203,5 +203,28 @@ def dominant_default(ch: str, veh: Vehicle, halfwidth: float | None, tau_s: floa
         f"the assumed default maximum tilt ({veh.max_tilt / DEG:g} deg; nothing in the data "
         f"bounds roll and pitch) dominates: gravity through it is +-{grav:.3g} m/s^2 of the "
         f"+-{halfwidth:.3g} m/s^2 at tau {tau_s:.3g} s; an attitude stream or "
-        "vehicle.max_tilt_deg in drive.yaml tightens it"
+        "vehicle.max_tilt_deg in drive.yaml tightens it (the drive's GNSS and speed cannot: "
+        "the IMU's mount pitch on the vehicle adds to f_x what an accelerometer bias adds; "
+        "docs/dynamic-method.md section 3a)"
+    )
+
+
+def dominant_transport(
+    ch: str, veh: Vehicle, halfwidth: float | None, tau_s: float, mean_abs_r: float
+) -> str | None:
+    """A note when accel_x's transport term ``max|v| mean|r|`` dominates its aided interval
+    because no lateral-velocity bound is stated (|v| then only bounded by the speed bound);
+    ``mean_abs_r`` is the trip's mean |gyro_z| (an estimate of the term, for the note)."""
+    if halfwidth is None or ch != "accel_x" or veh.lateral_speed_bound_mps is not None:
+        return None
+    est = veh.max_speed * mean_abs_r
+    if not est >= 0.5 * halfwidth:
+        return None
+    return (
+        f"no lateral-velocity bound is stated: the transport term |v| x mean|r| takes the "
+        f"speed bound ({veh.max_speed:.3g} m/s, {veh.sources.get('max_speed', 'default')}) "
+        f"x the mean yaw rate (~{mean_abs_r:.3g} rad/s) ~ {est:.3g} m/s^2 against the "
+        f"+-{halfwidth:.3g} m/s^2 at tau {tau_s:.3g} s; nothing in the data bounds the side "
+        "slip: for a wheeled vehicle state vehicle.lateral_speed_bound_mps in drive.yaml "
+        "(or --lateral-speed-bound)"
     )

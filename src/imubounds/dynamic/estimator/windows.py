@@ -27,13 +27,13 @@ from imubounds.dynamic.estimator.aided.accel_y import accel_y
 from imubounds.dynamic.estimator.aided.attitude import accel_z, gyro_x, gyro_y
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, G_LO, R_EARTH
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import gyro_z
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals, build_tilt
 from imubounds.dynamic.estimator.aided.vehicle import vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
+from imubounds.dynamic.estimator.aided.yaw import gyro_z
 from imubounds.dynamic.estimator.band import change_band, level_band
-from imubounds.dynamic.estimator.budget import UNITS
-from imubounds.dynamic.estimator.vehicle_bounds import dominant_default
+from imubounds.dynamic.estimator.budget import UNITS, k_two_sided
+from imubounds.dynamic.estimator.vehicle_bounds import dominant_default, dominant_transport
 from imubounds.dynamic.estimator.verdicts import (
     HOW_TO_REFERENCE,
     NO_REFERENCE,
@@ -105,6 +105,10 @@ class MarginBuilder(WindowContext):
             gi = self.ctx.level_index[(ch, li)]
             k = self.ctx.alpha.k_level(fam, gi)
             self.p_window = self.ctx.alpha.p_level(fam, gi)
+            if ch == "gyro_z" and lp.kind == "aided":
+                # the window's probability is shared by the band and gyro_y's window
+                # bound of the tilt coupling (aided.yaw.gyro_z)
+                k = k_two_sided(self.p_window, 2)
             x = self.aided(ch, plan, lp, tau)
             y = self.imu_mean(ch, lp, tau)
             band, band_nto = level_band(self, ch, lp, tau, k)
@@ -152,6 +156,13 @@ class MarginBuilder(WindowContext):
         if aided:
             last = aided[-1].summary()
             note = dominant_default(ch, self.veh, last["halfwidth_median"], last["tau_s"])
+            if note:
+                out.notes.append(note)
+            gz = self.ctx.imu.sig["gyro_z"]
+            mean_r = float(gz.AB[-1]) / max(self.ctx.imu.duration, 1e-300)
+            note = dominant_transport(
+                ch, self.veh, last["halfwidth_median"], last["tau_s"], mean_r
+            )
             if note:
                 out.notes.append(note)
         return out

@@ -311,6 +311,22 @@ def _attitude(
     out.attitude = AttitudeStream(
         t=t, roll_rad=k["roll"] + err[:, 0], pitch_rad=k["pitch"] + err[:, 1], source="ahrs"
     )
+    if cfg.attitude_yaw_sigma_deg > 0:
+        # the AHRS yaw (compass convention), Gaussian; the heading of a drive without a
+        # compass (the estimator flags it as not independent of the gyro)
+        sy = cfg.attitude_yaw_sigma_deg * DEG
+        ky = k_level(cfg.alpha, t.size)
+        ey = _normal(rng, sy, ky * sy, t.size, cfg.bounded)
+        out.attitude.yaw_rad = np.mod(np.asarray(model_to_compass(k["yaw"])) + ey, 2 * math.pi)
+        out.checks.append(
+            check("attitude.yaw", "heading", "deg", "|yaw error| <= k(n) noise_deg",
+                  np.degrees(ey), ky * cfg.attitude_yaw_sigma_deg, t, k=ky)
+        )
+        out.true_errors["attitude"] = {"yaw_deg": _stats(np.degrees(ey))}
+        if "heading" not in out.stated:
+            out.stated["heading"] = {
+                "deviation_deg": 0.0, "noise_deg": cfg.attitude_yaw_sigma_deg, "calibration": None,
+            }
     out.checks.append(
         check(
             "attitude",
@@ -323,10 +339,10 @@ def _attitude(
             k=k_level(cfg.alpha, 2 * t.size),
         )
     )
-    out.true_errors["attitude"] = {
+    out.true_errors.setdefault("attitude", {}).update({
         "roll_deg": _stats(np.degrees(err[:, 0])),
         "pitch_deg": _stats(np.degrees(err[:, 1])),
-    }
+    })
     out.stated["attitude"] = {"bound_deg": math.degrees(bound)}
 
 
@@ -379,6 +395,10 @@ def _velocity(
             k=k_level(cfg.alpha, 3 * m if "dvl" in cfg.aiding else m),
         )
     )
+    if cfg.velocity_lag_s > 0:
+        # the stream reports the velocity at t with the stamp t + lag (a lagging odometry)
+        out.velocity.t = t + cfg.velocity_lag_s
+        out.true_errors["velocity"]["lag_s"] = cfg.velocity_lag_s
     out.stated["velocity"] = {"bound_mps": bound, "scale": scale}
 
 

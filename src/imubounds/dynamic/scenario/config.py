@@ -190,8 +190,21 @@ class ScenarioConfig:
     wheel_sigma_mps: float = 0.05
     wheel_scale_sigma: float = 0.003
     lateral_speed_bound_mps: float = 0.2
+    #: the wheel/DVL time stamps are this late (s): the stream reports the velocity of
+    #: ``lag`` seconds before its stamp (a lagging odometry), not stated in drive.yaml
+    velocity_lag_s: float = 0.0
     # attitude
     attitude_sigma_deg: float = 0.1
+    #: > 0: the attitude stream carries an AHRS yaw with this error sigma (deg), used as
+    #: the heading when there is no compass
+    attitude_yaw_sigma_deg: float = 0.0
+    # the IMU's mount: imu_axes[i] names the sensor axis along body axis i (drive.yaml
+    # imu_axes); the written imu.csv is in the sensor's axes (the in-memory drive keeps
+    # the body axes)
+    imu_axes: tuple[str, str, str] = ("x", "y", "z")
+    #: vehicle.kind written to drive.yaml (ground, air, marine): a vehicle other than
+    #: ground is not held to w = 0 by the estimator
+    vehicle_kind: str = "ground"
     # probability level of every stated bound (whole trip, per stream)
     alpha: float = 0.01
     # every error drawn inside its stated bound
@@ -212,7 +225,20 @@ class ScenarioConfig:
         d = dataclasses.asdict(self)
         d["faults"] = [f.label() for f in self.faults]
         d["aiding"] = list(self.aiding)
+        d["imu_axes"] = list(self.imu_axes)
         return d
+
+    def _check_mount(self) -> None:
+        """The vehicle kind and the IMU mount (``imu_axes`` a proper rotation)."""
+        from imubounds.errors import InputError
+        from imubounds.frames import axes_matrix
+
+        if self.vehicle_kind not in ("ground", "air", "marine"):
+            raise OptionError(f"vehicle kind {self.vehicle_kind!r}: use ground, air or marine")
+        try:
+            axes_matrix(self.imu_axes)
+        except InputError as err:
+            raise OptionError(f"--imu-axes: {err}") from None
 
     def check(self) -> None:
         """Raise :class:`OptionError` naming the first inconsistent setting."""
@@ -259,6 +285,8 @@ class ScenarioConfig:
             "wheel_scale_sigma",
             "lateral_speed_bound_mps",
             "attitude_sigma_deg",
+            "velocity_lag_s",
+            "attitude_yaw_sigma_deg",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -272,6 +300,7 @@ class ScenarioConfig:
             raise OptionError(f"--gps-outliers must lie in [0, 1), got {self.gps_outlier_fraction}")
         if not 0.0 < self.alpha < 1.0:
             raise OptionError(f"alpha must lie in (0, 1), got {self.alpha}")
+        self._check_mount()
         if self.laps < 1:
             raise OptionError(f"--laps must be at least 1, got {self.laps}")
         if self.imu_noise is not None:

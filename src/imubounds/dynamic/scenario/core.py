@@ -139,7 +139,7 @@ def _vehicle(cfg: ScenarioConfig, tru: dict[str, Array], dt: float) -> VehicleSe
     acc = tru["acc_enu"]
     jerk = np.linalg.norm(np.diff(acc, axis=0), axis=1) / dt
     return VehicleSettings(
-        kind="ground",
+        kind=cfg.vehicle_kind,
         max_speed_mps=_round_up(float(tru["speed"].max())),
         max_accel_mps2=_round_up(float(np.linalg.norm(acc, axis=1).max())),
         max_jerk_mps3=_round_up(float(jerk.max())),
@@ -268,6 +268,18 @@ def simulate(cfg: ScenarioConfig | None = None) -> SimResult:
                 "value": f.value,
                 "t0_s": f.t0_s,
                 "first_index": int(hit[0]) if hit.size else None,
+            }
+        )
+    if cfg.velocity_lag_s > 0 and aid.velocity is not None:
+        # an unstated timing error: the record is not clean
+        record.faults.append(
+            {
+                "label": f"velocity:lag={cfg.velocity_lag_s:g}",
+                "channel": "velocity",
+                "kind": "lag",
+                "value": cfg.velocity_lag_s,
+                "t0_s": 0.0,
+                "first_index": 0,
             }
         )
     drive = Drive(

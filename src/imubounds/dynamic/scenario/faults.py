@@ -35,6 +35,13 @@ def heading_lag(drive: Any, lag_s: float) -> Any:
     return d
 
 
+def velocity_lag(drive: Any, lag_s: float) -> Any:
+    """Body-velocity (wheel speed, DVL) time stamps ``lag_s`` late."""
+    d = _copy(drive)
+    d.velocity.t = d.velocity.t + lag_s
+    return d
+
+
 def heading_offset(drive: Any, offset_deg: float) -> Any:
     """A constant compass offset (mount, declination) of ``offset_deg``."""
     d = _copy(drive)
@@ -112,6 +119,8 @@ FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "compass_lag_0.2": (heading_lag, {"lag_s": 0.2}),
     "compass_lag_0.3": (heading_lag, {"lag_s": 0.3}),
     "compass_lag_0.5": (heading_lag, {"lag_s": 0.5}),
+    "wheel_lag_0.3": (velocity_lag, {"lag_s": 0.3}),
+    "dvl_lag_0.3": (velocity_lag, {"lag_s": 0.3}),
     "compass_offset_3": (heading_offset, {"offset_deg": 3.0}),
     "compass_offset_8": (heading_offset, {"offset_deg": 8.0}),
     "compass_two_cycle_2": (heading_two_cycle, {"amplitude_deg": 2.0}),

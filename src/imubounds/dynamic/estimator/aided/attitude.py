@@ -13,7 +13,7 @@ import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import psi_dot_abs
+from imubounds.dynamic.estimator.aided.heading import heading_at, psi_dot_abs
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -44,8 +44,54 @@ def q_mean(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p1: IA, p2: IA) -> 
     supp = lp.b2 - lp.a1
     rate = up(w.veh.max_rate * supp / tau)
     psid = up(psi_dot_abs(w, lp.a1, lp.b2, own_q=False) * supp / tau)
-    sr = w.tilt.hull("abs_sinr", lp.a1, lp.b2).hi
-    return (p1 - p2) / IA(tau) * IA(c0) + pm(rate * cdev) + pm(psid * sr)
+    coupling = _psidot_times(w, lp, tau, psid, "sinr_cosp", own_q=False)
+    return (p1 - p2) / IA(tau) * IA(c0) + pm(rate * cdev) + coupling
+
+
+def _heading_no_gyro_y(w: WindowContext, t: np.ndarray) -> IA:
+    """:func:`~imubounds.dynamic.estimator.aided.heading.heading_at` with the change
+    between heading epochs bounded without gyro_y's magnitude (the vehicle's rate bound
+    for |q|): for the constraints of gyro_y itself."""
+    ag = w.ag
+    t = np.asarray(t, dtype=float)
+    ht, hc, hh = ag.head_t, ag.head_c, ag.head_h
+    j = np.searchsorted(ht, t)
+    lo = np.full(t.shape, -np.inf)
+    hi = np.full(t.shape, np.inf)
+    for e in (j - 1, j):
+        ok = (e >= 0) & (e < ht.size)
+        ee = np.clip(e, 0, ht.size - 1)
+        te = ht[ee]
+        a, b = np.minimum(t, te), np.maximum(t, te)
+        g = up(np.where(np.abs(t - te) <= 1e-9, 0.0,
+                        psi_dot_abs(w, a, b, own_q=False) * (b - a)))
+        lo = np.where(ok, np.maximum(lo, np.nextafter(hc[ee] - hh[ee] - g, -np.inf)), lo)
+        hi = np.where(ok, np.minimum(hi, up(hc[ee] + hh[ee] + g)), hi)
+    bad = lo > hi  # inconsistent neighbours: their hull
+    return IA(np.where(bad, np.minimum(lo, hi), lo), np.where(bad, np.maximum(lo, hi), hi))
+
+
+def _psidot_times(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, psid: np.ndarray, f: str, own_q: bool
+) -> IA:
+    """Kernel mean of ``psi' f`` (boxcar ``[a1, a2]``, ``f`` a tilt function: ``sinp`` or
+    ``sinr_cosp``): ``+- mean|psi'| max|f|``, intersected where there is a heading with
+    ``f0 (psi(a2) - psi(a1))/tau +- mean|psi'| max|f - f0|`` (``f0`` the middle of f over
+    the window): the yaw rate's mean from the heading, only f's variation times |psi'|.
+    ``own_q`` False: the heading between its epochs without gyro_y's magnitude."""
+    h = w.tilt.hull(f, lp.a1, lp.b2)
+    out = pm(psid * up(np.maximum(np.abs(h.lo), np.abs(h.hi))))
+    if not w.ag.has_heading:
+        return out
+    f0 = h.mid()
+    df = up(np.maximum(h.hi - f0, f0 - h.lo))
+    at = heading_at if own_q else _heading_no_gyro_y
+    mean_psid = (at(w, lp.a2) - at(w, lp.a1)) / IA(tau)
+    alt = mean_psid * IA(f0) + pm(psid * df)
+    lo = np.maximum(out.lo, alt.lo)
+    hi = np.minimum(out.hi, alt.hi)
+    ok = np.isfinite(lo) & np.isfinite(hi) & (lo <= hi)
+    return IA(np.where(ok, lo, out.lo), np.where(ok, hi, out.hi))
 
 
 def gyro_x(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
@@ -53,8 +99,8 @@ def gyro_x(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) 
     r1, r2, _, _ = _ends(w, lp)
     supp = lp.b2 - lp.a1
     psid = up(psi_dot_abs(w, lp.a1, lp.b2) * supp / tau)
-    sp = w.tilt.hull("abs_sinp", lp.a1, lp.b2).hi
-    return (r2 - r1) / IA(tau) + pm(psid * sp) + _earth_rate(w)
+    coupling = _psidot_times(w, lp, tau, psid, "sinp", own_q=True)
+    return (r2 - r1) / IA(tau) + coupling + _earth_rate(w)
 
 
 def gyro_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:

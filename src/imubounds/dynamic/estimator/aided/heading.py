@@ -16,7 +16,7 @@ import numpy as np
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.inputs import RangeExt
-from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
+from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 
@@ -91,28 +91,27 @@ def heading_mean(w: WindowContext, a: np.ndarray, b: np.ndarray) -> IA:
 
 
 def r_from_psidot(
-    w: WindowContext, dpsi: IA, lp: LevelPlan, tau: np.ndarray, own_q: bool
+    w: WindowContext,
+    dpsi: IA,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    own_q: bool,
+    q_mean: np.ndarray | None = None,
 ) -> IA:
     """r = psi' cos(p)/cos(r) - q tan(roll): from the mean heading rate, with the tilt
-    terms bounded (|psi'| by the vehicle's rate bound, |q| by gyro_y's magnitude)."""
+    terms bounded (|psi'| by the vehicle's rate bound, |q| by gyro_y's magnitude or,
+    when given, ``q_mean``: a bound of the kernel mean of |q|)."""
     veh = w.veh
     c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
     c0 = c.mid()
     cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
     rate = veh.max_rate / math.cos(veh.max_tilt)
-    q = (
-        w.kernel_mag("gyro_y", lp, tau)
-        if own_q
-        else up(veh.max_rate * (lp.b2 - lp.a1) / tau)
-    )
+    if q_mean is not None:
+        q = q_mean
+    elif own_q:
+        q = w.kernel_mag("gyro_y", lp, tau)
+    else:
+        q = up(veh.max_rate * (lp.b2 - lp.a1) / tau)
     tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
     earth = pm(EARTH_RATE + veh.max_speed / R_EARTH)
     return dpsi * IA(c0) + pm(rate * cdev) + pm(q * tr) + earth
-
-
-def gyro_z(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
-    """``[x_W]`` of gyro_z: the yaw rate from the heading at the window ends."""
-    ag = w.ag
-    p1 = IA(ag.head_c[lp.i] - ag.head_h[lp.i], ag.head_c[lp.i] + ag.head_h[lp.i])
-    p2 = IA(ag.head_c[lp.j] - ag.head_h[lp.j], ag.head_c[lp.j] + ag.head_h[lp.j])
-    return r_from_psidot(w, (p2 - p1) / IA(tau), lp, tau, own_q=True)

@@ -14,7 +14,7 @@ import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import heading_mean
+from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, psi_dot_abs
 from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.inputs import lateral_h_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
@@ -26,6 +26,55 @@ def _second_order(eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     e2 = up(1.0 - np.cos(np.minimum(eps, math.pi)) + 1e-15)
     e1 = up(np.sin(np.minimum(eps, 0.5 * math.pi)) + 1e-15)
     return e2, e1
+
+
+def _pos_part(v0: np.ndarray, v1: np.ndarray, ell: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``int max(0, x)`` and ``int max(0, x)^2`` of x linear from ``v0`` to ``v1`` over a
+    length ``ell``."""
+    hi, lo = np.maximum(v0, v1), np.minimum(v0, v1)
+    both = lo >= 0
+    frac = np.where(both, 1.0, np.where(hi > 0, hi / np.maximum(hi - lo, 1e-300), 0.0))
+    lp = ell * frac  # length where x > 0
+    lo_p = np.where(both, lo, 0.0)
+    hi_p = np.maximum(hi, 0.0)
+    i1 = lp * (lo_p + hi_p) / 2
+    i2 = lp * (lo_p * lo_p + lo_p * hi_p + hi_p * hi_p) / 3
+    return i1, i2
+
+
+def _envelope_integrals(
+    w: WindowContext, a: np.ndarray, b: np.ndarray, psi0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of ``int_a^b |psi - psi0|`` and ``int_a^b (psi - psi0)^2`` over each fix gap
+    from the heading at its ends and the rate bound R: ``psi(t)`` lies under
+    ``U = min(psi_hi(a) + R (t - a), psi_hi(b) + R (b - t))`` and over the like ``L``, so
+    ``|psi - psi0| <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k + y^k``."""
+    pa, pb = heading_at(w, a), heading_at(w, b)
+    ok = np.isfinite(pa.lo) & np.isfinite(pa.hi) & np.isfinite(pb.lo) & np.isfinite(pb.hi)
+    ok &= np.isfinite(psi0)
+    if not np.any(ok):
+        return np.full(a.shape, np.inf), np.full(a.shape, np.inf)
+    pa = IA(np.where(ok, pa.lo, 0.0), np.where(ok, pa.hi, 0.0))
+    pb = IA(np.where(ok, pb.lo, 0.0), np.where(ok, pb.hi, 0.0))
+    psi0 = np.where(ok, psi0, 0.0)
+    R = np.maximum(psi_dot_abs(w, a, b), 1e-12)
+    g = b - a
+    out1 = np.zeros(a.shape)
+    out2 = np.zeros(a.shape)
+    for sgn, ya, yb in ((1.0, pa.hi, pb.hi), (-1.0, -pa.lo, -pb.lo)):
+        # sgn = 1: U - psi0; sgn = -1: psi0 - L (mirrored: -L is a min of lines too)
+        tk = np.clip((yb - ya + R * (a + b)) / (2 * R), a, b)
+        va = np.minimum(ya, yb + R * g) - sgn * psi0
+        vk = ya + R * (tk - a) - sgn * psi0
+        vb = np.minimum(ya + R * g, yb) - sgn * psi0
+        for v0, v1, ell in ((va, vk, tk - a), (vk, vb, b - tk)):
+            i1, i2 = _pos_part(v0, v1, ell)
+            out1 = out1 + i1
+            out2 = out2 + i2
+    fin = np.isfinite(out1) & np.isfinite(out2) & ok
+    out1 = np.where(fin, up(out1 * (1 + 1e-9) + 1e-15), np.inf)
+    out2 = np.where(fin, up(out2 * (1 + 1e-9) + 1e-15), np.inf)
+    return out1, out2
 
 
 def _gap_tables(w: WindowContext) -> dict[str, np.ndarray]:
@@ -49,6 +98,14 @@ def _gap_tables(w: WindowContext) -> dict[str, np.ndarray]:
     vl_h = lateral_h_bound(veh)
     vlat = smax if vl_h is None else np.minimum(smax, vl_h)
     e2, e1 = _second_order(eps)
+    # per gap: int (1 - cos d) <= int d^2/2 and int |sin d| <= int |d| (d = psi - psi0),
+    # from the heading's reachable envelope, where smaller than the hull's gap x (1 - cos
+    # eps), gap x sin eps
+    i1, i2 = _envelope_integrals(w, a, b, psi0)
+    i2 = np.where(fin, up(0.5 * i2), np.inf)
+    i1 = np.where(fin, i1, np.inf)
+    e2g = np.minimum(up(g * e2), i2)
+    e1g = np.minimum(up(g * e1), i1)
     dE, dN = np.diff(ag.gnss_e), np.diff(ag.gnss_n)
     du = dE * c + dN * sn
     dv = dN * c - dE * sn
@@ -63,8 +120,8 @@ def _gap_tables(w: WindowContext) -> dict[str, np.ndarray]:
         "du": cum(du),
         "dv": cum(dv),
         "abs": cum(np.abs(dE) + np.abs(dN)),
-        "ru": cum(g * (smax * e2 + vlat * e1)),
-        "rv": cum(g * (smax * e1 + vlat * e2)),
+        "ru": cum(up(smax * e2g + vlat * e1g)),
+        "rv": cum(up(smax * e1g + vlat * e2g)),
         "perr": cum(h[1:-1] * de) if t.size > 2 else np.zeros(1),
         "end": np.abs(c) + np.abs(sn),
         "smax": smax,

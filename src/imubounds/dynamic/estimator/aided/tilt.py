@@ -82,6 +82,8 @@ def build_tilt(ctx: Any) -> TiltSignals:
         "abs_tanr": lambda: abs(sr / cr),
         "abs_sinr": lambda: abs(sr),
         "abs_sinp": lambda: abs(sp),
+        "sinp": lambda: sp,
+        "sinr_cosp": lambda: sr * cp,
         "cosr": lambda: cr,
         "sec_p_minus_1": lambda: 1.0 / cp - 1.0,
         "sec_r_minus_1": lambda: 1.0 / cr - 1.0,

@@ -1,57 +1,29 @@
 """The bound of the kernel mean of |r| in the accelerometers' transport terms (docs/dynamic-
 method.md, section 3, **accel_x**: ``mean_W|r|``, ``r_abs``).
 
-The gyro's magnitude centred on its own mean error over the window (known from the
-heading): ``mean|y_r - c| + |e - c| + sqrt(S^2) + 2D + 2s mean|x|``, ``S^2`` a bound of
-the mean square deviation of the gyro noise from its mean
-(:func:`~imubounds.dynamic.estimator.budget.centered_ms_bound`).
+The smaller of two bounds, each at half the window's probability:
+
+* the gyro's magnitude centred on its own mean error over the window (known from the
+  heading): ``mean|y_r - c| + |e - c| + sqrt(S^2) + 2D + 2s mean|x|``, ``S^2`` a bound of
+  the mean square deviation of the gyro noise from its mean
+  (:func:`~imubounds.dynamic.estimator.budget.centered_ms_bound`);
+* the gyro centred on each heading gap (:mod:`.transport_blocks`): the noise counted once
+  (Jensen) plus a Gaussian concentration term that the per-gap centring keeps small.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, r_from_psidot
+from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral, block_r_abs
 from imubounds.dynamic.estimator.budget import centered_ms_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
-
-@njit(cache=True)
-def abs_dev_integral(
-    bnd: np.ndarray,
-    y: np.ndarray,
-    unknown: np.ndarray,
-    xmax: float,
-    a: np.ndarray,
-    b: np.ndarray,
-    c: np.ndarray,
-) -> np.ndarray:
-    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
-    segments ``bnd``; an unknown segment counts ``xmax + |c|``). Plain float sums
-    inflated by ``(n + 2) * 2^-52`` relative for rounding."""
-    out = np.empty(a.size)
-    nseg = bnd.size - 1
-    for w in range(a.size):
-        lo = np.searchsorted(bnd, a[w], side="right") - 1
-        if lo < 0:
-            lo = 0
-        acc = 0.0
-        cnt = 0
-        k = lo
-        while k < nseg and bnd[k] < b[w]:
-            s0 = bnd[k] if bnd[k] > a[w] else a[w]
-            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
-            if s1 > s0:
-                v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
-                acc += v * (s1 - s0)
-                cnt += 1
-            k += 1
-        out[w] = acc * (1.0 + (cnt + 4) * 2.3e-16)
-    return out
+__all__ = ["abs_dev_integral", "r_abs"]
 
 
 def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
@@ -82,11 +54,15 @@ def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
     m = w.imu.count(s0, s1)
     uc, inv = np.unique(m, return_inverse=True)
     p = w.p_window
-    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, p) for mm in uc])[inv]
+    # half the window's probability here, half for the per-gap bound (the smaller of the
+    # two is used)
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.5 * p) for mm in uc])[inv]
     ratio = max(1.0, w.imu.max_len / w.imu.dt)
     det = 2 * w.ctx.D_KR["gyro_z"] + 2 * cn.scale * w.mag_mean("gyro_z", s0, s1)
     for other in ("gyro_x", "gyro_y"):
         det = det + 2 * cn.misalignment_rad * w.mag_mean(other, s0, s1)
     fine = dev + rad + np.sqrt(ms) * ratio + det
     fine = up(fine * L / tau)
-    return np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))
+    out = np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))
+    blk = block_r_abs(w, lp, tau, 0.5 * p, det)
+    return np.minimum(out, np.where(np.isfinite(blk), blk, out))

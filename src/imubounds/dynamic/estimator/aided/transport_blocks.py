@@ -1,0 +1,278 @@
+"""The kernel mean of |r| with the gyro centred on each heading gap (docs/dynamic-method.md,
+section 3, **accel_x**, "per heading gap").
+
+The IMU samples are cut into blocks at the heading epochs (each epoch snapped to the
+next sample boundary). On block g the gyro's mean error is known from the heading
+difference over the block: ``c_g +- rad_g``. With ``y - e_g = r + d + n`` (``e_g`` the
+block's true mean error, ``d`` the deterministic deviation from it, ``n`` the noise's
+deviation from its block mean) and ``z = r + d``:
+
+* Jensen: ``E |z_k + n_k| >= |z_k|`` (``n_k`` zero-mean, ``z`` not random), so
+  ``sum_k w_k |z_k| <= E F(n)`` with ``F(n) = sum_k w_k |z_k + n_k|``;
+* Gaussian concentration (Tsirelson-Ibragimov-Sudakov): ``F`` is Lipschitz in the
+  standard normal vector behind ``n`` with constant ``sqrt(sum w_k^2) sqrt(Lambda)``,
+  ``Lambda >= ||P C P||`` (``P`` the block centring, ``C`` the noise covariance), so
+  ``E F <= F(n) + sqrt(sum w^2 Lambda 2 ln(1/p))`` with probability ``>= 1 - p``;
+* ``F(n) = sum w_k |y_k - e_g| <= sum w_k |y_k - c_g| + sum w_k rad_g``.
+
+So the noise enters once (in the gyro's record) plus a concentration term: the slow
+flicker components, nearly constant over a heading gap, drop out of ``P C P``.
+``Lambda`` per Gauss-Markov component: the smaller of ``sigma^2 (1+phi)/(1-phi)`` (the
+whole covariance) and a Gershgorin bound of ``C - B`` with ``B`` constant on each block
+pair (``P B P = 0``): the block's own row excess plus ``2 phi/(1-phi) min(1, 2 a m)``
+for the other blocks (``a = beta dt``, ``m`` the largest block). The kernel weights:
+``w_k <= K_max l_k``, ``sum w_k <= 1``, so ``sum w^2 <= K_max dt``.
+
+Used only where the IMU samples are regular (every segment one period, no gap) and the
+window lies inside the heading epochs; elsewhere +inf (the caller keeps its other bound).
+Blocks of 1, 2, 4, 8 and 16 heading gaps are tried (:data:`BLOCK_GAPS`, the probability
+split over them): short blocks know their mean error only to ``2 h_psi / length``, long
+ones keep more of the slow flicker in ``P C P``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from imubounds.dynamic.estimator.aided.base import up
+from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.heading import heading_at, psi_dot_abs, r_from_psidot
+from imubounds.dynamic.estimator.budget import ChannelNoise
+from imubounds.dynamic.estimator.window_plan import LevelPlan
+from imubounds.interval import IntervalArray as IA
+
+
+@njit(cache=True)
+def abs_dev_integral(
+    bnd: np.ndarray,
+    y: np.ndarray,
+    unknown: np.ndarray,
+    xmax: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+) -> np.ndarray:
+    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
+    segments ``bnd``; an unknown segment counts ``xmax + |c|``). Plain float sums
+    inflated by ``(n + 2) * 2^-52`` relative for rounding."""
+    out = np.empty(a.size)
+    nseg = bnd.size - 1
+    for w in range(a.size):
+        lo = np.searchsorted(bnd, a[w], side="right") - 1
+        if lo < 0:
+            lo = 0
+        acc = 0.0
+        cnt = 0
+        k = lo
+        while k < nseg and bnd[k] < b[w]:
+            s0 = bnd[k] if bnd[k] > a[w] else a[w]
+            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
+            if s1 > s0:
+                v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
+                acc += v * (s1 - s0)
+                cnt += 1
+            k += 1
+        out[w] = acc * (1.0 + (cnt + 4) * 2.3e-16)
+    return out
+
+
+def block_norm(cn: ChannelNoise, m: int, dt: float) -> float:
+    """``Lambda``: an upper bound of ``||P C P||`` for the noise of channel ``cn`` cut in
+    consecutive blocks of at most ``m`` samples (``P`` centres each block on its own
+    mean). Per Gauss-Markov component (``phi = exp(-beta dt)``, ``d = 1 - phi^(m-1)``) the
+    smaller of ``||C|| <= (1+phi)/(1-phi)`` and Gershgorin on ``P C P``: an entry inside
+    a block is at most ``2 d``, one across blocks i < j is ``(u_k - mean_i u)(v_l -
+    mean_j v)`` with ``u = phi^-k``, ``v = phi^l``, at most ``d^2 phi^(start_j - end_i)``,
+    so a row sums to at most ``2 m d + 2 d^2 phi^(2-m)/(1-phi)`` (times sigma^2)."""
+    lam = cn.N * cn.N / dt + 4 * cn.Q * cn.Q / (dt * dt)
+    for s, b in cn.gm_terms():
+        a = b * dt
+        phi = math.exp(-a)
+        q = -math.expm1(-a)
+        best = (1 + phi) / q
+        if a * (m + 2) < 600.0:
+            d = -math.expm1(-a * max(m - 1, 0))
+            best = min(best, 2 * m * d + 2 * d * d * math.exp(a * (m - 2)) / q)
+        lam += s * s * best
+    return lam * (1 + 1e-9)
+
+
+#: blocks of this many heading gaps (gyro_z) or seconds (gyro_y) are tried (the smallest
+#: bound per window is used)
+BLOCK_GAPS = (1, 2, 4, 8, 16)
+
+
+def _block_edges(w: WindowContext, ch: str, k: int) -> np.ndarray | None:
+    """Sample-boundary indices of the blocks: every ``k``-th heading epoch (gyro_z), every
+    ``k`` seconds (gyro_y); None where the samples are not regular or have gaps."""
+    sig = w.imu.sig[ch]
+    ln = np.diff(sig.bnd)
+    if ln.size == 0 or np.any(sig.unknown) or float(np.max(ln) - np.min(ln)) > 1e-6 * w.imu.dt:
+        return None
+    if ch == "gyro_z":
+        ht = w.ag.head_t
+        if ht.size < 2:
+            return None
+        sel = np.unique(np.concatenate([np.arange(0, ht.size, k), [ht.size - 1]]))
+        ks = np.unique(np.clip(np.searchsorted(sig.bnd, ht[sel]), 0, sig.bnd.size - 1))
+    else:
+        step = max(1, int(round(k / w.imu.dt)))
+        ks = np.unique(np.concatenate([np.arange(0, sig.bnd.size, step), [sig.bnd.size - 1]]))
+    return ks if ks.size >= 2 else None
+
+
+def pitch_rate_mean(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bound of |mean q| over [a, b]: ``q = -theta' cos(phi) + psi' sin(phi) cos(theta)``,
+    so ``|mean q| <= 2 max_tilt/L + sin(max_tilt) mean|psi'| + (1/cos(max_tilt) - 1)
+    (mean|q| + mean|psi'|)`` (the last, second-order term with the magnitudes)."""
+    veh = w.veh
+    L = np.maximum(b - a, 1e-300)
+    psid = psi_dot_abs(w, a, b, own_q=True)
+    st = math.sin(veh.max_tilt)
+    sec1 = 1.0 / math.cos(veh.max_tilt) - 1.0
+    return up(
+        2 * veh.max_tilt / L + st * psid + sec1 * (w.gyro_abs_mean("gyro_y", a, b) + psid)
+    )
+
+
+def _centres(w: WindowContext, ch: str, ts: np.ndarray, te: np.ndarray) -> IA:
+    """The mean error of channel ``ch`` over each block: gyro_z from the heading
+    difference, gyro_y from the bound of the mean pitch rate."""
+    sig = w.imu.sig[ch]
+    L = te - ts
+    ylo, yhi = sig.integral(ts, te)
+    if ch == "gyro_z":
+        z = np.zeros(ts.size, dtype=np.int64)
+        sup = LevelPlan(1.0, "aided", ts, ts, te, te, z, z)
+        dpsi = (heading_at(w, te) - heading_at(w, ts)) / IA(L)
+        return IA(ylo, yhi) / IA(L) - r_from_psidot(w, dpsi, sup, L, own_q=True)
+    qb = pitch_rate_mean(w, ts, te)
+    return IA(ylo, yhi) / IA(L) + IA(-qb, qb)
+
+
+def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
+    """Per block: start, end, ``G' = int |y - c_g| + len rad_g`` and its prefix sums (also
+    weighted by the block's end and start times); computed once per channel and ``k``."""
+    key = f"blocks_{ch}_{k}"
+    if key in w.cache:
+        return w.cache[key]
+    ks = _block_edges(w, ch, k)
+    if ks is None:
+        w.cache[key] = None
+        return None
+    sig = w.imu.sig[ch]
+    ts, te = sig.bnd[ks[:-1]], sig.bnd[ks[1:]]
+    L = te - ts
+    e = _centres(w, ch, ts, te)
+    fin = np.isfinite(e.lo) & np.isfinite(e.hi)
+    c = np.where(fin, e.mid(), 0.0)
+    rad = np.where(fin, up(e.radius()), np.inf)
+    g = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, ts, te, np.ascontiguousarray(c))
+    gp = up(g + L * rad)
+
+    def cum(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([[0.0], np.cumsum(x)])
+
+    m = int(np.max(ks[1:] - ks[:-1]))
+    tab = {
+        "ch": ch,
+        "ts": ts,
+        "te": te,
+        "c": c,
+        "rad": rad,
+        "G": cum(gp),
+        "tG": cum(te * gp),
+        "sG": cum(ts * gp),
+        "total": float(np.sum(np.abs(te * gp)) + np.sum(gp)),
+        "lam": block_norm(w.ctx.noise[ch], m, w.imu.dt),
+    }
+    w.cache[key] = tab
+    return tab
+
+
+def _piece(w: WindowContext, tab: dict[str, Any], a: np.ndarray, b: np.ndarray,
+           g: np.ndarray) -> np.ndarray:
+    """``int_a^b |y - c_g| + (b - a) rad_g`` over partial pieces inside block ``g``."""
+    sig = w.imu.sig[tab["ch"]]
+    gg = np.clip(g, 0, tab["c"].size - 1)
+    c = np.ascontiguousarray(tab["c"][gg])
+    ok = b > a
+    aa, bb = np.where(ok, a, 0.0), np.where(ok, b, 0.0)
+    v = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, aa, bb, c)
+    return np.where(ok, up(v + (bb - aa) * tab["rad"][gg]), 0.0)
+
+
+def _sum_blocks(tab: dict[str, Any], i: np.ndarray, j: np.ndarray, key: str) -> np.ndarray:
+    """Sum of prefix table ``key`` over blocks i..j-1 (zero where j <= i)."""
+    jj = np.maximum(j, i)
+    return tab[key][jj] - tab[key][i]
+
+
+def block_r_abs(
+    w: WindowContext,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    p: float,
+    det_mean: np.ndarray,
+    ch: str = "gyro_z",
+) -> np.ndarray:
+    """Bound of the kernel mean of |r| over each window (+inf where not applicable),
+    holding with probability ``>= 1 - p`` per window (``p`` split over the block lengths
+    of :data:`BLOCK_GAPS`); ``det_mean`` bounds the mean of the deterministic deviation
+    over the support."""
+    out = np.full(lp.a1.size, np.inf)
+    for k in BLOCK_GAPS:
+        tab = _tables(w, ch, k)
+        if tab is not None and lp.a1.size:
+            out = np.minimum(out, _bound(w, tab, lp, tau, p / len(BLOCK_GAPS), det_mean))
+    return out
+
+
+def _bound(
+    w: WindowContext,
+    tab: dict[str, Any],
+    lp: LevelPlan,
+    tau: np.ndarray,
+    p: float,
+    det_mean: np.ndarray,
+) -> np.ndarray:
+    """:func:`block_r_abs` with the blocks of one table."""
+    ts, te = tab["ts"], tab["te"]
+    s0, s1 = lp.a1, lp.b2
+    inside = (s0 >= ts[0]) & (s1 <= te[-1])
+    # full blocks i..j-1 inside [s0, s1]; the pieces left over lie in blocks i-1 and j
+    i = np.clip(np.searchsorted(ts, s0, side="left"), 0, ts.size)
+    j = np.clip(np.searchsorted(te, s1, side="right"), 0, ts.size)
+    j = np.maximum(j, i)
+    trap = lp.b1 > lp.a1
+    kmax = 1.0 / tau
+    # boxcar: K = 1/tau on [s0, s1]
+    full_box = _sum_blocks(tab, i, j, "G") * kmax
+    # trapezoid: K rises on [a1, b1] (bounded at each block's end) and falls on [a2, b2]
+    # (bounded at each block's start); a block across b1 takes the peak 1/tau
+    L1 = np.maximum(lp.b1 - lp.a1, 1e-300)
+    L2 = np.maximum(lp.b2 - lp.a2, 1e-300)
+    m1 = np.clip(np.searchsorted(te, lp.b1, side="right"), i, j)  # blocks i..m1-1 in I1
+    m2 = np.clip(np.searchsorted(ts, lp.b1, side="left"), m1, j)  # blocks m2..j-1 in I2
+    rise = (_sum_blocks(tab, i, m1, "tG") - lp.a1 * _sum_blocks(tab, i, m1, "G")) / (L1 * tau)
+    fall = (lp.b2 * _sum_blocks(tab, m2, j, "G") - _sum_blocks(tab, m2, j, "sG")) / (L2 * tau)
+    mid = _sum_blocks(tab, m1, m2, "G") * kmax
+    full = np.where(trap, np.maximum(rise, 0.0) + np.maximum(fall, 0.0) + mid, full_box)
+    # partial pieces at both ends (and a window inside a single block)
+    left_end = np.where(i < ts.size, ts[np.clip(i, 0, ts.size - 1)], s1)
+    left = _piece(w, tab, s0, np.minimum(left_end, s1), i - 1)
+    right_start = np.where(j > 0, te[np.clip(j - 1, 0, ts.size - 1)], s0)
+    right_start = np.maximum(right_start, np.minimum(left_end, s1))
+    right = _piece(w, tab, right_start, s1, j)
+    parts = (left + right) * kmax
+    # rounding of the prefix sums
+    scale = kmax + np.where(trap, 1.0 / (L1 * tau) + 1.0 / (L2 * tau), 0.0)
+    guard = (ts.size + 4) * 2.3e-16 * tab["total"] * (1.0 + np.abs(lp.a1) + np.abs(lp.b2)) * scale
+    conc = np.sqrt(tab["lam"] * w.imu.dt * kmax * 2.0 * math.log(1.0 / p))
+    det = det_mean * (s1 - s0) * kmax
+    out = up((full + parts + guard + conc + det) * (1 + 1e-12))
+    return np.where(inside, out, np.inf)

@@ -1,0 +1,147 @@
+"""Issue 24 item 4: the accel_x margins against the limit the same input bounds allow,
+computed independently of the estimator's constraint code (tests/tightness_reference.py,
+docs/dynamic-method.md section 6), per aiding set of the simulator; and the soundness of
+the transport term's per-heading-gap bound against the simulated truth."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.yaw import q_window_mean
+from imubounds.dynamic.estimator.full import build_context
+from imubounds.dynamic.estimator.inputs import PiecewiseSignal
+from imubounds.dynamic.estimator.windows import MarginBuilder
+from imubounds.dynamic.scenario import make_trip
+from imubounds.interval.rounding import nearest
+from tests.tightness_reference import accel_x_ratios, gyro_z_ratios
+
+#: the simulator's aiding sets (issue 24 item 4)
+AIDING_SETS = {
+    "positions+compass": ("gnss", "compass"),
+    "gnss-pos+vel+compass": ("gnss", "gnss-vel", "compass"),
+    "course-heading": ("gnss", "gnss-vel"),
+    "dvl+compass": ("dvl", "compass"),
+    "wheel+gnss+compass": ("wheel", "gnss", "compass"),
+    "wheel+compass": ("wheel", "compass"),
+}
+TARGET = 1.5
+
+
+def _context(aiding: tuple[str, ...], seed: int, **kw: Any) -> tuple[Any, Any, MarginBuilder]:
+    res = make_trip("paper", seed=seed, aiding=aiding, **kw)
+    ctx = build_context(res.drive, None, {})
+    return res, ctx, MarginBuilder(ctx)
+
+
+@pytest.mark.parametrize("name", sorted(AIDING_SETS))
+def test_within_1p5_of_the_limit(name: str) -> None:
+    """accel_x and gyro_z: median half-width <= 1.5 x the reference limit at every
+    tau >= the aiding period (paper trip, seed 30), and never below the limit by more
+    than the reference's own approximations (a sanity check of the reference)."""
+    with nearest():
+        _, ctx, mb = _context(AIDING_SETS[name], 30)
+        gz = mb.evaluate(ctx.plans["gyro_z"])
+        mb.fine_r = gz.raw_verdict != "exceeds"
+        m = mb.evaluate(ctx.plans["accel_x"])
+    # at every tau the tighter of the aided and the vehicle-only enclosure: no level is
+    # wider than the vehicle bounds alone (no spike where the aided level takes over)
+    veh = ctx.vehicle
+    for res_ch, bound in (
+        (m, veh.max_accel + 9.84 * np.sin(veh.max_tilt)),
+        (gz, veh.max_rate),
+    ):
+        for lv in res_ch.levels:
+            assert np.all(lv.halfwidth <= bound * (1 + 1e-6) + 1e-6), (res_ch.channel, lv.tau_s)
+    for ch, rows in (("accel_x", accel_x_ratios(ctx, m)), ("gyro_z", gyro_z_ratios(ctx, gz))):
+        assert rows, f"{ch}: no aided level"
+        table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
+        assert all(r.ratio <= TARGET for r in rows), f"{name} {ch}: {table}"
+        assert all(r.ratio >= 0.9 for r in rows), f"{name} {ch}: below the limit: {table}"
+
+
+@pytest.mark.parametrize(
+    "aiding,seed,kw",
+    [
+        (("gnss", "gnss-vel", "compass"), 41, {}),
+        (("gnss", "compass"), 42, {"scale_error": 0.002, "misalignment_deg": 0.1}),
+        (("dvl", "compass"), 43, {"turn_on_scale": 3.0}),
+        (("gnss", "gnss-vel"), 44, {"corner_length_m": 20.0, "laps": 3}),
+    ],
+    ids=["posvel", "pos-scale", "dvl-turn-on", "course-corners"],
+)
+def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: dict) -> None:
+    """The kernel mean of the true |r| (of its sample means) lies under the transport term's bound
+    (``aided.transport.r_abs``, whose per-heading-gap part counts the gyro noise once)
+    at every window of every aided accel_x level, biased noise included; likewise the
+    true |q| under gyro_y's window bound in gyro_z's tilt coupling
+    (``aided.yaw.q_window_mean``), which is tighter than the per-sample bound."""
+    with nearest():
+        res, ctx, mb = _context(aiding, seed, truth_rate_hz=100.0, **kw)
+        # the true yaw rate's means over the IMU samples (truth on the IMU's stamps)
+        x = np.asarray(res.drive.truth.extra["gyro_z"], dtype=float)
+        assert x.size == ctx.imu.n
+        sig = PiecewiseSignal(ctx.imu.bnd, np.abs(x))
+        plan = ctx.plans["accel_x"]
+        n = 0
+        for li, lp in enumerate(plan.levels):
+            if lp.kind != "aided" or lp.n == 0:
+                continue
+            gi = ctx.level_index[("accel_x", li)]
+            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+            bound = r_abs(mb, lp, lp.tau)
+            true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            bad = true.lo > bound
+            assert not bad.any(), (lp.tau_s, float(np.max(true.lo[bad] - bound[bad])))
+            n += lp.n
+        assert n > 100
+        # the tilt coupling of gyro_z: gyro_y's window bound of the mean |q|
+        xq = np.asarray(res.drive.truth.extra["gyro_y"], dtype=float)
+        sq = PiecewiseSignal(ctx.imu.bnd, np.abs(xq))
+        plan = ctx.plans["gyro_z"]
+        for li, lp in enumerate(plan.levels):
+            if lp.kind != "aided" or lp.n == 0:
+                continue
+            gi = ctx.level_index[("gyro_z", li)]
+            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+            bound = q_window_mean(mb, lp, lp.tau, 0.5 * mb.p_window)
+            true = sq.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            assert not (true.lo > bound).any(), lp.tau_s
+            assert np.median(bound) < np.median(mb.kernel_mag("gyro_y", lp, lp.tau))
+
+
+def test_heading_envelope_encloses_the_true_heading() -> None:
+    """Positions only: per fix gap, the integrals of |psi - psi0| and (psi - psi0)^2 that
+    bound the projection remainder (``aided.positions._envelope_integrals``) are at least
+    those of the true heading (sharp corners, 100 Hz truth)."""
+    from imubounds.dynamic.estimator.aided import positions as P
+
+    with nearest():
+        res, ctx, mb = _context(
+            ("gnss", "compass"), 45, truth_rate_hz=100.0, corner_length_m=20.0, laps=3
+        )
+        ag = ctx.aiding
+        t = ag.gnss_t
+        a, b = t[:-1], t[1:]
+        psi0 = P.heading_mean(mb, a, b).mid()
+        i1, i2 = P._envelope_integrals(mb, a, b, psi0)
+    tr = res.drive.truth
+    tt = np.asarray(tr.t, dtype=float) - float(np.asarray(res.drive.imu.t)[0])
+    # truth: compass heading (clockwise from north); the model's is pi/2 - it, on the
+    # branch of the unwrapped compass centres
+    psi = np.unwrap(0.5 * np.pi - np.asarray(tr.heading_rad, dtype=float))
+    psi = psi - 2 * np.pi * np.round((np.interp(a[0], tt, psi) - psi0[0]) / (2 * np.pi))
+    checked = 0
+    for k in range(0, a.size, 7):
+        sel = (tt >= a[k]) & (tt <= b[k])
+        if sel.sum() < 10:
+            continue
+        d = psi[sel] - psi0[k]
+        dt = np.gradient(tt[sel])
+        assert np.sum(np.abs(d) * dt) <= i1[k] * 1.05 + 1e-6, k
+        assert np.sum(d * d * dt) <= i2[k] * 1.05 + 1e-9, k
+        checked += 1
+    assert checked > 50

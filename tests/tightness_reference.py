@@ -1,0 +1,233 @@
+"""The limit the input bounds allow for accel_x's and gyro_z's window means, computed
+independently of the estimator's constraint code (docs/dynamic-method.md, section 6;
+issue 24 item 4).
+
+What it computes, per aided window of accel_x (the windows the estimator planned), as a
+half-width of the true kernel mean ``[x_W]`` (gyro_z: :func:`gyro_z_limits`):
+
+* **ends**: the spread the aiding boxes alone leave in the end velocities:
+  velocity at both ends (boxcar ``[a, b]``): ``(R_a + R_b)/tau`` with ``R`` the GNSS
+  velocity radius (the speed's radial uncertainty, at least that of u) or the
+  body-velocity sensor's half-width; positions only (trapezoid over ``I1 = [a1, b1]``,
+  ``I2 = [b1, b2]``): with the heading piecewise constant on the fix gaps (the compass
+  centres), the kernel mean of u is ``sum_k c_k . P_k`` over the fixes, so the boxes
+  ``+-h_k`` per axis leave ``sum_k h_k |c_k|_1`` (``c_k`` from the gap headings
+  ``e_k``: ``e_a1/L1``, ``(e_k-1 - e_k)/L``, ``-(e_b1-1/L1 + e_b1/L2)``, ...; over tau);
+* **transport**: ``v_max x M``, ``v_max`` the lateral bound (or the body-velocity
+  sensor's ``|v_m| + h`` when smaller), ``M`` the kernel mean of ``|y_r - c|`` with
+  ``y_r`` gyro_z's samples and ``c`` its mean error over the support as the heading
+  gives it (``mean y_r - (psi_c(end) - psi_c(start))/L``): the gyro's record with its
+  noise counted ONCE (the truth's mean |r| plus what the noise adds to it in the
+  record). This is a choice, not a proof of minimality: a world where the gyro noise
+  deviates from its mean by its whole high-probability bound is also consistent with
+  the gyro's bounds, but not with the heading at every epoch in between;
+* **gravity**: ``g_max sin(max tilt)`` (any tilt within the bound is consistent);
+* **Earth rate**: ``2 Omega S + S^2/R_E`` with ``S`` the largest measured speed
+  (GNSS velocity, chord speed of the fixes or the body-velocity sensor) in the window;
+
+and the limit is the smaller of their sum and what the vehicle bounds alone allow
+(``max_accel + g_max sin(max tilt)``).
+
+The terms are left out where they are smaller (the tilt conversion of u, the heading
+width's second-order projection), so the limit is on the low side: the ratio
+estimator / limit is if anything overstated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+OMEGA = 7.2921159e-5
+R_E = 6.371e6
+G_MAX = 9.84
+
+
+@dataclass
+class LevelRatio:
+    tau_s: float
+    estimator: float  # median half-width of [E_W]
+    limit: float  # median of the reference limit over the same windows
+    terms: dict[str, float]
+
+    @property
+    def ratio(self) -> float:
+        return self.estimator / self.limit
+
+
+def _heading_centres(ag: Any, t: np.ndarray) -> np.ndarray:
+    return np.interp(t, ag.head_t, ag.head_c)
+
+
+def _gyro_abs_dev(sig: Any, s0: float, s1: float, weight: Any, c: float) -> float:
+    """``int K |y - c|`` over [s0, s1] for the samples of a piecewise-constant signal
+    (``weight(t)`` the kernel at the segment midpoints)."""
+    bnd = sig.bnd
+    k0 = max(int(np.searchsorted(bnd, s0, side="right")) - 1, 0)
+    k1 = int(np.searchsorted(bnd, s1, side="left"))
+    lo = np.maximum(bnd[k0:k1], s0)
+    hi = np.minimum(bnd[k0 + 1 : k1 + 1], s1)
+    ln = np.maximum(hi - lo, 0.0)
+    y = sig.y[k0:k1]
+    return float(np.sum(weight(0.5 * (lo + hi)) * np.abs(y - c) * ln))
+
+
+def _support_centre(sig: Any, ag: Any, s0: float, s1: float) -> float:
+    lo, hi = sig.integral(np.array([s0]), np.array([s1]))
+    ybar = 0.5 * (float(lo[0]) + float(hi[0])) / (s1 - s0)
+    p0, p1 = _heading_centres(ag, np.array([s0, s1]))
+    return ybar - (p1 - p0) / (s1 - s0)
+
+
+def _gap_units(ag: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Unit heading vectors (east, north components) at the fix-gap midpoints."""
+    t = ag.gnss_t
+    psi = _heading_centres(ag, 0.5 * (t[:-1] + t[1:]))
+    return np.cos(psi), np.sin(psi)
+
+
+def _positions_ends(ag: Any, ex: np.ndarray, ny: np.ndarray, lp: Any, w: int) -> float:
+    """Half-width of the kernel mean of u_h from the fix boxes (trapezoid window w)."""
+    t, h = ag.gnss_t, ag.gnss_h
+    p = int(np.searchsorted(t, lp.a1[w]))
+    m = int(np.searchsorted(t, lp.b1[w]))
+    q = int(np.searchsorted(t, lp.b2[w]))
+    L1, L2 = t[m] - t[p], t[q] - t[m]
+    tau = 0.5 * (t[q] + t[m]) - 0.5 * (t[m] + t[p])
+    n = q - p + 1
+    ce = np.zeros(n)
+    cn = np.zeros(n)
+    # mean_I u = (1/L) sum_k (P_k+1 - P_k).e_k; the kernel is (mean_I2 - mean_I1)/tau
+    for lo, hi, sgn, L in ((p, m, -1.0, L1), (m, q, 1.0, L2)):
+        for k in range(lo, hi):
+            ce[k + 1 - p] += sgn * ex[k] / L
+            ce[k - p] -= sgn * ex[k] / L
+            cn[k + 1 - p] += sgn * ny[k] / L
+            cn[k - p] -= sgn * ny[k] / L
+    return float(np.sum(h[p : q + 1] * (np.abs(ce) + np.abs(cn))) / tau)
+
+
+def accel_x_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
+    """Per window of level ``lp``: the reference limit's terms (m/s^2)."""
+    ag, veh = ctx.aiding, ctx.vehicle
+    sig = ctx.imu.sig["gyro_z"]
+    n = lp.a1.size
+    ends = np.zeros(n)
+    trans = np.zeros(n)
+    earth = np.zeros(n)
+    vl = veh.lateral_speed_bound_mps
+    grav = G_MAX * math.sin(veh.max_tilt)
+    if plan.trapezoid:
+        ex, ny = _gap_units(ag)
+        chord = np.hypot(np.diff(ag.gnss_e), np.diff(ag.gnss_n)) / np.diff(ag.gnss_t)
+    for w in range(n):
+        a1, b1, a2, b2 = lp.a1[w], lp.b1[w], lp.a2[w], lp.b2[w]
+        tau = 0.5 * (a2 + b2) - 0.5 * (a1 + b1)
+        if plan.trapezoid:
+            ends[w] = _positions_ends(ag, ex, ny, lp, w)
+            i0 = int(np.searchsorted(ag.gnss_t, a1))
+            i2 = int(np.searchsorted(ag.gnss_t, b2))
+            speed = float(np.max(chord[i0:i2]))
+            vmax = vl if vl is not None else speed
+
+            def kern(s: np.ndarray, a1=a1, b1=b1, b2=b2, tau=tau) -> np.ndarray:
+                return np.where(
+                    s < b1, (s - a1) / ((b1 - a1) * tau), (b2 - s) / ((b2 - b1) * tau)
+                )
+        else:
+            if ag.has_bvel:
+                tt = ag.bvel_t
+                ia, ib = int(np.searchsorted(tt, a1)), int(np.searchsorted(tt, b2))
+                ends[w] = (ag.bvel_h[ia] + ag.bvel_h[ib]) / tau
+                speed = float(np.max(np.abs(ag.bvel_u[ia : ib + 1])))
+                vmax = vl if vl is not None else math.inf
+                if ag.bvel_v is not None:
+                    vm = float(np.max(np.abs(ag.bvel_v[ia : ib + 1]) + ag.bvel_h[ia : ib + 1]))
+                    vmax = min(vmax, vm)
+            else:
+                tt = ag.gnss_t[ag.gvel_ok]
+                rr = ag.gvel_hi[ag.gvel_ok]
+                ia, ib = int(np.searchsorted(tt, a1)), int(np.searchsorted(tt, b2))
+                ends[w] = (rr[ia] + rr[ib]) / tau
+                sp = np.hypot(ag.gvel_e[ag.gvel_ok], ag.gvel_n[ag.gvel_ok])
+                speed = float(np.max(sp[ia : ib + 1]))
+                vmax = vl if vl is not None else speed
+
+            def kern(s: np.ndarray, tau=tau) -> np.ndarray:
+                return np.full(s.shape, 1.0 / tau)
+
+        c = _support_centre(sig, ag, a1, b2)
+        trans[w] = vmax * _gyro_abs_dev(sig, a1, b2, kern, c)
+        earth[w] = 2 * OMEGA * speed + speed * speed / R_E
+    return {"ends": ends, "transport": trans, "gravity": np.full(n, grav), "earth": earth}
+
+
+def accel_x_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
+    """Per aided level of accel_x at or above ``min_tau_s``: the estimator's median
+    half-width against the median reference limit over the same windows."""
+    plan = ctx.plans["accel_x"]
+    out: list[LevelRatio] = []
+    levels = [lp for lp in plan.levels if lp.n > 0]
+    for lp, lv in zip(levels, margins.levels, strict=True):
+        if lp.kind != "aided" or lp.tau_s < min_tau_s:
+            continue
+        terms = accel_x_limits(ctx, plan, lp)
+        # the vehicle bounds alone enclose the same mean: the limit is the smaller
+        veh = ctx.vehicle.max_accel + terms["gravity"]
+        lim = np.minimum(sum(terms.values()), veh)
+        est = 0.5 * (lv.e_hi - lv.e_lo)
+        out.append(
+            LevelRatio(
+                lp.tau_s,
+                float(np.median(est)),
+                float(np.median(lim)),
+                {k: float(np.median(v)) for k, v in terms.items()},
+            )
+        )
+    return out
+
+
+def gyro_z_limits(ctx: Any, lp: Any) -> dict[str, np.ndarray]:
+    """Per window of gyro_z (boxcar between heading epochs): ``(h_a + h_b)/tau`` from the
+    heading boxes, ``tan(max tilt) x`` gyro_y's window mean of ``|y_q - mean y_q|`` (the
+    tilt coupling ``q tan(phi)`` with the noise counted once), and the Earth rate
+    ``Omega + S/R_E`` (S the largest measured speed, or 0 without one: on the low side)."""
+    ag, veh = ctx.aiding, ctx.vehicle
+    sig = ctx.imu.sig["gyro_y"]
+    n = lp.a1.size
+    head = (ag.head_h[lp.i] + ag.head_h[lp.j]) / lp.tau
+    tilt = np.zeros(n)
+    for w in range(n):
+        a, b = lp.a1[w], lp.b2[w]
+        lo, hi = sig.integral(np.array([a]), np.array([b]))
+        c = 0.5 * (float(lo[0]) + float(hi[0])) / (b - a)
+        tilt[w] = math.tan(veh.max_tilt) * _gyro_abs_dev(
+            sig, a, b, lambda s, L=b - a: np.full(s.shape, 1.0 / L), c
+        )
+    return {"heading": head, "tilt": tilt, "earth": np.full(n, OMEGA)}
+
+
+def gyro_z_ratios(ctx: Any, margins: Any) -> list[LevelRatio]:
+    """Per aided level of gyro_z: median half-width against the median reference limit
+    (the smaller of the terms' sum and the vehicle's rate bound)."""
+    plan = ctx.plans["gyro_z"]
+    out: list[LevelRatio] = []
+    levels = [lp for lp in plan.levels if lp.n > 0]
+    for lp, lv in zip(levels, margins.levels, strict=True):
+        if lp.kind != "aided":
+            continue
+        terms = gyro_z_limits(ctx, lp)
+        lim = np.minimum(sum(terms.values()), ctx.vehicle.max_rate)
+        est = 0.5 * (lv.e_hi - lv.e_lo)
+        out.append(
+            LevelRatio(
+                lp.tau_s,
+                float(np.median(est)),
+                float(np.median(lim)),
+                {k: float(np.median(v)) for k, v in terms.items()},
+            )
+        )
+    return out
