@@ -159,7 +159,8 @@ class MarginBuilder(WindowContext):
             if note:
                 out.notes.append(note)
             gz = self.ctx.imu.sig["gyro_z"]
-            mean_r = float(gz.AB[-1]) / max(self.ctx.imu.duration, 1e-300)
+            abs_int = float(np.sum(np.abs(gz.y) * np.diff(gz.bnd)))  # int |r| dt
+            mean_r = abs_int / max(self.ctx.imu.duration, 1e-300)
             note = dominant_transport(
                 ch, self.veh, last["halfwidth_median"], last["tau_s"], mean_r
             )
