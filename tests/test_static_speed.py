@@ -97,3 +97,23 @@ def test_log_axis_labels_are_plain_text() -> None:
     fmt = PlainLogFormatter()
     assert fmt._num_to_string(2e-3, 1e-3, 1e-2) == "2×10⁻³"
     assert fmt._num_to_string(100.0, 1.0, 1e3) == "10²"
+
+
+def test_minor_ticks_only_on_log_axes_of_few_decades() -> None:
+    """Minor ticks (2 and 5 of each decade) where an axis spans at most
+    MINOR_MAX_DECADES decades (they help read it), none on a wider one (the τ axis)."""
+    from matplotlib.figure import Figure
+
+    from imubounds.report.static_plots import MINOR_MAX_DECADES, log_axes
+
+    fig = Figure()
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot([1e-2, 1e4], [2e-3, 7e-3])  # x: 6 decades, y: under one
+    log_axes(ax)
+    ax.set_xlim(1e-2, 1e4)
+    fig.canvas.draw()
+    assert MINOR_MAX_DECADES < 6
+    assert len(ax.xaxis.get_minorticklocs()) == 0
+    ys = ax.yaxis.get_minorticklocs()
+    lo, hi = ax.get_ylim()
+    assert any(abs(v - 5e-3) < 1e-12 for v in ys) and all(lo <= v <= hi for v in ys)
