@@ -378,7 +378,9 @@ def save_figure(
                 # SVG text as text (not one path per glyph): a third faster, smaller;
                 # PNG with zlib's fastest level: the same pixels, 5-15 % larger,
                 # a fifth of the time of a save
-                kw = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
+                kw: dict[str, Any] = (
+                    {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
+                )
                 with rc_context({"svg.fonttype": "none"}):
                     fig.savefig(p, format=fmt, dpi=130, **kw)
 
