@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,3 +118,24 @@ def test_minor_ticks_only_on_log_axes_of_few_decades() -> None:
     ys = ax.yaxis.get_minorticklocs()
     lo, hi = ax.get_ylim()
     assert any(abs(v - 5e-3) < 1e-12 for v in ys) and all(lo <= v <= hi for v in ys)
+
+
+def test_in_parallel_runs_both_and_raises_a_failure_here(tmp_path: Path) -> None:
+    """The figures are drawn two at a time (a forked child draws one): both files are
+    written, and a child that fails is run again in this process, raising its error."""
+    from imubounds.cli.static import in_parallel
+
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    in_parallel(lambda: a.write_text("first"), lambda: b.write_text("second"))
+    assert a.read_text() == "first" and b.read_text() == "second"
+
+    calls = tmp_path / "calls.txt"
+
+    def failing() -> None:
+        with calls.open("a") as f:
+            f.write("x")
+        raise ValueError("drawing failed")
+
+    with pytest.raises(ValueError, match="drawing failed"):
+        in_parallel(lambda: None, failing)
+    assert calls.read_text() in ("x", "xx")  # in the child (when forked), then here
