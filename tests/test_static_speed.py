@@ -7,6 +7,7 @@ and the replacements of scipy.stats and lfilter give the values they replaced.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -139,3 +140,28 @@ def test_in_parallel_runs_both_and_raises_a_failure_here(tmp_path: Path) -> None
     with pytest.raises(ValueError, match="drawing failed"):
         in_parallel(lambda: None, failing)
     assert calls.read_text() in ("x", "xx")  # in the child (when forked), then here
+
+
+def test_static_command_runs_with_one_openblas_thread() -> None:
+    """`imubounds static` sets OPENBLAS_NUM_THREADS=1 before numpy loads OpenBLAS (its
+    idle threads spun after every small BLAS call: ~0.5 CPU s on the ADIS log), unless
+    the user set it; other commands leave it alone."""
+    code = (
+        "import os, sys, contextlib, io\n"
+        "from imubounds.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    main(sys.argv[1:])\n"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code, "static", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out == ["1"], out
+    env["OPENBLAS_NUM_THREADS"] = "3"
+    out = subprocess.run([sys.executable, "-c", code, "static", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out[0] == "3"
+    env.pop("OPENBLAS_NUM_THREADS")
+    out = subprocess.run([sys.executable, "-c", code, "simulate", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out[0] == "None"
