@@ -5,7 +5,8 @@ so the two are paired run by run):
 
 * ``imubounds static LOG -o DIR -q`` as a subprocess: everything the user waits for,
   from the interpreter start to the last file (reading, Allan curves, terms, GM and
-  AR models, the figure as PNG and SVG, noise.json, imu.yaml, report.html);
+  AR models, the figure as PNG and SVG, stationarity.png when a channel is flagged,
+  noise.json, imu.yaml, report.html);
 * a script that reads the CSV with ``pandas.read_csv`` and computes
   ``allantools.oadev(..., taus="octave")`` for every channel, also as a subprocess
   (interpreter start and imports included, as for imubounds).
@@ -59,11 +60,18 @@ def _child(cmd: list[str], env: dict[str, str]) -> tuple[float, float, str]:
 
 
 def _stages(log_path: str) -> dict[str, float]:
-    """CPU seconds of the stages of ``imubounds static`` run in this process."""
+    """CPU seconds of the stages of ``imubounds static`` run in this process (with one
+    OpenBLAS thread, as the command sets before numpy is loaded)."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from imubounds.io.outputs import write_json
     from imubounds.io.registry import read_imu
     from imubounds.report.html import write_report
-    from imubounds.report.static_plots import allan_figure, save_figure
+    from imubounds.report.static_plots import (
+        allan_figure,
+        needs_stationarity_figure,
+        save_figure,
+        stationarity_figure,
+    )
     from imubounds.stationary.pipeline import StaticSettings, analyse_static
 
     out: dict[str, float] = {}
@@ -82,6 +90,10 @@ def _stages(log_path: str) -> dict[str, float]:
         t = time.process_time()
         save_figure(allan_figure(res), Path(tmp) / "allan")
         out["figure (PNG + SVG)"] = time.process_time() - t
+        if needs_stationarity_figure(res):
+            t = time.process_time()
+            save_figure(stationarity_figure(res), Path(tmp) / "stationarity", ("png",))
+            out["stationarity.png"] = time.process_time() - t
         t = time.process_time()
         write_json(Path(tmp) / "noise.json", res.to_json())
         write_report(Path(tmp))

@@ -12,7 +12,7 @@ import pytest
 from imubounds.cli import main
 from imubounds.errors import OptionError
 from imubounds.stationary.allan import ESTIMATORS, allan
-from imubounds.stationary.contamination import despike, detect_spikes
+from imubounds.stationary.contamination import despike, detect_spikes, median_and_quantile
 from imubounds.stationary.noise_sim import AxisNoise, NoiseSpec, simulate, write_csv
 from imubounds.stationary.terms import analyse_curve
 
@@ -121,3 +121,19 @@ def test_static_robust_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert ch["allan"]["statistic"].startswith("robust")
     assert ch["allan_plain"]["adev"][0] > 1.1 * ch["allan"]["adev"][0]
     assert doc["channels"]["accel_x"]["spikes"]["events"] == 0
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 1000, 1001, 100_000])
+def test_median_and_quantile_are_numpys_bit_for_bit(n: int) -> None:
+    """One partition gives np.median and np.quantile exactly (the spike scale and
+    the trim cut of detect_spikes, hence its reports, do not change)."""
+    rng = np.random.default_rng(n)
+    for a in (
+        rng.normal(size=n),
+        np.round(rng.normal(size=n) * 2) / 2,  # quantised: ties
+        np.abs(rng.standard_cauchy(n)),
+    ):
+        for q in (0.999, 0.9, 0.5, 0.0, 1.0):
+            med, quant = median_and_quantile(a, q)
+            assert med == float(np.median(a))
+            assert quant == float(np.quantile(a, q))

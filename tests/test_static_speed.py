@@ -7,8 +7,10 @@ and the replacements of scipy.stats and lfilter give the values they replaced.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -97,3 +99,69 @@ def test_log_axis_labels_are_plain_text() -> None:
     fmt = PlainLogFormatter()
     assert fmt._num_to_string(2e-3, 1e-3, 1e-2) == "2×10⁻³"
     assert fmt._num_to_string(100.0, 1.0, 1e3) == "10²"
+
+
+def test_minor_ticks_only_on_log_axes_of_few_decades() -> None:
+    """Minor ticks (2 and 5 of each decade) where an axis spans at most
+    MINOR_MAX_DECADES decades (they help read it), none on a wider one (the τ axis)."""
+    from matplotlib.figure import Figure
+
+    from imubounds.report.static_plots import MINOR_MAX_DECADES, log_axes
+
+    fig = Figure()
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot([1e-2, 1e4], [2e-3, 7e-3])  # x: 6 decades, y: under one
+    log_axes(ax)
+    ax.set_xlim(1e-2, 1e4)
+    fig.canvas.draw()
+    assert MINOR_MAX_DECADES < 6
+    assert len(ax.xaxis.get_minorticklocs()) == 0
+    ys = ax.yaxis.get_minorticklocs()
+    lo, hi = ax.get_ylim()
+    assert any(abs(v - 5e-3) < 1e-12 for v in ys) and all(lo <= v <= hi for v in ys)
+
+
+def test_in_parallel_runs_both_and_raises_a_failure_here(tmp_path: Path) -> None:
+    """The figures are drawn two at a time (a forked child draws one): both files are
+    written, and a child that fails is run again in this process, raising its error."""
+    from imubounds.cli.static import in_parallel
+
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    in_parallel(lambda: a.write_text("first"), lambda: b.write_text("second"))
+    assert a.read_text() == "first" and b.read_text() == "second"
+
+    calls = tmp_path / "calls.txt"
+
+    def failing() -> None:
+        with calls.open("a") as f:
+            f.write("x")
+        raise ValueError("drawing failed")
+
+    with pytest.raises(ValueError, match="drawing failed"):
+        in_parallel(lambda: None, failing)
+    assert calls.read_text() in ("x", "xx")  # in the child (when forked), then here
+
+
+def test_static_command_runs_with_one_openblas_thread() -> None:
+    """`imubounds static` sets OPENBLAS_NUM_THREADS=1 before numpy loads OpenBLAS (its
+    idle threads spun after every small BLAS call: ~0.5 CPU s on the ADIS log), unless
+    the user set it; other commands leave it alone."""
+    code = (
+        "import os, sys, contextlib, io\n"
+        "from imubounds.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    main(sys.argv[1:])\n"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code, "static", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out == ["1"], out
+    env["OPENBLAS_NUM_THREADS"] = "3"
+    out = subprocess.run([sys.executable, "-c", code, "static", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out[0] == "3"
+    env.pop("OPENBLAS_NUM_THREADS")
+    out = subprocess.run([sys.executable, "-c", code, "simulate", "--help"], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
+    assert out[0] == "None"

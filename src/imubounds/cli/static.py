@@ -6,10 +6,12 @@ import argparse
 import importlib
 import json
 import math
+import os
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 from imubounds.cli._common import (
@@ -212,6 +214,61 @@ def _importing(modules: Sequence[str]) -> Iterator[None]:
         thread.join()
 
 
+def save_figures(result: Any, outdir: Path) -> list[str]:
+    """allan.png, allan.svg and (when a channel is flagged) stationarity.png, two at a
+    time on a machine with two cores (:func:`in_parallel`); returns the names written."""
+    from imubounds.report.static_plots import (
+        allan_figure,
+        needs_stationarity_figure,
+        save_figure,
+        stationarity_figure,
+    )
+
+    fig = allan_figure(result)
+    if needs_stationarity_figure(result):
+        in_parallel(
+            lambda: save_figure(fig, outdir / "allan"),
+            lambda: save_figure(stationarity_figure(result), outdir / "stationarity", ("png",)),
+        )
+        return ["allan.png", "allan.svg", "stationarity.png"]
+    in_parallel(
+        lambda: save_figure(fig, outdir / "allan", ("png",)),
+        lambda: save_figure(fig, outdir / "allan", ("svg",)),
+    )
+    return ["allan.png", "allan.svg"]
+
+
+def in_parallel(first: Callable[[], object], second: Callable[[], object]) -> None:
+    """Run ``second`` in a forked child while ``first`` runs here, then wait for it.
+
+    Drawing a figure is single-threaded Python (matplotlib), so two figures take two
+    cores only in two processes; they write their own files, and the child returns
+    nothing else. Without ``fork``, on one core, or with other Python threads alive
+    (a fork copies only the calling thread), the two run one after the other. A child
+    that fails is run again here, so that its error is raised with its traceback.
+    """
+    if not hasattr(os, "fork") or (os.cpu_count() or 1) < 2 or threading.active_count() > 1:
+        first()
+        second()
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: draw, write, leave without running the parent's cleanup
+        code = 1
+        try:
+            second()
+            code = 0
+        finally:
+            os._exit(code)
+    try:
+        first()
+    finally:
+        _, status = os.waitpid(pid, 0)
+    if status != 0:
+        second()
+
+
 def summary(result: Any) -> dict[str, Any]:
     """A compact summary per channel: the selected terms (SI, IEEE 952 and datasheet
     units, status), sigma_min, the per-sample bound with its k and the random-walk growth."""
@@ -385,19 +442,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     outset.record(getattr(args, "argv", None), command_name="static")
     written = ["noise.json", "imu.yaml", "run.json"]
     if not args.no_plot:
-        from imubounds.report.static_plots import (
-            allan_figure,
-            needs_stationarity_figure,
-            save_figure,
-        )
-
-        save_figure(allan_figure(result), outdir / "allan")
-        written += ["allan.png", "allan.svg"]
-        if needs_stationarity_figure(result):
-            from imubounds.report.static_plots import stationarity_figure
-
-            save_figure(stationarity_figure(result), outdir / "stationarity", ("png",))
-            written.append("stationarity.png")
+        written += save_figures(result, outdir)
     for name, ch in result.channels.items():
         for w in ch.warnings:
             rep.warn(w)

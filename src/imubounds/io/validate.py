@@ -658,11 +658,13 @@ def _spike_index(v: np.ndarray, sigma: float, k: float) -> np.ndarray:
     if v.size < 3 or not sigma > 0:
         return np.zeros(0, dtype=np.int64)
     d = np.diff(v)
-    lim = k * sigma
-    up, down = d[:-1], d[1:]
-    hit = (np.abs(up) > lim) & (np.abs(down) > lim) & (np.sign(up) != np.sign(down))
-    hit &= np.abs(v[2:] - v[:-2]) < 0.5 * np.minimum(np.abs(up), np.abs(down))
-    return np.flatnonzero(hit) + 1
+    big = np.abs(d) > k * sigma
+    i = np.flatnonzero(big[:-1] & big[1:])  # both steps large: the other tests on those only
+    up, down = d[i], d[i + 1]
+    hit = (np.sign(up) != np.sign(down)) & (
+        np.abs(v[i + 2] - v[i]) < 0.5 * np.minimum(np.abs(up), np.abs(down))
+    )
+    return i[hit] + 1
 
 
 def _spike_note(

@@ -1,5 +1,6 @@
 """The report's checks of a static log (:mod:`imubounds.report.html`): where the five terms
-leave the curve (``noise.selected.misfit``), how long to record (``record_length``), is
+leave the curve (``noise.selected.misfit``), whether the white level is the same at
+every τ where N dominates (``noise.white_level``), how long to record (``record_length``), is
 the log stationary and did it warm up (``stationarity``, ``stationarity.png``), and what
 assuming a constant sample rate costs (``timing``). The shapes are those of
 docs/schemas.md (noise.json)."""
@@ -96,6 +97,26 @@ def _stationarity_rows(channels: dict[str, Any]) -> list[list[str]]:
     return rows
 
 
+def _white_rows(channels: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for ch, c in channels.items():
+        noise = (c or {}).get("noise") or {}
+        wl = noise.get("white_level")
+        if not isinstance(wl, dict):
+            continue
+        unit = ((noise.get("fit") or {}).get("N") or {}).get("unit", "")
+        lo, hi = wl.get("low") or {}, wl.get("high") or {}
+        rows.append([
+            _e(ch),
+            f"{_num(wl.get('fit'), 4)} {_e(unit)}",
+            f"{_num(wl.get('read_off'), 4)} (τ = {_num(wl.get('read_off_tau_s'), 3)} s)",
+            f"{_num(lo.get('value'), 4)} (τ = {_num(lo.get('tau_s'), 3)} s) – "
+            f"{_num(hi.get('value'), 4)} (τ = {_num(hi.get('tau_s'), 3)} s)",
+            "constant" if wl.get("constant") else _e(wl.get("use", "")),
+        ])
+    return rows
+
+
 def _timing_rows(channels: dict[str, Any]) -> list[list[str]]:
     rows = []
     for ch, c in channels.items():
@@ -136,6 +157,18 @@ def checks_block(d: Path, channels: dict[str, Any]) -> str:
         parts.append("<p class='muted'>Ranges of τ where the fitted five-term model lies "
                      "outside the curve's intervals: structure the terms cannot follow "
                      "(noise.selected.misfit).</p>")
+    rows = _white_rows(channels)
+    if rows:
+        parts.append("<h3>White-noise level across τ (N)</h3>" + _table(
+            ["channel", "N from the fit", "N read off", "level implied by the curve",
+             "which to believe"], rows))
+        parts.append(
+            "<p class='muted'>The level N(τ) the curve implies where N dominates, once the "
+            "other fitted terms are taken out (noise.white_level). Constant within its "
+            "intervals and 10 %: the fit and the read-off agree. Otherwise a filter or a "
+            "correlated process changes it with τ, and noise at a time scale follows the "
+            "level read there.</p>"
+        )
     head, rows = _record_rows(channels)
     if rows:
         parts.append("<h3>How long to record</h3>" + _table(head, rows))

@@ -70,16 +70,40 @@ class PlainLogFormatter(LogFormatter):
         return f"{coeff:.3g}×{decade}"
 
 
+#: zlib level of the PNG files (1: fastest; matplotlib's default is 6).
+PNG_COMPRESS_LEVEL = 1
+
+#: A log axis spanning more decades than this gets no minor ticks (nor minor grid).
+MINOR_MAX_DECADES = 4.0
+
+
+class SparseLogLocator(LogLocator):
+    """Minor ticks at 2 and 5 of each decade, none on an axis spanning more than
+    :data:`MINOR_MAX_DECADES` decades: there the decades carry the labels and the
+    grid, and every tick is an object matplotlib builds and draws (the minor ticks
+    of the τ axes were a fifth of the time of the figures)."""
+
+    def __init__(self) -> None:
+        super().__init__(subs=(2.0, 5.0))
+
+    def tick_values(self, vmin: float, vmax: float) -> Any:
+        lo, hi = min(vmin, vmax), max(vmin, vmax)
+        if lo > 0 and math.log10(hi / lo) > MINOR_MAX_DECADES:
+            return np.array([])
+        return super().tick_values(vmin, vmax)
+
+
 def log_axes(ax: Any, x: bool = True, y: bool = True) -> None:
     """Log scale on ``ax``'s x and/or y axis, labelled by :class:`PlainLogFormatter`,
-    minor ticks at 2 and 5 (a third of the default's), labelled only where an axis
-    spans too few decades to carry labels at the decades."""
+    minor ticks at 2 and 5 (a third of the default's) on an axis of at most
+    :data:`MINOR_MAX_DECADES` decades, labelled only where an axis spans too few
+    decades to carry labels at the decades."""
     for on, axis, set_scale in ((x, ax.xaxis, ax.set_xscale), (y, ax.yaxis, ax.set_yscale)):
         if not on:
             continue
         set_scale("log")
         axis.set_major_formatter(PlainLogFormatter())
-        axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+        axis.set_minor_locator(SparseLogLocator())
         axis.set_minor_formatter(PlainLogFormatter(labelOnlyBase=False))
 
 
@@ -351,9 +375,14 @@ def save_figure(
             dest = dest_stem.with_suffix(f".{fmt}")
 
             def save(p: Path, fmt: str = fmt) -> None:
-                # SVG text as text (not one path per glyph): a third faster, smaller
+                # SVG text as text (not one path per glyph): a third faster, smaller;
+                # PNG with zlib's fastest level: the same pixels, 5-15 % larger,
+                # a fifth of the time of a save
+                kw: dict[str, Any] = (
+                    {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
+                )
                 with rc_context({"svg.fonttype": "none"}):
-                    fig.savefig(p, format=fmt, dpi=130)
+                    fig.savefig(p, format=fmt, dpi=130, **kw)
 
             out.append(write_with(dest, save))
             if k == 0 and engine is not None:

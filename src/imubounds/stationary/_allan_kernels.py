@@ -80,6 +80,12 @@ __all__ = [
 #: Maximum number of terms summed by one kernel call inside :func:`sumsq_tasks`.
 CHUNK: int = 1 << 16
 
+#: Below this many terms in all (a log of 1e6 samples has about 2e7 over the octave
+#: grid) :func:`sumsq_tasks` runs its tasks one after the other from Python: the work
+#: takes milliseconds, while the threads of a parallel region keep spinning after it
+#: (OpenMP's wait policy), which cost ``imubounds static`` a third of a CPU second.
+SERIAL_MAX_TERMS: int = 1 << 26
+
 #: LLVM fast-math flags of the sum-of-squares kernels: *only* reassociation, so
 #: that the compiler may split the sum into SIMD lanes (4x faster on AVX2).
 #: No ``nnan``/``ninf``/``arcp``/``afn``: every term is an IEEE double; the
@@ -411,6 +417,22 @@ def _make_tasks(
     )
 
 
+def _task_sum(x: np.ndarray, code: int, m: int, a: int, b: int) -> float:
+    """One task of :func:`_run_tasks`, called from Python: the same kernel call on
+    the same range, hence the same partial sum."""
+    if code == 0:
+        return float(adev_sumsq(x, m, a, b, 1))
+    if code == 1:
+        return float(adev_sumsq(x, m, a * m, b * m, m))
+    if code == 2:
+        return float(hdev_sumsq(x, m, a, b, 1))
+    if code == 3:
+        return float(mdev_sumsq(x, m, a, b))
+    if code == 5:
+        return float(hdev_sumsq(x, m, a * m, b * m, m))
+    return float(totdev_sumsq(x, m, a, b))
+
+
 def reduce_partials(idx: np.ndarray, partial: np.ndarray, n_out: int) -> np.ndarray:
     """Add per-task partial sums into one sum per ``m`` with ``math.fsum``."""
     out = np.zeros(n_out, dtype=np.float64)
@@ -423,8 +445,18 @@ def reduce_partials(idx: np.ndarray, partial: np.ndarray, n_out: int) -> np.ndar
     return out
 
 
-def sumsq_tasks(x: np.ndarray, estimator: str, ms: np.ndarray, chunk: int = CHUNK) -> np.ndarray:
-    """Sums of squared terms for every cluster size in ``ms`` (parallel, numba).
+def sumsq_tasks(
+    x: np.ndarray,
+    estimator: str,
+    ms: np.ndarray,
+    chunk: int = CHUNK,
+    parallel: bool | None = None,
+) -> np.ndarray:
+    """Sums of squared terms for every cluster size in ``ms`` (numba; tasks run in
+    parallel when there are more than :data:`SERIAL_MAX_TERMS` terms).
+
+    The tasks and their reduction are the same either way, so the sums are too;
+    ``parallel`` forces the choice (tests).
 
     Parameters
     ----------
@@ -448,7 +480,14 @@ def sumsq_tasks(x: np.ndarray, estimator: str, ms: np.ndarray, chunk: int = CHUN
     idx, m_t, a_t, b_t = _make_tasks(estimator, n_samples, ms, int(chunk))
     if idx.size == 0:
         return np.zeros(ms.shape[0])
-    partial = _run_tasks(x, ESTIMATOR_CODES[estimator], m_t, a_t, b_t)
+    code = ESTIMATOR_CODES[estimator]
+    if parallel is None:
+        parallel = int(np.sum(b_t - a_t)) > SERIAL_MAX_TERMS
+    if parallel:
+        partial = _run_tasks(x, code, m_t, a_t, b_t)
+    else:
+        partial = np.array([_task_sum(x, code, int(m), int(a), int(b))
+                            for m, a, b in zip(m_t, a_t, b_t, strict=True)])  # fmt: skip
     return reduce_partials(idx, partial, ms.shape[0])
 
 

@@ -26,6 +26,7 @@ from imubounds.stationary.record_length import describe as describe_record_lengt
 from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
 from imubounds.stationary.timing import stamp_stats, timing_check, timing_messages
+from imubounds.stationary.white_level import WhiteLevel, white_level
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
 
 FORMAT = "imubounds.stationary.terms/1"
@@ -111,6 +112,7 @@ class ChannelResult:
     record_length: dict[str, Any] | None = None
     stationarity: Stationarity | None = None
     timing: dict[str, Any] | None = None
+    white_level: WhiteLevel | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -145,6 +147,8 @@ class ChannelResult:
             "fit": self.fit.to_json(kind),
             "selected": sel.to_json(kind),
         }
+        if self.white_level is not None:
+            out["noise"]["white_level"] = self.white_level.to_dict()
         out["spikes"] = (
             self.spikes.to_dict()
             if self.spikes is not None
@@ -499,6 +503,10 @@ def analyse_static(
             )
             warnings.extend(f"{name}: {m}" for m in timing_messages(timing))
         used = {t: sel.value(t) for t in ("N", "B")}
+        wl = white_level(curve, fit, slope, selected=used["N"])
+        msg = wl.message(name, SI_UNITS[kind]["N"]) if wl is not None else None
+        if msg:
+            warnings.append(msg)
         for t in ("N", "B"):
             if sel.status(t) == "upper_bound":
                 warnings.append(
@@ -534,6 +542,7 @@ def analyse_static(
             record_length=rec,
             stationarity=st,
             timing=timing,
+            white_level=wl,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 
