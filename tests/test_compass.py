@@ -338,3 +338,25 @@ def test_harmonic_test_refuses_a_singular_design() -> None:
     psi = np.full(50, 0.3)
     one = np.ones(50)
     assert harmonic_test(psi, 0.01 * one, one * 1e-4, one * 1e-2, 3.0) == []
+
+
+def test_harmonic_test_budgets_the_weights_moved_by_the_heading_noise() -> None:
+    """The weights W are taken at the measured heading: with ``psi_var`` the bound gains
+    ``psi_var x sum_i |dW_ji/dpsi_i|``, the derivative of each column checked against
+    finite differences."""
+    rng = np.random.default_rng(1)
+    n = 120
+    psi = rng.uniform(0.0, 2 * math.pi, n)
+    rate = rng.normal(0.0, 0.1, n)
+    sig2 = rng.uniform(1e-5, 1e-4, n)
+    zero = np.zeros(n)
+    base = harmonic_test(psi, zero, sig2, zero, 0.0, rate)
+    moved = harmonic_test(psi, zero, sig2, zero, 0.0, rate, psi_var=1.0)
+    num = np.zeros((6, n))
+    for i in range(n):
+        p = psi.copy()
+        p[i] += 1e-6
+        num[:, i] = (_weights(p, sig2, rate)[:, i] - _weights(psi, sig2, rate)[:, i]) / 1e-6
+    for j in range(4):
+        assert base[j]["det"] == 0.0
+        assert moved[j]["det"] == pytest.approx(float(np.abs(num[j + 1]).sum()), rel=1e-5)

@@ -735,6 +735,7 @@ def harmonic_test(
     bound: np.ndarray,
     k: float,
     rate: np.ndarray | None = None,
+    psi_var: float = 0.0,
 ) -> list[dict[str, Any]]:
     """The deviation's harmonics in ``d = heading - course`` (rad), one test per coefficient.
 
@@ -746,23 +747,34 @@ def harmonic_test(
     and ``n_i`` independent Gaussian of variance ``sig2_i``, every coefficient of a
     harmonic obeys ``|c_j| <= sum_i |W_ji| bound_i + k sqrt(sum_i W_ji^2 sig2_i)`` but
     with the probability of a Gaussian beyond k sigma: a larger ``|c_j|`` is a deviation
-    the bound does not cover. Returns, per harmonic coefficient, ``{cycle, term, coef,
-    limit, det, sd}`` (rad); empty when the design is singular (headings not spread)."""
-    cols = [np.ones_like(psi)]
+    the bound does not cover. The weights are taken at the measured ``psi``, whose noise
+    (variance ``psi_var``, rad^2) is part of ``d``'s: to second order it biases ``c_j`` by
+    ``psi_var sum_i dW_ji/dpsi_i``, whose absolute values are added to the bound. Returns,
+    per harmonic coefficient, ``{cycle, term, coef, limit, det, sd}`` (rad); empty when
+    the design is singular (headings not spread)."""
+    cols, dcols = [np.ones_like(psi)], [np.zeros_like(psi)]
     for m in range(1, COURSE_CHECK_HARMONICS + 1):
         cols += [np.cos(m * psi), np.sin(m * psi)]
+        dcols += [-m * np.sin(m * psi), m * np.cos(m * psi)]
     if rate is not None:
         cols.append(rate)
-    a = np.column_stack(cols)
+        dcols.append(np.zeros_like(psi))
+    a, da = np.column_stack(cols), np.column_stack(dcols)
     w = 1.0 / sig2
     nrm = a.T @ (a * w[:, None])
     if a.shape[0] <= a.shape[1] or np.linalg.cond(nrm) > 1e8:
         return []
     wm = np.linalg.solve(nrm, (a * w[:, None]).T)  # rows: the coefficients' weights
     coef = wm @ d
+    # dW_:,i/dpsi_i = M^-1 a'_i w_i (1 - h_i) - W_:,i w_i a'_i.M^-1 a_i (M = A'wA, h_i the
+    # leverage w_i a_i.M^-1 a_i): the derivative of the column W_:,i = M^-1 a_i w_i
+    dm = np.linalg.solve(nrm, (da * w[:, None]).T)
+    lev = np.einsum("ij,ji->i", a, wm)
+    cross = np.einsum("ij,ji->i", da, wm)
+    dwm = dm * (1.0 - lev) - wm * cross
     out: list[dict[str, Any]] = []
     for j in range(1, 1 + 2 * COURSE_CHECK_HARMONICS):
-        det = float(np.abs(wm[j]) @ bound)
+        det = float(np.abs(wm[j]) @ bound) + psi_var * float(np.sum(np.abs(dwm[j])))
         sd = math.sqrt(float(wm[j] ** 2 @ sig2))
         out.append({"cycle": (j + 1) // 2, "term": "cos" if j % 2 else "sin",
                     "coef": float(coef[j]), "limit": det + k * sd, "det": det, "sd": sd})
@@ -850,7 +862,7 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
                 worst.append((b * 360.0 / COURSE_CHECK_BINS, m, lim))
     turn_failed = turn is not None and abs(turn["mean_diff_deg"]) > turn["limit_deg"]
     # the deviation's harmonics, least squares over every epoch (the bins' power pooled)
-    harm = harmonic_test(h, d, sig2, dev + slip, k, r)
+    harm = harmonic_test(h, d, sig2, dev + slip, k, r, ch.noise_sigma_rad**2)
     harm_failed = [c for c in harm if abs(c["coef"]) > c["limit"]]
     passed = abs(m_all) <= lim_all and not worst and not turn_failed and not harm_failed
     ch.detail["gnss_course_check"] = {
