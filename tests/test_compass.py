@@ -13,6 +13,7 @@ from imubounds.dynamic.aiding.compass import (
     UNCALIBRATED_DEVIATION_DEG,
     CompassHeading,
     compass_heading,
+    harmonic_test,
     k_sigma,
 )
 from imubounds.dynamic.aiding.magcal import fit_magnetometer
@@ -259,3 +260,103 @@ def test_comma2k19_highway_cannot_self_calibrate(shared_data: Path) -> None:
         compass_heading(d, fit="ellipse")
     ch = compass_heading(d, fit="gnss-course")
     assert not ch.independent_of_gnss
+
+
+# ----------------------------------------------------------- harmonics of the deviation
+
+
+def _rectangle_headings(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Compass headings (rad) and yaw rates (rad/s) of a rectangle driven clockwise at
+    1 Hz: 60 s straights at 0, 90, 180, 270 deg, 9 s corners at 10 deg/s (the paper trip's
+    shape: a two-cycle deviation peaks in the corners only)."""
+    psi, rate = [], []
+    for c in range(4):
+        psi += [c * math.pi / 2] * 60
+        rate += [0.0] * 60
+        psi += list(c * math.pi / 2 + np.radians(10.0) * np.arange(1, 10))
+        rate += [math.radians(10.0)] * 9
+    psi_a = np.mod(np.array(psi) + rng.normal(0.0, math.radians(0.3), len(psi)), 2 * math.pi)
+    return psi_a, np.array(rate)
+
+
+def test_harmonic_test_is_sound_under_its_assumptions() -> None:
+    """|e_i| <= bound_i of any sign (here the worst: the sign of each coefficient's weight)
+    and Gaussian noise: a coefficient beyond its limit at no more than the Gaussian tail's
+    rate; a constant offset and a clock offset (offset x yaw rate) leave the harmonics."""
+    from scipy.stats import norm
+
+    rng = np.random.default_rng(3)
+    psi, rate = _rectangle_headings(rng)
+    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
+    bound = np.full(psi.size, math.radians(1.0))
+    k = float(norm.isf(0.01 / 2))
+    zero = harmonic_test(psi, np.zeros_like(psi), sig2, bound, k, rate)
+    assert [(c["cycle"], c["term"]) for c in zero] == [(1, "cos"), (1, "sin"), (2, "cos"),
+                                                       (2, "sin")]
+    wm = _weights(psi, sig2, rate)
+    for j, c in enumerate(zero):  # the deterministic part is sum |W_j| bound
+        assert c["det"] == pytest.approx(float(np.abs(wm[j + 1]) @ bound))
+    fails = 0
+    for trial in range(200):
+        j = trial % 4
+        e = bound * np.sign(wm[j + 1])  # the worst error for coefficient j
+        d = e + rng.normal(0.0, np.sqrt(sig2)) + math.radians(5.0) + 0.1 * rate
+        c = harmonic_test(psi, d, sig2, bound, k, rate)[j]
+        assert c["coef"] == pytest.approx(c["det"] + float(wm[j + 1] @ (d - e)), abs=1e-12)
+        fails += abs(c["coef"]) > c["limit"]
+    assert fails <= 6  # 0.5 % per trial (one-sided at the worst e): binomial 99.9 % is 5
+
+
+def _weights(psi: np.ndarray, sig2: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    a = np.column_stack([np.ones_like(psi), np.cos(psi), np.sin(psi), np.cos(2 * psi),
+                         np.sin(2 * psi), rate])
+    w = 1.0 / sig2
+    return np.linalg.solve(a.T @ (a * w[:, None]), (a * w[:, None]).T)
+
+
+@pytest.mark.parametrize("amp_deg", [3.0, 4.0])
+def test_harmonic_test_sees_a_two_cycle_deviation_in_the_corners(amp_deg: float) -> None:
+    """A two-cycle deviation amp x sin(2 psi) held only in the corners of a rectangle:
+    the per-bin means hold few epochs at 45 deg; the sin 2psi coefficient pools them."""
+    from scipy.stats import norm
+
+    rng = np.random.default_rng(5)
+    psi, rate = _rectangle_headings(rng)
+    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
+    bound = np.full(psi.size, math.radians(1.0))
+    k = float(norm.isf(0.0025 / 36))
+    d = math.radians(amp_deg) * np.sin(2 * psi) + rng.normal(0.0, np.sqrt(sig2))
+    res = {(c["cycle"], c["term"]): c for c in harmonic_test(psi, d, sig2, bound, k, rate)}
+    s2 = res[(2, "sin")]
+    assert s2["coef"] == pytest.approx(math.radians(amp_deg), abs=math.radians(0.6))
+    assert abs(s2["coef"]) > s2["limit"]
+    assert all(abs(c["coef"]) <= c["limit"] for key, c in res.items() if key != (2, "sin"))
+
+
+def test_harmonic_test_refuses_a_singular_design() -> None:
+    """Headings that are not spread (a straight line): no harmonic test."""
+    psi = np.full(50, 0.3)
+    one = np.ones(50)
+    assert harmonic_test(psi, 0.01 * one, one * 1e-4, one * 1e-2, 3.0) == []
+
+
+def test_harmonic_test_budgets_the_weights_moved_by_the_heading_noise() -> None:
+    """The weights W are taken at the measured heading: with ``psi_var`` the bound gains
+    ``psi_var x sum_i |dW_ji/dpsi_i|``, the derivative of each column checked against
+    finite differences."""
+    rng = np.random.default_rng(1)
+    n = 120
+    psi = rng.uniform(0.0, 2 * math.pi, n)
+    rate = rng.normal(0.0, 0.1, n)
+    sig2 = rng.uniform(1e-5, 1e-4, n)
+    zero = np.zeros(n)
+    base = harmonic_test(psi, zero, sig2, zero, 0.0, rate)
+    moved = harmonic_test(psi, zero, sig2, zero, 0.0, rate, psi_var=1.0)
+    num = np.zeros((6, n))
+    for i in range(n):
+        p = psi.copy()
+        p[i] += 1e-6
+        num[:, i] = (_weights(p, sig2, rate)[:, i] - _weights(psi, sig2, rate)[:, i]) / 1e-6
+    for j in range(4):
+        assert base[j]["det"] == 0.0
+        assert moved[j]["det"] == pytest.approx(float(np.abs(num[j + 1]).sum()), rel=1e-5)

@@ -100,6 +100,11 @@ CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
     # within the default heading clock bound (0.1 s): enclosed, budgeted in the turns
     "compass lag 0.1 s": (F.heading_lag, {"lag_s": 0.1}, None),
     "compass two-cycle deviation 2 deg": (F.heading_two_cycle, {"amplitude_deg": 2.0}, None),
+    # the harmonics of the check against the GNSS course (compass.harmonic_test)
+    "compass two-cycle deviation 3 deg": (F.heading_two_cycle, {"amplitude_deg": 3.0},
+                                          "heading sensor"),
+    "compass two-cycle deviation 4 deg": (F.heading_two_cycle, {"amplitude_deg": 4.0},
+                                          "heading sensor"),
     "Student-t GNSS": (F.student_t, {"dof": 3.0, "seed": 7}, None),
     "lever arm 1.5 m": (F.lever_arm, {"length_m": 1.5}, None),
     "IMU stamps at the start": (F.imu_stamp_start, {}, None),
@@ -449,3 +454,45 @@ def test_clean_sweep_command_counts_per_check(capsys: Any) -> None:
     checks = summary["per_check"]
     assert checks["residual checks (every test of residual_checks)"]["level_alpha"] == 0.25
     assert all(0 <= c["trips"] <= c["allowed"] for c in checks.values()), checks
+
+
+@pytest.mark.parametrize(("amp", "seed"), [(3.0, 5), (4.0, 2), (4.0, 7)])
+def test_two_cycle_deviation_former_silent_misses(amp: float, seed: int) -> None:
+    """A two-cycle compass deviation whose peaks fall only in the corners (the sweep's
+    trip): the truth left the heading intervals with ``guaranteed: true`` at 1 (3 deg,
+    seed 5), 9 (4 deg, seed 2) and 11 (4 deg, seed 7) epochs before the check against
+    the GNSS course tested the deviation's harmonics; now its sin 2psi coefficient
+    withdraws the guarantee, and every miss is covered."""
+    drive = F.heading_two_cycle(_sweep_trip(seed), amplitude_deg=amp)
+    r = dynamic_margins(drive)
+    d = r.to_dict()
+    bad, guar = truth_misses(r, drive)
+    assert not (bad & guar).any()
+    assert any(v["test"].startswith("heading sensor") for v in d["violations"])
+    cc = r.full.ctx.heading.course_check
+    s2 = [c for c in cc["harmonics"] if (c["cycle"], c["term"]) == (2, "sin")][0]
+    assert s2["coef_deg"] > s2["limit_deg"] and s2["coef_deg"] == pytest.approx(amp, abs=0.8)
+
+
+@pytest.mark.slow
+def test_course_check_harmonics_on_ten_seeds() -> None:
+    """The check against the GNSS course alone (compass_heading) on the sweep's trip,
+    seeds 1-10: silent on the clean trips, with every harmonic coefficient well inside
+    its limit; raised by a two-cycle deviation of 3 and 4 deg on every seed (its sin 2psi
+    coefficient); the signed offset test silent on the clean trips and raised at +-3 deg
+    (the harmonics do not see a constant offset)."""
+    from imubounds.dynamic.aiding.compass import compass_heading
+
+    for seed in range(1, 11):
+        clean = _sweep_trip(seed)
+        cc = compass_heading(clean).detail["gnss_course_check"]
+        assert cc["passed"] is True, (seed, cc)
+        assert all(abs(c["coef_deg"]) < 0.5 * c["limit_deg"] for c in cc["harmonics"])
+        for amp in (3.0, 4.0):
+            cc = compass_heading(F.heading_two_cycle(clean, amp)).detail["gnss_course_check"]
+            s2 = [c for c in cc["harmonics"] if (c["cycle"], c["term"]) == (2, "sin")][0]
+            assert cc["passed"] is False and s2["coef_deg"] > s2["limit_deg"], (seed, amp)
+        for off in (3.0, -3.0):
+            cc = compass_heading(F.heading_offset(clean, off)).detail["gnss_course_check"]
+            assert cc["passed"] is False and abs(cc["mean_diff_deg"]) > cc["limit_deg"]
+            assert all(abs(c["coef_deg"]) <= c["limit_deg"] for c in cc["harmonics"])

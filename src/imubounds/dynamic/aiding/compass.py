@@ -671,6 +671,12 @@ COURSE_CHECK_SHARE = 0.25
 TURN_MIN_DPS = 2.0
 #: fixes spanned by one chord of the course from positions (no receiver velocity)
 COURSE_CHORD = 5
+#: harmonics of the deviation tested by the check against the GNSS course (cycles 1 and 2:
+#: the cos and sin coefficient of each, one test each)
+COURSE_CHECK_HARMONICS = 2
+#: tests of the check against the GNSS course: the mean, the turns, the heading bins and
+#: the 2 x COURSE_CHECK_HARMONICS coefficients (Bonferroni within COURSE_CHECK_SHARE)
+COURSE_CHECK_TESTS = 2 + COURSE_CHECK_BINS + 2 * COURSE_CHECK_HARMONICS
 
 
 def course_noise(
@@ -722,6 +728,59 @@ def course_noise(
     )
 
 
+def harmonic_test(
+    psi: np.ndarray,
+    d: np.ndarray,
+    sig2: np.ndarray,
+    bound: np.ndarray,
+    k: float,
+    rate: np.ndarray | None = None,
+    psi_var: float = 0.0,
+) -> list[dict[str, Any]]:
+    """The deviation's harmonics in ``d = heading - course`` (rad), one test per coefficient.
+
+    ``c = W d`` the weighted least-squares coefficients (weights ``1/sig2``) of the basis
+    ``1, cos psi, sin psi, ..., cos(H psi), sin(H psi)`` (H = :data:`COURSE_CHECK_HARMONICS`)
+    and, when ``rate`` is given, the yaw rate (a clock offset between the two streams shows
+    as offset x rate: its column takes it out of the harmonics, to first order). With
+    ``d_i = e_i + n_i``, ``|e_i| <= bound_i`` (deviation bound + sideslip bound, any sign)
+    and ``n_i`` independent Gaussian of variance ``sig2_i``, every coefficient of a
+    harmonic obeys ``|c_j| <= sum_i |W_ji| bound_i + k sqrt(sum_i W_ji^2 sig2_i)`` but
+    with the probability of a Gaussian beyond k sigma: a larger ``|c_j|`` is a deviation
+    the bound does not cover. The weights are taken at the measured ``psi``, whose noise
+    (variance ``psi_var``, rad^2) is part of ``d``'s: to second order it biases ``c_j`` by
+    ``psi_var sum_i dW_ji/dpsi_i``, whose absolute values are added to the bound. Returns,
+    per harmonic coefficient, ``{cycle, term, coef, limit, det, sd}`` (rad); empty when
+    the design is singular (headings not spread)."""
+    cols, dcols = [np.ones_like(psi)], [np.zeros_like(psi)]
+    for m in range(1, COURSE_CHECK_HARMONICS + 1):
+        cols += [np.cos(m * psi), np.sin(m * psi)]
+        dcols += [-m * np.sin(m * psi), m * np.cos(m * psi)]
+    if rate is not None:
+        cols.append(rate)
+        dcols.append(np.zeros_like(psi))
+    a, da = np.column_stack(cols), np.column_stack(dcols)
+    w = 1.0 / sig2
+    nrm = a.T @ (a * w[:, None])
+    if a.shape[0] <= a.shape[1] or np.linalg.cond(nrm) > 1e8:
+        return []
+    wm = np.linalg.solve(nrm, (a * w[:, None]).T)  # rows: the coefficients' weights
+    coef = wm @ d
+    # dW_:,i/dpsi_i = M^-1 a'_i w_i (1 - h_i) - W_:,i w_i a'_i.M^-1 a_i (M = A'wA, h_i the
+    # leverage w_i a_i.M^-1 a_i): the derivative of the column W_:,i = M^-1 a_i w_i
+    dm = np.linalg.solve(nrm, (da * w[:, None]).T)
+    lev = np.einsum("ij,ji->i", a, wm)
+    cross = np.einsum("ij,ji->i", da, wm)
+    dwm = dm * (1.0 - lev) - wm * cross
+    out: list[dict[str, Any]] = []
+    for j in range(1, 1 + 2 * COURSE_CHECK_HARMONICS):
+        det = float(np.abs(wm[j]) @ bound) + psi_var * float(np.sum(np.abs(dwm[j])))
+        sd = math.sqrt(float(wm[j] ** 2 @ sig2))
+        out.append({"cycle": (j + 1) // 2, "term": "cos" if j % 2 else "sin",
+                    "coef": float(coef[j]), "limit": det + k * sd, "det": det, "sd": sd})
+    return out
+
+
 def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_speed: float) -> None:
     """Compare (never fit) the corrected heading with the GNSS course, signed.
 
@@ -732,11 +791,14 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     GNSS errors), the mean of ``d`` over all the epochs and over each of
     :data:`COURSE_CHECK_BINS` heading bins, and of ``d`` x sign(yaw rate) over the turns
     (a clock offset between the streams), lies within the deviation bound + the mean
-    sideslip bound + k sigma_mean, k two-sided at level ``alpha`` x
-    :data:`COURSE_CHECK_SHARE` split over the 2 + bins tests. A larger signed mean is a
-    constant offset (mount, declination), a deviation shape the bound does not cover or
-    a clock offset: ``detail['gnss_course_check']['passed']`` is False and the check
-    says which.
+    sideslip bound + k sigma_mean; and each cos / sin coefficient of the deviation's
+    harmonics 1 to :data:`COURSE_CHECK_HARMONICS` (least squares of ``d`` on the harmonics,
+    a constant and the yaw rate, :func:`harmonic_test`) lies within ``sum_i |W_ji|
+    (deviation bound + sideslip bound_i) + k sd_j``; k two-sided at level ``alpha`` x
+    :data:`COURSE_CHECK_SHARE` split over the :data:`COURSE_CHECK_TESTS` tests. A larger
+    signed mean is a constant offset (mount, declination), a deviation shape the bound
+    does not cover or a clock offset: ``detail['gnss_course_check']['passed']`` is False
+    and the check says which.
     """
     veh = drive.settings.vehicle
     lat = veh.lateral_speed_bound_mps
@@ -765,7 +827,7 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     from scipy.stats import norm
 
     level = alpha * COURSE_CHECK_SHARE
-    k = float(norm.isf(level / (2.0 * (2 + COURSE_CHECK_BINS))))
+    k = float(norm.isf(level / (2.0 * COURSE_CHECK_TESTS)))
     dev = ch.deviation_bound_rad
 
     def test(sel: np.ndarray, sign: np.ndarray | None = None) -> tuple[float, float]:
@@ -780,6 +842,7 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
     # as offset x yaw rate (the yaw rate from the IMU's gyro, independent of d's noise)
     turn: dict[str, float] | None = None
     imu = drive.imu
+    r = None
     if imu is not None and np.isfinite(imu.gyro[:, 2]).all() and imu.t.size > 1:
         r = np.interp(tc, imu.t, imu.gyro[:, 2])
         thr = max(math.radians(TURN_MIN_DPS), 0.5 * float(np.percentile(np.abs(r), 99)))
@@ -798,7 +861,10 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             if abs(m) > lim:
                 worst.append((b * 360.0 / COURSE_CHECK_BINS, m, lim))
     turn_failed = turn is not None and abs(turn["mean_diff_deg"]) > turn["limit_deg"]
-    passed = abs(m_all) <= lim_all and not worst and not turn_failed
+    # the deviation's harmonics, least squares over every epoch (the bins' power pooled)
+    harm = harmonic_test(h, d, sig2, dev + slip, k, r, ch.noise_sigma_rad**2)
+    harm_failed = [c for c in harm if abs(c["coef"]) > c["limit"]]
+    passed = abs(m_all) <= lim_all and not worst and not turn_failed and not harm_failed
     ch.detail["gnss_course_check"] = {
         "n": int(d.size),
         "mean_diff_deg": math.degrees(m_all),
@@ -808,12 +874,20 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             for a, m, li in worst
         ],
         "turns": turn,
+        "harmonics": [
+            {"cycle": c["cycle"], "term": c["term"], "coef_deg": math.degrees(c["coef"]),
+             "limit_deg": math.degrees(c["limit"]), "bound_part_deg": math.degrees(c["det"]),
+             "sd_deg": math.degrees(c["sd"])}
+            for c in harm
+        ],
         "passed": passed,
         "rule": (
             f"signed mean of heading - GNSS course (speed >= {vmin:g} m/s) within deviation "
             f"bound + sideslip bound + k sigma of the mean, k = {k:.3g} (two-sided, level "
             f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins + the turns signed by the "
-            "yaw rate)"
+            f"yaw rate + the cos and sin coefficients of the deviation's harmonics 1 to "
+            f"{COURSE_CHECK_HARMONICS} (least squares with the yaw rate, limit sum|W| x "
+            "(deviation + sideslip bound) + k sd))"
         ),
     }
     if abs(m_all) > lim_all:
@@ -837,5 +911,13 @@ def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_spee
             f"check failed: in {len(worst)} heading bin(s) the corrected heading differs "
             f"from the GNSS course by more than its bounds allow (worst mean "
             f"{math.degrees(max(abs(w[1]) for w in worst)):.2f} deg): the compass deviation "
+            "is larger than heading.deviation_deg or has more cycles than the calibration"
+        )
+    elif harm_failed:
+        c = max(harm_failed, key=lambda c: abs(c["coef"]) - c["limit"])
+        ch.notes.append(
+            f"check failed: the {c['term']} coefficient of the heading's {c['cycle']}-cycle "
+            f"deviation against the GNSS course is {math.degrees(c['coef']):+.2f} deg, beyond "
+            f"the {math.degrees(c['limit']):.2f} deg its bounds allow: the compass deviation "
             "is larger than heading.deviation_deg or has more cycles than the calibration"
         )

@@ -125,6 +125,7 @@ FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "compass_offset_8": (heading_offset, {"offset_deg": 8.0}),
     "compass_two_cycle_2": (heading_two_cycle, {"amplitude_deg": 2.0}),
     "compass_two_cycle_3": (heading_two_cycle, {"amplitude_deg": 3.0}),
+    "compass_two_cycle_4": (heading_two_cycle, {"amplitude_deg": 4.0}),
     "multipath_5m": (multipath, {"step_m": 5.0, "t0_s": 100.0}),
     "multipath_8m": (multipath, {"step_m": 8.0, "t0_s": 100.0}),
     "multipath_12m": (multipath, {"step_m": 12.0, "t0_s": 100.0}),
