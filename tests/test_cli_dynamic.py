@@ -127,6 +127,29 @@ def test_dynamic_vn100(main, shared_data: Path, tmp_path: Path) -> None:  # type
                  "--no-report", "--mode", "paper"]) == 0
 
 
+def test_dynamic_vn100_console_says_why_undecided(main, shared_data: Path, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                   capsys: pytest.CaptureFixture) -> None:
+    """A channel whose margins are wider than its band at every tau is not a bare
+    'undecided' on the console: the line gives the margin closest to the band, and the
+    dominant term's note says what to state (the VN-100 car: no lateral-velocity bound)."""
+    out = tmp_path / "vn"
+    d = shared_data / "dynamic" / "vn100_bu353_circle"
+    assert main(["dynamic", str(d), "-o", str(out), "--mode", "full", "--no-report",
+                 "--no-plot"]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads((out / "dynamic.json").read_text())
+    full = doc["modes"]["full"]
+    lines = {ln.split()[0]: ln for ln in text.splitlines()
+             if ln.startswith("    ") and ln.split() and ln.split()[0] in full["verdict"]}
+    nothing = [ch for ch, rows in full["margins"].items()
+               if rows and not any(r.get("decidable_fraction", 0) > 0 for r in rows)]
+    assert "accel_x" in nothing  # the transport term takes the speed bound
+    for ch in nothing:
+        assert "wider than the band at every tau" in lines[ch], lines[ch]
+        assert "closest at tau" in lines[ch]
+    assert "vehicle.lateral_speed_bound_mps" in text.split(lines["accel_x"])[1].splitlines()[1]
+
+
 def test_dynamic_comma2k19_encloses_truth(main, shared_data: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "c"
     d = shared_data / "dynamic" / "comma2k19_example1"

@@ -336,16 +336,28 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
             rows = s.get("margins", {}).get(ch) or []
             best = [x for x in rows if x.get("halfwidth_median") is not None]
             extra = ""
+            notes: list[str] = []
             if mode == "full" and best:
+                f, unit = (180 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
                 dec = [x for x in best if x.get("decidable_fraction", 0) > 0]
                 if dec:
                     x = min(dec, key=lambda x: x["halfwidth_median"])
-                    f, unit = (180 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
                     extra = (
                         f"; tightest at tau {x['tau_s']:.3g} s: +-{x['halfwidth_median'] * f:.3g} "
                         f"{unit} (band {x['stationary'] * f:.3g})"
                     )
+                else:
+                    # nothing decidable: the narrowest margin against its band, and why
+                    x = min(best, key=lambda x: x["halfwidth_median"] / max(x["stationary"], 1e-99))
+                    extra = (
+                        f": the margins are wider than the band at every tau (closest at tau "
+                        f"{x['tau_s']:.3g} s: +-{x['halfwidth_median'] * f:.3g} {unit}, band "
+                        f"{x['stationary'] * f:.3g})"
+                    )
+                    notes = list((s.get("verdict_detail", {}).get(ch) or {}).get("notes") or [])
             say(f"    {ch:8s} {v}{extra}")
+            for note in notes[:1]:
+                say(f"             {note}")
         if "no reference" in s.get("verdict", {}).values():
             from imubounds.dynamic.estimator.verdicts import HOW_TO_REFERENCE
 
