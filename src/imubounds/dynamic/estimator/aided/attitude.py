@@ -48,29 +48,6 @@ def q_mean(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p1: IA, p2: IA) -> 
     return (p1 - p2) / IA(tau) * IA(c0) + pm(rate * cdev) + coupling
 
 
-def _heading_no_gyro_y(w: WindowContext, t: np.ndarray) -> IA:
-    """:func:`~imubounds.dynamic.estimator.aided.heading.heading_at` with the change
-    between heading epochs bounded without gyro_y's magnitude (the vehicle's rate bound
-    for |q|): for the constraints of gyro_y itself."""
-    ag = w.ag
-    t = np.asarray(t, dtype=float)
-    ht, hc, hh = ag.head_t, ag.head_c, ag.head_h
-    j = np.searchsorted(ht, t)
-    lo = np.full(t.shape, -np.inf)
-    hi = np.full(t.shape, np.inf)
-    for e in (j - 1, j):
-        ok = (e >= 0) & (e < ht.size)
-        ee = np.clip(e, 0, ht.size - 1)
-        te = ht[ee]
-        a, b = np.minimum(t, te), np.maximum(t, te)
-        g = up(np.where(np.abs(t - te) <= 1e-9, 0.0,
-                        psi_dot_abs(w, a, b, own_q=False) * (b - a)))
-        lo = np.where(ok, np.maximum(lo, np.nextafter(hc[ee] - hh[ee] - g, -np.inf)), lo)
-        hi = np.where(ok, np.minimum(hi, up(hc[ee] + hh[ee] + g)), hi)
-    bad = lo > hi  # inconsistent neighbours: their hull
-    return IA(np.where(bad, np.minimum(lo, hi), lo), np.where(bad, np.maximum(lo, hi), hi))
-
-
 def _psidot_times(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, psid: np.ndarray, f: str, own_q: bool
 ) -> IA:
@@ -85,8 +62,7 @@ def _psidot_times(
         return out
     f0 = h.mid()
     df = up(np.maximum(h.hi - f0, f0 - h.lo))
-    at = heading_at if own_q else _heading_no_gyro_y
-    mean_psid = (at(w, lp.a2) - at(w, lp.a1)) / IA(tau)
+    mean_psid = (heading_at(w, lp.a2, own_q) - heading_at(w, lp.a1, own_q)) / IA(tau)
     alt = mean_psid * IA(f0) + pm(psid * df)
     lo = np.maximum(out.lo, alt.lo)
     hi = np.minimum(out.hi, alt.hi)

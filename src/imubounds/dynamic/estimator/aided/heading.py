@@ -32,10 +32,12 @@ def psi_dot_abs(
     return np.minimum(up((r + q * sr) * sec), veh.max_rate / math.cos(veh.max_tilt))
 
 
-def heading_at(w: WindowContext, t: np.ndarray) -> IA:
+def heading_at(w: WindowContext, t: np.ndarray, own_q: bool = True) -> IA:
     """Heading (model convention, unwrapped branch of the compass centres) at ``t``,
     interpolated from the nearest heading epochs; the change over the gap is bounded
-    by the gyro magnitudes (a magnitude bound, never the gyro's value)."""
+    by the gyro magnitudes (a magnitude bound, never the gyro's value). ``own_q`` False:
+    without gyro_y's magnitude (the vehicle's rate bound for |q|), for the constraints
+    of gyro_y itself."""
     ag = w.ag
     t = np.asarray(t, dtype=float)
     if not ag.has_heading:
@@ -50,7 +52,7 @@ def heading_at(w: WindowContext, t: np.ndarray) -> IA:
         te = ht[ee]
         a, b = np.minimum(t, te), np.maximum(t, te)
         exact = np.abs(t - te) <= 1e-9
-        g = np.where(exact, 0.0, psi_dot_abs(w, a, b) * (b - a))
+        g = np.where(exact, 0.0, psi_dot_abs(w, a, b, own_q=own_q) * (b - a))
         g = up(g)
         c_lo = np.nextafter(hc[ee] - hh[ee] - g, -np.inf)
         c_hi = up(hc[ee] + hh[ee] + g)
