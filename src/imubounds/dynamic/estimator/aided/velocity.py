@@ -184,11 +184,14 @@ def vel_range(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> dict[s
     vmax = vmax + g_v
     if vl is not None:
         vmax = np.minimum(vmax, vl)
+    wm = up(wmax + g)
+    if w.veh.kind == "ground":  # |w| <= the vertical bound (heave) at every time
+        wm = np.minimum(wm, w.veh.vertical_bound)
     return {
         "u_lo": ulo - g_u,
         "u_hi": uhi + g_u,
         "v_max": up(vmax),
-        "w_max": up(wmax + g) if w.veh.kind != "ground" else np.zeros(a.shape),
+        "w_max": wm,
     }
 
 
@@ -255,5 +258,5 @@ def ranges(w: WindowContext, lp: LevelPlan, bv: Any) -> dict[str, np.ndarray]:
         "u_lo": -s,
         "u_hi": s,
         "v_max": np.minimum(s, vl) if vl is not None else s,
-        "w_max": np.zeros(s.shape) if w.veh.kind == "ground" else s,
+        "w_max": np.full(s.shape, w.veh.vertical_bound) if w.veh.kind == "ground" else s,
     }
