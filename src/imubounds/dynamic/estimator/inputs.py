@@ -70,7 +70,8 @@ class RangeExt:
 
 #: default bound of a ground vehicle's vertical body velocity |w| (m/s): suspension heave
 #: over bumps and potholes (tenths of m/s) plus the speed times the body's pitch against
-#: its path as the suspension pitches under braking (about 1 deg, 0.3 m/s at 20 m/s)
+#: its path as the suspension pitches under braking (about 1 deg, 0.3 m/s at 20 m/s); an
+#: IMU pitched on its mount by more than about 1 deg needs the bound stated
 VERTICAL_DEFAULT_MPS = 0.5
 
 
@@ -140,9 +141,8 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         v.sources["max_ang_accel"] = "option"
     else:
         v.sources["max_ang_accel"] = "default"
-    if v.sources.get("vertical_bound", "default").startswith("default"):
+    if v.sources.get("vertical_bound") == "default":  # nothing stated: the kind's default
         v.vertical_bound = VERTICAL_DEFAULT_MPS if v.kind == "ground" else v.max_speed
-        v.sources["vertical_bound"] = "default"
         if v.kind != "ground":
             notes.append(
                 f"vehicle kind {v.kind!r}: body vertical velocity w bounded by the speed "

@@ -364,7 +364,7 @@ def _assumptions(ctx: Any) -> list[str]:
         src = v.sources.get("vertical_bound", "default")
         a.append(
             f"ground vehicle: |vertical body velocity w| <= {v.vertical_bound:g} m/s "
-            "(suspension heave, speed x pitch against the path; "
+            "(suspension heave, speed x the IMU's pitch against the path; "
             + ("default: state vehicle.vertical_speed_bound_mps or --vertical-speed-bound)"
                if src.startswith("default") else f"{src})")
         )
