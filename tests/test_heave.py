@@ -45,6 +45,12 @@ def test_vn100_no_channel_exceeds_with_a_stated_lateral_bound(shared_data: Path)
     assert flat["verdict"]["accel_z"] == "exceeds"
     short = [x for x in flat["margins"]["accel_z"] if x["exceeds_fraction"] > 0]
     assert short and max(x["tau_s"] for x in short) < 0.2, short
+    # the data say how much heave the finding needs: about 0.011 m/s, far below a car's
+    note = [n for n in flat["verdict_detail"]["accel_z"]["notes"] if "at least" in n]
+    assert len(note) == 1, flat["verdict_detail"]["accel_z"]
+    need = float(note[0].split("at least ")[1].split(" m/s")[0])
+    assert 0.005 < need < 0.05, note
+    assert not [n for n in s["verdict_detail"]["accel_z"].get("notes", []) if "at least" in n]
 
 
 def test_vertical_bound_option_is_checked() -> None:
