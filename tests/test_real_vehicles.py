@@ -170,7 +170,8 @@ def _comma_pitch(d: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_comma2k19_tilt_bound_and_what_bounds_accel_x(shared_data: Path) -> None:
     """comma2k19 (issue 24's "done when": accel_x <= 0.5 m/s^2 at tau = 10 s): the tilt
     bound used encloses the phone's true pitch at every epoch, the accel_x interval at
-    tau ~ 10 s is gravity through the default tilt plus ~0.2 m/s^2, and the notes name the
+    tau ~ 10 s is gravity through the default tilt plus ~0.2 m/s^2 plus the q w term, and
+    the notes name the
     default tilt as the dominant term. The truth shows why the data cannot give a tighter
     tilt: the phone sits ~3.75 deg nose-down against its velocity (a constant the
     accelerometer cannot tell from its bias), so a zero-centred bound needs >= 6 deg,
@@ -188,7 +189,9 @@ def test_comma2k19_tilt_bound_and_what_bounds_accel_x(shared_data: Path) -> None
     assert np.all(np.abs(pitch) <= tilt)  # the tilt input encloses the truth
     row = _at(full, "accel_x", 10.0)
     grav = 9.84 * math.sin(tilt)
-    assert grav <= row["halfwidth_median"] <= grav + 0.3, row
+    # q w: the reader's vertical bound (the phone's mount pitch x speed) x mean|gyro_y|
+    qw = 0.25 * full["vehicle"]["vertical_speed_bound_mps"]
+    assert grav <= row["halfwidth_median"] <= grav + 0.3 + qw, row
     notes = full["verdict_detail"]["accel_x"]["notes"]
     assert any("default maximum tilt" in n and "mount pitch" in n for n in notes), notes
     for q in ("position", "heading", "speed", "u", "v"):

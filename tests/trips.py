@@ -327,6 +327,7 @@ def make_trip(variant: str = "paper", seed: int = 0, **kw: Any) -> tuple[Drive, 
     settings.vehicle.max_yaw_rate_dps = 90.0
     settings.vehicle.max_tilt_deg = 10.0
     settings.vehicle.lateral_speed_bound_mps = cfg.lateral_speed_bound_mps
+    settings.vehicle.vertical_speed_bound_mps = 0.0  # no slip: the velocity is along body x
     drive = Drive(imu=imu, settings=settings, source=f"<trip {variant} seed {seed}>")
     pos_err = vel_err = outl = None
     if cfg.gnss_pos:

@@ -86,6 +86,10 @@ def register(sub: Any) -> None:
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
                    help="non-holonomic |lateral velocity| bound of a wheeled vehicle "
                         "(vehicle.lateral_speed_bound_mps)")
+    f.add_argument("--vertical-speed-bound", type=nonneg_float, metavar="M/S",
+                   help="|vertical body velocity| bound: suspension heave plus speed x "
+                        "pitch against the path (vehicle.vertical_speed_bound_mps; ground "
+                        "default 0.5)")
     f.add_argument("--reverses", action="store_true", default=None,
                    help="the vehicle may drive backwards: no heading from the GNSS course")
     f.add_argument("--max-speed", type=positive_float, metavar="M/S")
@@ -186,6 +190,7 @@ def _full_options(args: argparse.Namespace) -> dict[str, Any]:
         "imu_stamp": args.imu_stamp,
         "max_tilt_deg": args.max_tilt,
         "lateral_speed_bound_mps": args.lateral_speed_bound,
+        "vertical_speed_bound_mps": args.vertical_speed_bound,
         "max_speed": args.max_speed,
         "max_accel": args.max_accel,
         "max_jerk": args.max_jerk,

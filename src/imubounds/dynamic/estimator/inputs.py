@@ -72,6 +72,13 @@ def _index_rule(k: np.ndarray, n: int) -> np.ndarray:
 # ------------------------------------------------------------------------ vehicle
 
 
+#: default bound of a ground vehicle's vertical body velocity |w| (m/s): suspension heave
+#: over bumps and potholes (tenths of m/s) plus the speed times the body's pitch against
+#: its path as the suspension pitches under braking (about 1 deg, 0.3 m/s at 20 m/s); an
+#: IMU pitched on its mount by more than about 1 deg needs the bound stated
+VERTICAL_DEFAULT_MPS = 0.5
+
+
 @dataclass
 class Vehicle:
     """The vehicle bounds used (SI) and where they came from."""
@@ -84,6 +91,9 @@ class Vehicle:
     max_ang_accel: float = 2.0 * math.pi
     max_tilt: float = 10.0 * DEG
     lateral_speed_bound_mps: float | None = None
+    #: |w|, the IMU's velocity along its body z axis (m/s): the stated
+    #: ``vertical_speed_bound_mps``, else the kind's default (:data:`VERTICAL_DEFAULT_MPS`
+    #: for a ground vehicle: suspension heave over bumps; the speed bound otherwise)
     vertical_bound: float = 0.0
     sources: dict[str, str] = field(default_factory=dict)
 
@@ -116,6 +126,7 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         ("max_rate", "max_yaw_rate_dps", DEG, "max_rate_dps"),
         ("max_tilt", "max_tilt_deg", DEG, "max_tilt_deg"),
         ("lateral_speed_bound_mps", "lateral_speed_bound_mps", 1.0, "lateral_speed_bound_mps"),
+        ("vertical_bound", "vertical_speed_bound_mps", 1.0, "vertical_speed_bound_mps"),
     )
     for attr, key, fac, opt in table:
         if opt is not None and opts.get(opt) is not None:
@@ -134,12 +145,13 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         v.sources["max_ang_accel"] = "option"
     else:
         v.sources["max_ang_accel"] = "default"
-    if v.kind != "ground":
-        v.vertical_bound = v.max_speed
-        notes.append(
-            f"vehicle kind {v.kind!r}: body vertical velocity w bounded by the speed bound "
-            f"{v.max_speed:g} m/s only (a ground vehicle has w = 0)"
-        )
+    if v.sources.get("vertical_bound") == "default":  # nothing stated: the kind's default
+        v.vertical_bound = VERTICAL_DEFAULT_MPS if v.kind == "ground" else v.max_speed
+        if v.kind != "ground":
+            notes.append(
+                f"vehicle kind {v.kind!r}: body vertical velocity w bounded by the speed "
+                f"bound {v.max_speed:g} m/s only"
+            )
     return v, notes
 
 

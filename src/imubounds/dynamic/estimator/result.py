@@ -256,6 +256,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         "max_ang_accel_dps2": ctx.vehicle.max_ang_accel * 180 / math.pi,
         "max_tilt_deg": ctx.vehicle.max_tilt * 180 / math.pi,
         "lateral_speed_bound_mps": ctx.vehicle.lateral_speed_bound_mps,
+        "vertical_speed_bound_mps": ctx.vehicle.vertical_bound,
         "sources": ctx.vehicle.sources,
     }
     out["margins"] = {}
@@ -360,7 +361,13 @@ def _assumptions(ctx: Any) -> list[str]:
         "(transport) terms, never the channel they judge",
     ]
     if v.kind == "ground":
-        a.append("ground vehicle: no vertical body velocity (w = 0)")
+        src = v.sources.get("vertical_bound", "default")
+        a.append(
+            f"ground vehicle: |vertical body velocity w| <= {v.vertical_bound:g} m/s "
+            "(suspension heave, speed x the IMU's pitch against the path; "
+            + ("default: state vehicle.vertical_speed_bound_mps or --vertical-speed-bound)"
+               if src.startswith("default") else f"{src})")
+        )
     if v.lateral_speed_bound_mps is not None:
         a.append(f"non-holonomic: |lateral body velocity| <= {v.lateral_speed_bound_mps:g} m/s")
     if not ctx.aiding.has_gnss:

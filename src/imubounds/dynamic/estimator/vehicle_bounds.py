@@ -228,3 +228,35 @@ def dominant_transport(
         "slip: for a wheeled vehicle state vehicle.lateral_speed_bound_mps in drive.yaml "
         "(or --lateral-speed-bound)"
     )
+
+
+def heave_note(ch: str, veh: Vehicle, levels: list[Any]) -> str | None:
+    """A note when accel_z exceeds on a ground vehicle: how large the vertical body-velocity
+    bound W' would have to be at least for every exceeding window to be consistent (a
+    window's interval widens by at most ``2 (W' - W)/tau``, the mean of w' over it). A
+    small W' (tenths of m/s) means a heave beyond the stated W (a harder bump, the IMU's
+    pitch against the path x speed) may explain the finding instead of an IMU fault."""
+    if ch != "accel_z" or veh.kind != "ground":
+        return None
+    need = 0.0
+    taus: list[float] = []
+    for lv in levels:
+        if lv.kind != "aided":
+            continue
+        ex = lv.exceeds
+        if not np.any(ex):
+            continue
+        over = np.maximum(lv.e_lo - lv.band, -lv.band - lv.e_hi)[ex]
+        need = max(need, float(np.max(over * lv.tau[ex] / 2.0)))
+        taus.append(lv.tau_s)
+    if not taus:
+        return None
+    W = veh.vertical_bound
+    return (
+        f"accel_z exceeds at tau {', '.join(f'{t:.3g}' for t in taus)} s; for those "
+        f"windows to be consistent the vertical body velocity bound would have to be at "
+        f"least {W + need:.3g} m/s instead of {W:g} m/s "
+        f"({veh.sources.get('vertical_bound', 'default')}): if the vehicle can heave that "
+        "much (road bumps, the IMU's pitch against the path x speed), state "
+        "vehicle.vertical_speed_bound_mps (--vertical-speed-bound) and run again"
+    )

@@ -33,7 +33,11 @@ from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.aided.yaw import gyro_z
 from imubounds.dynamic.estimator.band import change_band, level_band
 from imubounds.dynamic.estimator.budget import UNITS, k_two_sided
-from imubounds.dynamic.estimator.vehicle_bounds import dominant_default, dominant_transport
+from imubounds.dynamic.estimator.vehicle_bounds import (
+    dominant_default,
+    dominant_transport,
+    heave_note,
+)
 from imubounds.dynamic.estimator.verdicts import (
     HOW_TO_REFERENCE,
     NO_REFERENCE,
@@ -164,6 +168,9 @@ class MarginBuilder(WindowContext):
             note = dominant_transport(
                 ch, self.veh, last["halfwidth_median"], last["tau_s"], mean_r
             )
+            if note:
+                out.notes.append(note)
+            note = heave_note(ch, self.veh, levels)
             if note:
                 out.notes.append(note)
         return out

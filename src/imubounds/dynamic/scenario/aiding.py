@@ -351,14 +351,16 @@ def _velocity(
 ) -> None:
     t = epochs(cfg, cfg.velocity_rate_hz)
     k = traj.kinematics(t, positions=False)
-    u = k["speed"]
+    bv = k["body_vel"]  # (speed, 0, 0) plus the heave of road bumps
+    u = bv[:, 0]
     m = t.size
     if "dvl" in cfg.aiding:
         s = cfg.dvl_sigma_mps
         bound = k_level(cfg.alpha, 3 * m) * s
         err = _normal(rng, s, bound, (m, 3), cfg.bounded)
         out.velocity = VelocityStream(
-            t=t, u_mps=u + err[:, 0], v_mps=err[:, 1], w_mps=err[:, 2], kind="dvl"
+            t=t, u_mps=u + err[:, 0], v_mps=bv[:, 1] + err[:, 1], w_mps=bv[:, 2] + err[:, 2],
+            kind="dvl",
         )
         scale, scale_err = 0.0, 0.0
         comp = err

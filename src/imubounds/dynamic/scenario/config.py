@@ -150,6 +150,13 @@ class ScenarioConfig:
     hill_amplitude_m: float = 0.0  # 0: flat
     bank_deg: float = 0.0  # road bank (roll) amplitude
     roll_gain_deg_per_mps2: float = 0.0  # body roll per m/s^2 of lateral acceleration
+    #: road bumps: the body heaves by ``H sin^4(pi x)`` (x from 0 to 1 over
+    #: ``bump_duration_s``) every ``bump_every_s``, its attitude kept (the suspension's
+    #: heave); 0: none. The body velocity gains ``dz/dt (sin theta, cos theta sin phi,
+    #: cos theta cos phi)``.
+    bump_height_m: float = 0.0
+    bump_duration_s: float = 0.4
+    bump_every_s: float = 10.0
     # rates
     rate_hz: float = 100.0  # IMU
     gps_rate_hz: float = 1.0
@@ -262,6 +269,8 @@ class ScenarioConfig:
             "max_lateral_accel_mps2",
             "max_long_accel_mps2",
             "ramp_s",
+            "bump_duration_s",
+            "bump_every_s",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -287,6 +296,7 @@ class ScenarioConfig:
             "attitude_sigma_deg",
             "velocity_lag_s",
             "attitude_yaw_sigma_deg",
+            "bump_height_m",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -295,6 +305,11 @@ class ScenarioConfig:
             raise OptionError(
                 f"--duration ({self.duration_s:g} s) must exceed twice the speed ramp "
                 f"(2 x {self.ramp_s:g} s)"
+            )
+        if self.bump_every_s < self.bump_duration_s:
+            raise OptionError(
+                f"bump_every_s ({self.bump_every_s:g}) must be at least bump_duration_s "
+                f"({self.bump_duration_s:g}): one bump at a time"
             )
         if not 0.0 <= self.gps_outlier_fraction < 1.0:
             raise OptionError(f"--gps-outliers must lie in [0, 1), got {self.gps_outlier_fraction}")

@@ -148,6 +148,8 @@ def _vehicle(cfg: ScenarioConfig, tru: dict[str, Array], dt: float) -> VehicleSe
             float(max(np.abs(tru["roll"]).max(), np.abs(tru["pitch"]).max())) / DEG, floor=0.1
         ),
         lateral_speed_bound_mps=cfg.lateral_speed_bound_mps,
+        # the truth's |w| (0 without road bumps: the velocity is along the path)
+        vertical_speed_bound_mps=_round_up(float(np.abs(tru["body_vel"][:, 2]).max())),
     )
 
 
@@ -231,7 +233,7 @@ def _truth_stream(cfg: ScenarioConfig, tru: dict[str, Array], bias: Array) -> Tr
         north_m=tru["north"][i],
         origin=(cfg.origin[0], cfg.origin[1], cfg.origin[2]),
         heading_rad=np.asarray(model_to_compass(tru["yaw"][i])),
-        u_mps=tru["speed"][i],
+        u_mps=tru["body_vel"][i, 0],
         v_mps=tru.get("lateral", np.zeros_like(tru["speed"]))[i],
         extra=extra,
     )

@@ -335,6 +335,32 @@ class Terrain:
         return b, db
 
 
+class Bumps:
+    """Heave of the body over road bumps: ``z = H sin^4(pi x)``, ``x = (t - t_k)/D`` in
+    [0, 1] for bumps starting at ``t_k = (k + 1/2) every``; z and its first three
+    derivatives vanish at both ends (the vertical jerk is bounded)."""
+
+    def __init__(self, cfg: ScenarioConfig) -> None:
+        self.H = cfg.bump_height_m
+        self.D = cfg.bump_duration_s
+        self.every = cfg.bump_every_s
+
+    def heave(self, t: Array) -> tuple[Array, Array, Array]:
+        """z (m), dz/dt (m/s), d2z/dt2 (m/s^2) at the instants ``t``."""
+        z = np.zeros_like(t)
+        if not self.H:
+            return z, z.copy(), z.copy()
+        x = (t - 0.5 * self.every) / self.every
+        x = (x - np.floor(x)) * self.every / self.D  # time into the current bump / D
+        on = (t >= 0.5 * self.every) & (x < 1.0)
+        w = math.pi / self.D
+        s, c = np.sin(math.pi * x), np.cos(math.pi * x)
+        z = np.where(on, self.H * s**4, 0.0)
+        zd = np.where(on, 4 * self.H * w * s**3 * c, 0.0)
+        zdd = np.where(on, self.H * w * w * (12 * s * s * c * c - 4 * s**4), 0.0)
+        return z, zd, zdd
+
+
 # ----------------------------------------------------------------------------- trajectory
 
 
@@ -347,6 +373,7 @@ class Trajectory:
         self.speed, self.cruise_mps, self.corner_mps = _speed_plan(cfg, p.length, p.corner)
         self.terrain = Terrain(cfg, self.path.total, rng)
         self.roll_gain = cfg.roll_gain_deg_per_mps2 * DEG
+        self.bumps = Bumps(cfg)
         self.g = G0
 
     def kinematics(self, t: Array, positions: bool = True) -> dict[str, Array]:
@@ -354,7 +381,8 @@ class Trajectory:
 
         Keys: ``east, north, up`` (m), ``vel_enu`` (n, 3) and ``acc_enu`` (n, 3),
         ``roll, pitch, yaw`` (rad; yaw is the model heading, continuous),
-        ``speed`` (3-D, m/s), ``s`` (horizontal arc length), ``gyro`` (n, 3) body
+        ``speed`` (3-D path speed, m/s), ``body_vel`` (n, 3: the path speed along x
+        plus the heave of road bumps), ``s`` (horizontal arc length), ``gyro`` (n, 3) body
         rate and ``accel`` (n, 3) specific force, ``lat_acc`` (m/s^2, horizontal).
         """
         t = np.asarray(t, dtype=float)
@@ -381,22 +409,31 @@ class Trajectory:
         fy = V * wz + g * ct * sp
         fz = -V * wy + g * ct * cp
         cps, sps = np.cos(psi), np.sin(psi)
-        vel = np.column_stack([sd * cps, sd * sps, sd * h1])
+        z, zd, zdd = self.bumps.heave(t)
+        # heave along ENU up: R^T e_up = (sin theta, cos theta sin phi, cos theta cos phi)
+        up_b = np.column_stack([st, ct * sp, ct * cp])
+        fx = fx + zdd * up_b[:, 0]
+        fy = fy + zdd * up_b[:, 1]
+        fz = fz + zdd * up_b[:, 2]
+        vel = np.column_stack([sd * cps, sd * sps, sd * h1 + zd])
         acc = np.column_stack(
-            [sdd * cps - lat * sps, sdd * sps + lat * cps, sdd * h1 + sd * sd * h2]
+            [sdd * cps - lat * sps, sdd * sps + lat * cps, sdd * h1 + sd * sd * h2 + zdd]
         )
+        body = zd[:, None] * up_b
+        body[:, 0] += V
         return {
             "t": t,
             "s": s,
             "east": east,
             "north": north,
-            "up": h,
+            "up": h + z,
             "vel_enu": vel,
             "acc_enu": acc,
             "roll": roll,
             "pitch": np.arctan(h1),
             "yaw": psi,
             "speed": V,
+            "body_vel": body,
             "lat_acc": lat,
             "gyro": np.column_stack([wx, wy, wz]),
             "accel": np.column_stack([fx, fy, fz]),
@@ -423,6 +460,18 @@ class Trajectory:
         gyr = simpson(k["gyro"])
         sp = k["speed"]
         acc[:, 0] = (sp[2::2] - sp[0:-2:2]) / dt + self.g * simpson(np.sin(k["pitch"]))
+        if self.bumps.H:
+            # the heave's share d2z/dt2 (sin theta, cos theta sin phi, cos theta cos phi):
+            # its mean over the period as (dz/dt(t_k) - dz/dt(t_k - dt))/dt exactly
+            # times the mean direction (Simpson's rule is off by 1e-5 m/s^2 on a bump)
+            _, zd, zdd = self.bumps.heave(th)
+            pt, rl = k["pitch"], k["roll"]
+            up_b = np.column_stack(
+                [np.sin(pt), np.cos(pt) * np.sin(rl), np.cos(pt) * np.cos(rl)]
+            )
+            exact = (zd[2::2] - zd[0:-2:2]) / dt
+            acc[:, 0] += simpson(zdd * up_b[:, 0])
+            acc += (exact - simpson(zdd))[:, None] * simpson(up_b)
         out = {name: v[even] for name, v in k.items()}
         out["east"], out["north"] = self.path.position(out["s"])
         out["accel_mean"] = acc

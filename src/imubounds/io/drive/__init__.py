@@ -313,6 +313,8 @@ class VehicleSettings:
 
     ``kind``: ``"ground"``, ``"marine"`` or ``"air"``; ``lateral_speed_bound_mps``:
     non-holonomic |v| bound for wheeled vehicles (None: not assumed);
+    ``vertical_speed_bound_mps``: |w| bound, the IMU's velocity along its body z axis
+    (None: the kind's default, 0.5 m/s for a ground vehicle, the speed bound otherwise);
     ``max_tilt_deg``: roll/pitch bound when there is no attitude stream.
     """
 
@@ -323,6 +325,7 @@ class VehicleSettings:
     max_yaw_rate_dps: float = 90.0
     max_tilt_deg: float = 10.0
     lateral_speed_bound_mps: float | None = None
+    vertical_speed_bound_mps: float | None = None
 
 
 @dataclass

@@ -51,6 +51,7 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "vehicle.max_yaw_rate_dps": (0.0, False, None),
     "vehicle.max_tilt_deg": (0.0, True, 90.0),
     "vehicle.lateral_speed_bound_mps": (0.0, True, None),
+    "vehicle.vertical_speed_bound_mps": (0.0, True, None),
     "imu.accel_nd": (0.0, True, None),
     "imu.accel_bs": (0.0, True, None),
     "imu.gyro_nd": (0.0, True, None),

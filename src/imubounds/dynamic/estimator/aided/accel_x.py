@@ -1,7 +1,7 @@
 """accel_x (docs/dynamic-method.md, section 3, **accel_x**): ``(u(b) - u(a))/tau -
 mean(r v) + g mean(sin theta)`` plus the Earth rate, the transport term bounded by
-``max_W|v| mean_W|r|`` (never computed from the gyro); for an aerial/marine vehicle
-also ``max|w| mean|q|``."""
+``max_W|v| mean_W|r|`` (never computed from the gyro), and ``q w`` by ``max|w| mean|q|``
+(|w| within the vertical bound: heave for a ground vehicle)."""
 
 from __future__ import annotations
 
@@ -23,6 +23,6 @@ def accel_x(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     transport = pm(rng["v_max"] * r_mag)
     grav = w.tilt.kmean("g_sinp", lp, tau)
     x = (ends["u2"] - ends["u1"]) / IA(tau) - transport + grav + h.earth
-    if w.veh.kind != "ground":
+    if w.veh.vertical_bound > 0:  # q w, |w| <= the vertical (heave) bound
         x = x + pm(rng["w_max"] * w.kernel_mag("gyro_y", lp, tau))
     return x

@@ -41,6 +41,6 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     ru = IA(u0) * mean_r + pm(du * r_mag)
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
-    if w.veh.kind != "ground":
+    if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound
         x = x + pm(rng["w_max"] * w.kernel_mag("gyro_x", lp, tau))
     return x

@@ -4,7 +4,9 @@ differences, with the other axes' magnitudes in second-order terms.
 
 * gyro_x: ``p = phi' + psi' sin(theta)``;
 * gyro_y: ``q = -theta' cos(phi) + psi' cos(theta) sin(phi)`` (FLU, pitch nose up);
-* accel_z: ``f_z = p v - q u + g cos(phi) cos(theta)`` (ground vehicle: w = 0).
+* accel_z: ``f_z = w' + p v - q u + g cos(phi) cos(theta)``; the mean of ``w'`` over the
+  boxcar is ``(w(a2) - w(a1))/tau``, within ``+-2 W/tau`` for a ground vehicle (``W`` the
+  vertical body-velocity bound), ``+-max_accel`` otherwise.
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ def gyro_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) 
 
 
 def accel_z(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
-    """``[x_W]`` of accel_z: ``p v - q u + g cos(roll) cos(pitch)``."""
+    """``[x_W]`` of accel_z: ``w' + p v - q u + g cos(roll) cos(pitch)``."""
     veh = w.veh
     _, _, p1, p2 = _ends(w, lp)
     q = q_mean(w, lp, tau, p1, p2)
@@ -100,4 +102,7 @@ def accel_z(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     x = pv - qu + grav + pm(2 * EARTH_RATE * veh.max_speed)
     if veh.kind != "ground":
         x = x + pm(veh.max_accel * supp / tau)
+    elif veh.vertical_bound > 0:
+        # the boxcar mean of w' is (w(a2) - w(a1))/tau: heave over bumps (|w| <= W)
+        x = x + pm(up(2.0 * veh.vertical_bound / tau))
     return x

@@ -173,7 +173,7 @@ def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str
         vmax = np.minimum(smax, vl) if vl is not None else smax
         u = uh + pm(smax * sec_p + vmax * trp)
         v = vh + pm(smax * sec_r)
-        if veh.kind != "ground":
+        if veh.vertical_bound > 0:
             wv = veh.vertical_bound
             u = u + pm(wv * w.tilt.hull("abs_tanp", a, b).hi)
             v = v + pm(wv * w.tilt.hull("abs_tanr", a, b).hi)

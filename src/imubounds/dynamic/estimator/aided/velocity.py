@@ -184,11 +184,14 @@ def vel_range(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> dict[s
     vmax = vmax + g_v
     if vl is not None:
         vmax = np.minimum(vmax, vl)
+    wm = up(wmax + g)
+    if w.veh.kind == "ground":  # |w| <= the vertical bound (heave) at every time
+        wm = np.minimum(wm, w.veh.vertical_bound)
     return {
         "u_lo": ulo - g_u,
         "u_hi": uhi + g_u,
         "v_max": up(vmax),
-        "w_max": up(wmax + g) if w.veh.kind != "ground" else np.zeros(a.shape),
+        "w_max": wm,
     }
 
 
@@ -197,8 +200,8 @@ def gap_growth(
 ) -> tuple[np.ndarray, np.ndarray]:
     """How far u and v can leave the hull of their values at two consecutive velocity
     epochs: half their total variation over the gap, bounded with the magnitudes of
-    the other IMU channels (|u'| <= |f_x| + |r| |v| + g |sin pitch|, |v'| <= |f_y| +
-    |r| |u| + g |sin roll|; a magnitude use in a second-order term), and the
+    the other IMU channels (|u'| <= |f_x| + |r| |v| + |q| |w| + g |sin pitch|, |v'| <=
+    |f_y| + |r| |u| + |p| |w| + g |sin roll|; a magnitude use in a second-order term), and the
     vehicle's acceleration and jerk bounds."""
     if t.size < 2:
         return np.zeros(0), np.zeros(0)
@@ -217,6 +220,9 @@ def gap_growth(
     base = growth(w, g)
     tv_u = fx_int + np.minimum(vmax + base, vcap) * r_int + G_HI * sp * g
     tv_v = fy_int + np.minimum(umax + base, veh.max_speed) * r_int + G_HI * sr * g
+    if veh.vertical_bound > 0:  # q w in u', p w in v' (|w| <= the vertical bound)
+        tv_u = tv_u + veh.vertical_bound * w.mag_mean("gyro_y", a, b) * g
+        tv_v = tv_v + veh.vertical_bound * w.mag_mean("gyro_x", a, b) * g
     return up(np.minimum(base, tv_u / 2)), up(np.minimum(base, tv_v / 2))
 
 
@@ -255,5 +261,5 @@ def ranges(w: WindowContext, lp: LevelPlan, bv: Any) -> dict[str, np.ndarray]:
         "u_lo": -s,
         "u_hi": s,
         "v_max": np.minimum(s, vl) if vl is not None else s,
-        "w_max": np.zeros(s.shape) if w.veh.kind == "ground" else s,
+        "w_max": np.full(s.shape, w.veh.vertical_bound) if w.veh.kind == "ground" else s,
     }
