@@ -165,3 +165,30 @@ def test_static_command_runs_with_one_openblas_thread() -> None:
     out = subprocess.run([sys.executable, "-c", code, "simulate", "--help"], env=env,
                          capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
     assert out[0] == "None"
+
+
+@pytest.mark.parametrize("fail", [False, True])
+def test_static_run_leaves_the_collector_as_it_found_it(tmp_path: Path, fail: bool) -> None:
+    """``imubounds static`` turns the cyclic collector off and freezes the heap while it
+    runs (cli.static._frozen_heap); an in-process caller gets it back on and unfrozen,
+    on success and on error."""
+    import gc
+
+    from imubounds.cli import main
+
+    t = np.arange(2000) / 100.0
+    rng = np.random.default_rng(3)
+    cols = [t] + [rng.normal(0, 1e-3, t.size) for _ in range(6)]
+    path = tmp_path / "log.csv"
+    head = "time_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="")
+    if fail:
+        path.write_text(path.read_text() + "1e9,x,y,z,1,2,3\n")
+    assert gc.isenabled()
+    gc.collect()
+    frozen = gc.get_freeze_count()
+    code = main(["static", str(path), "-o", str(tmp_path / "out"), "--quiet", "--no-plot",
+                 "--models", "none"])  # fmt: skip
+    assert (code != 0) == fail
+    assert gc.isenabled()
+    assert gc.get_freeze_count() == frozen
