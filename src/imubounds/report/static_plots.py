@@ -229,7 +229,9 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
             )
     log_axes(ax)
     ax.set_ylim(ymin / 3.0, ymax * 3.0)
-    ax.set_title(ch.name)
+    # at the top of the axes, where matplotlib's automatic placement puts it above
+    # bottom ticks and log axes (no offset text): placing it measures every y tick
+    ax.set_title(ch.name, y=1.0)
     ax.set_xlabel("averaging time τ (s)")
     ax.set_ylabel(f"{STAT_LABEL.get(a.estimator, 'Allan deviation')} ({unit})")
     ax.grid(True, which="both", alpha=0.3)
