@@ -171,7 +171,7 @@ def test_static_command_runs_with_one_openblas_thread() -> None:
 def test_static_run_leaves_the_collector_as_it_found_it(tmp_path: Path, fail: bool) -> None:
     """``imubounds static`` turns the cyclic collector off and freezes the heap while it
     runs (cli.static._frozen_heap); an in-process caller gets it back on and unfrozen,
-    on success and on error."""
+    on success and on error (the heap is frozen again only at the interpreter's exit)."""
     import gc
 
     from imubounds.cli import main
@@ -192,3 +192,6 @@ def test_static_run_leaves_the_collector_as_it_found_it(tmp_path: Path, fail: bo
     assert (code != 0) == fail
     assert gc.isenabled()
     assert gc.get_freeze_count() == frozen
+    from imubounds.cli import static
+
+    assert static._FREEZE_AT_EXIT == [True]  # registered once, frozen only at the exit

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import atexit
 import gc
 import importlib
 import json
@@ -215,6 +216,9 @@ def _importing(modules: Sequence[str]) -> Iterator[None]:
         thread.join()
 
 
+_FREEZE_AT_EXIT: list[bool] = []  # whether gc.freeze is registered with atexit
+
+
 @contextmanager
 def _frozen_heap() -> Iterator[None]:
     """The cyclic garbage collector off while the modules are imported and the log is
@@ -226,7 +230,14 @@ def _frozen_heap() -> Iterator[None]:
     :func:`in_parallel` too; the objects made by the analysis and the figures are
     collected as before. Restored on leaving (collector on; objects unfrozen unless the
     caller had frozen some: a freeze cannot be undone in part).
+
+    At the interpreter's exit the heap is frozen again (``atexit``, which runs before
+    the interpreter's own final passes over every object: 0.25-0.35 CPU s of the
+    command): what is left is freed by reference counting or by the exit itself.
     """
+    if not _FREEZE_AT_EXIT:
+        atexit.register(gc.freeze)
+        _FREEZE_AT_EXIT.append(True)
     was_enabled, was_frozen = gc.isenabled(), gc.get_freeze_count() > 0
     gc.disable()
     try:
