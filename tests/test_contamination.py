@@ -12,7 +12,13 @@ import pytest
 from imubounds.cli import main
 from imubounds.errors import OptionError
 from imubounds.stationary.allan import ESTIMATORS, allan
-from imubounds.stationary.contamination import despike, detect_spikes, median_and_quantile
+from imubounds.stationary.contamination import (
+    despike,
+    detect_spikes,
+    median,
+    median_and_quantile,
+    order_statistics,
+)
 from imubounds.stationary.noise_sim import AxisNoise, NoiseSpec, simulate, write_csv
 from imubounds.stationary.terms import analyse_curve
 
@@ -137,3 +143,7 @@ def test_median_and_quantile_are_numpys_bit_for_bit(n: int) -> None:
             med, quant = median_and_quantile(a, q)
             assert med == float(np.median(a))
             assert quant == float(np.quantile(a, q))
+        assert median(a) == float(np.median(a))
+        ranks = sorted({0, n // 2, n - 1, (n - 1) // 3, max(n - 2, 0)})
+        stats = order_statistics(a, ranks)
+        assert [stats[k] for k in ranks] == [float(v) for v in np.sort(a)[ranks]]
