@@ -195,3 +195,24 @@ def test_static_run_leaves_the_collector_as_it_found_it(tmp_path: Path, fail: bo
     from imubounds.cli import static
 
     assert static._FREEZE_AT_EXIT == [True]  # registered once, frozen only at the exit
+
+
+def test_edf_with_misfit_equals_the_polygamma_newton_bit_for_bit() -> None:
+    """record_length's ψ₁/ψ₂ from scipy.special.zeta give polygamma's values exactly."""
+    from scipy import special
+
+    from imubounds.stationary.record_length import _edf_with_misfit
+
+    def reference(edf: np.ndarray, eta: float) -> np.ndarray:
+        target = special.polygamma(1, edf / 2.0) + eta**2
+        x = 1.0 / target + 0.5
+        for _ in range(30):
+            step = (special.polygamma(1, x) - target) / special.polygamma(2, x)
+            x = np.maximum(x - step, x / 10.0)
+        return np.asarray(2.0 * x, dtype=np.float64)
+
+    edf = np.geomspace(0.5, 1e6, 200)
+    for eta in (1e-4, 0.03, 0.3, 2.0):
+        got = _edf_with_misfit(edf, eta)
+        assert np.array_equal(got, reference(edf, eta))
+        assert np.all(got < edf)  # a misfit lowers the EDF
