@@ -207,6 +207,7 @@ def _importing(modules: Sequence[str]) -> Iterator[None]:
                 importlib.import_module(name)
             except Exception:  # noqa: BLE001 - raised again at the real import
                 return
+        _warm_numba()
 
     thread = threading.Thread(target=work, name="imubounds-imports", daemon=True)
     thread.start()
@@ -253,6 +254,21 @@ def _freeze_heap() -> None:
     """Move the objects alive now out of the collector's passes and turn it on."""
     gc.freeze()
     gc.enable()
+
+
+def _warm_numba() -> None:
+    """Call one compiled kernel on one sample, in the import thread: numba's first call
+    loads its CPU target (type registries, lowering, ~0.2 s), which then overlaps the
+    read instead of starting the analysis; the kernel's machine code comes from
+    numba's cache as at its real first call. A failure is left to the real call."""
+    try:
+        import numpy as np
+
+        from imubounds.stationary._allan_kernels import phase_from_rate
+
+        phase_from_rate(np.zeros(1), 1.0)
+    except Exception:  # noqa: BLE001 - raised again, if at all, where the kernels run
+        return
 
 
 def save_figures(result: Any, outdir: Path) -> list[str]:
