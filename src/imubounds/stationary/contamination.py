@@ -191,9 +191,14 @@ def detect_spikes(
     empty = SpikeReport(name, n, float(threshold), 0, 0, 0.0, 0.0, 0.0)
     if n < 5 or not np.all(np.isfinite(arr)):
         return empty
-    d = arr[1:-1] - 0.5 * (arr[:-2] + arr[2:])
+    # the same operations as arr[1:-1] - 0.5 * (arr[:-2] + arr[2:]) and
+    # abs(d - med), in place: fewer arrays of the log's length to allocate and fault in
+    d = np.add(arr[:-2], arr[2:])
+    np.multiply(0.5, d, out=d)
+    np.subtract(arr[1:-1], d, out=d)
     med = median(d)
-    a = np.abs(d - med)
+    a = np.subtract(d, med)
+    np.abs(a, out=a)
     mad, cut = median_and_quantile(a, TRIM_QUANTILE)
     scale = 1.482602218505602 * mad
     # On quantised samples the median absolute deviation underestimates the spread
@@ -201,7 +206,8 @@ def detect_spikes(
     # and spikes rarer than 1 in 1000 samples do not enter it.
     central = a[a <= cut]
     if central.size:
-        scale = max(scale, float(np.sqrt(np.mean(central * central))))
+        np.multiply(central, central, out=central)
+        scale = max(scale, float(np.sqrt(np.mean(central))))
     if scale == 0.0:
         return empty
     z = a / scale
