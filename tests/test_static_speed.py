@@ -7,6 +7,7 @@ and the replacements of scipy.stats and lfilter give the values they replaced.
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -216,3 +217,37 @@ def test_edf_with_misfit_equals_the_polygamma_newton_bit_for_bit() -> None:
         got = _edf_with_misfit(edf, eta)
         assert np.array_equal(got, reference(edf, eta))
         assert np.all(got < edf)  # a misfit lowers the EDF
+
+
+@pytest.mark.parametrize(("lo", "hi"), [(0.01, 1e4), (2e-4, 3e-2), (0.3, 0.9), (1.0, 10.0)])
+def test_view_log_locators_keep_every_tick_matplotlib_draws(lo: float, hi: float) -> None:
+    """The log locators of the figures return only ticks in view: the ticks drawn
+    (locations and labels) are those of matplotlib's own locators."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import LogLocator
+
+    from imubounds.report.static_plots import MINOR_MAX_DECADES, log_axes
+
+    def drawn(trim: bool) -> list[tuple[float, str]]:
+        fig = Figure()
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.plot([lo, hi], [lo, hi])
+        log_axes(ax)
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(lo, hi)
+        if not trim:  # matplotlib's own: every decade and sub-tick, one beyond each end
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_locator(LogLocator())
+                if math.log10(hi / lo) <= MINOR_MAX_DECADES:  # else no minor ticks at all
+                    axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+        fig.canvas.draw()
+        out = []
+        for axis in (ax.xaxis, ax.yaxis):
+            out += [(t.get_loc(), t.label1.get_text()) for t in axis._update_ticks()]
+        return out
+
+    trimmed, full = drawn(True), drawn(False)
+    assert trimmed == full
+    assert len(trimmed) >= 2

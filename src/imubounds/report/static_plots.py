@@ -77,6 +77,32 @@ PNG_COMPRESS_LEVEL = 1
 MINOR_MAX_DECADES = 4.0
 
 
+def in_view(locs: Any, vmin: float, vmax: float) -> Any:
+    """The tick locations of a log axis within its view ``[vmin, vmax]`` (a margin of
+    1e-6 of the view in log10, wider than the 1e-10 within which matplotlib draws a
+    tick): matplotlib builds, places and labels a tick for every location the
+    locator returns, one decade beyond each end included, and draws only those in
+    view, so the ticks dropped here are never drawn."""
+    arr = np.asarray(locs, dtype=np.float64)
+    lo, hi = min(vmin, vmax), max(vmin, vmax)
+    if arr.size == 0 or not (lo > 0 and math.isfinite(hi)):
+        return locs
+    a, b = math.log10(lo), math.log10(hi)
+    slack = (b - a) * 1e-6
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.log10(arr)
+    keep = (t >= a - slack) & (t <= b + slack)
+    return arr[keep]
+
+
+class ViewLogLocator(LogLocator):
+    """Matplotlib's log locator (the major ticks of a log axis) returning only the
+    ticks in view (:func:`in_view`)."""
+
+    def tick_values(self, vmin: float, vmax: float) -> Any:
+        return in_view(super().tick_values(vmin, vmax), vmin, vmax)
+
+
 class SparseLogLocator(LogLocator):
     """Minor ticks at 2 and 5 of each decade, none on an axis spanning more than
     :data:`MINOR_MAX_DECADES` decades: there the decades carry the labels and the
@@ -90,7 +116,7 @@ class SparseLogLocator(LogLocator):
         lo, hi = min(vmin, vmax), max(vmin, vmax)
         if lo > 0 and math.log10(hi / lo) > MINOR_MAX_DECADES:
             return np.array([])
-        return super().tick_values(vmin, vmax)
+        return in_view(super().tick_values(vmin, vmax), vmin, vmax)
 
 
 def log_axes(ax: Any, x: bool = True, y: bool = True) -> None:
@@ -102,6 +128,7 @@ def log_axes(ax: Any, x: bool = True, y: bool = True) -> None:
         if not on:
             continue
         set_scale("log")
+        axis.set_major_locator(ViewLogLocator())
         axis.set_major_formatter(PlainLogFormatter())
         axis.set_minor_locator(SparseLogLocator())
         axis.set_minor_formatter(PlainLogFormatter(labelOnlyBase=False))
