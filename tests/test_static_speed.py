@@ -251,3 +251,30 @@ def test_view_log_locators_keep_every_tick_matplotlib_draws(lo: float, hi: float
     trimmed, full = drawn(True), drawn(False)
     assert trimmed == full
     assert len(trimmed) >= 2
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi"), [(-1843.2, -1051.7), (0.0, 163.0), (-9.991, -9.934), (1e-9, 3e-9)]
+)
+def test_view_auto_locator_keeps_every_tick_matplotlib_draws(lo: float, hi: float) -> None:
+    """The linear axes of stationarity.png: the ticks drawn (locations, labels, offset
+    text) are those of matplotlib's AutoLocator."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import AutoLocator
+
+    from imubounds.report.static_plots import ViewAutoLocator
+
+    def drawn(locator: AutoLocator) -> tuple[list[tuple[float, str]], str]:
+        fig = Figure()
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.plot([0, 1], [lo, hi])
+        ax.yaxis.set_major_locator(locator)
+        fig.canvas.draw()
+        ticks = [(t.get_loc(), t.label1.get_text()) for t in ax.yaxis._update_ticks()]
+        return ticks, ax.yaxis.get_offset_text().get_text()
+
+    trimmed, full = drawn(ViewAutoLocator()), drawn(AutoLocator())
+    assert trimmed == full
+    assert len(trimmed[0]) >= 2

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
-from matplotlib.ticker import LogFormatter, LogLocator
+from matplotlib.ticker import AutoLocator, LogFormatter, LogLocator
 
 from imubounds.io.outputs import write_with
 from imubounds.stationary import theory
@@ -101,6 +101,18 @@ class ViewLogLocator(LogLocator):
 
     def tick_values(self, vmin: float, vmax: float) -> Any:
         return in_view(super().tick_values(vmin, vmax), vmin, vmax)
+
+
+class ViewAutoLocator(AutoLocator):
+    """Matplotlib's locator of a linear axis returning only the ticks in view (a
+    margin of 1e-6 of the view, wider than matplotlib's 1e-10): it returns one
+    step beyond each end, built and labelled by matplotlib, never drawn."""
+
+    def tick_values(self, vmin: float, vmax: float) -> Any:
+        locs = np.asarray(super().tick_values(vmin, vmax), dtype=np.float64)
+        lo, hi = min(vmin, vmax), max(vmin, vmax)
+        slack = (hi - lo) * 1e-6
+        return locs[(locs >= lo - slack) & (locs <= hi + slack)]
 
 
 class SparseLogLocator(LogLocator):
@@ -452,6 +464,9 @@ def stationarity_figure(result: StaticResult) -> Figure:
             top.axvspan(w.start_s / 60.0, w.end_s / 60.0, color="tab:orange", alpha=0.2,
                         label=f"warm-up to {w.end_s / 60:.3g} min")  # fmt: skip
             top.legend(fontsize=7, loc="upper right")
+        top.xaxis.set_major_locator(ViewAutoLocator())
+        top.yaxis.set_major_locator(ViewAutoLocator())
+        bottom.xaxis.set_major_locator(ViewAutoLocator())
         top.set_title(f"{name}" + ("" if st.stationary else " (not stationary)"))
         top.set_xlabel("time (min)")
         top.set_ylabel(f"block mean ({unit})")
