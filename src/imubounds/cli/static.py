@@ -262,11 +262,9 @@ def _warm_numba() -> None:
     read instead of starting the analysis; the kernel's machine code comes from
     numba's cache as at its real first call. A failure is left to the real call."""
     try:
-        import numpy as np
+        from imubounds.stationary.allan import warm_kernels
 
-        from imubounds.stationary._allan_kernels import phase_from_rate
-
-        phase_from_rate(np.zeros(1), 1.0)
+        warm_kernels()
     except Exception:  # noqa: BLE001 - raised again, if at all, where the kernels run
         return
 
