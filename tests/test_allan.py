@@ -557,3 +557,22 @@ def test_errors() -> None:
         allan(y[:2], 10.0)
     for err in (InputError, OptionError, AnalysisError):
         assert "\n" not in str(err("x"))
+
+
+@pytest.mark.parametrize(("n_samples", "windows", "m"), [(1000, 8, 1), (1003, 8, 4), (4096, 3, 50),
+                                                         (200, 1, 100)])  # fmt: skip
+def test_window_sums_bit_identical_to_cumsum_reference(
+    n_samples: int, windows: int, m: int
+) -> None:
+    """The stationarity windows' running sums (compiled) equal np.cumsum's bit for bit."""
+    rng = np.random.default_rng(n_samples + m)
+    y = rng.normal(0.0, 1.0, n_samples) + np.linspace(0.0, 3.0, n_samples) ** 2
+    x = np.concatenate(([0.0], np.cumsum(y - float(np.mean(y)))))
+    n = n_samples // windows
+    lo, hi = K.window_sums(x, m, n, windows)
+    lo_ref, hi_ref = K.window_sums_ref(x, m, n, windows)
+    assert np.array_equal(lo, lo_ref)
+    assert np.array_equal(hi, hi_ref)
+    assert np.all(hi - lo > 0)
+    with pytest.raises(ValueError):
+        K.window_sums(x, n // 2 + 1, n, windows)

@@ -12,7 +12,13 @@ import pytest
 from imubounds.cli import main
 from imubounds.errors import OptionError
 from imubounds.stationary.allan import ESTIMATORS, allan
-from imubounds.stationary.contamination import despike, detect_spikes, median_and_quantile
+from imubounds.stationary.contamination import (
+    despike,
+    detect_spikes,
+    median,
+    median_and_quantile,
+    order_statistics,
+)
 from imubounds.stationary.noise_sim import AxisNoise, NoiseSpec, simulate, write_csv
 from imubounds.stationary.terms import analyse_curve
 
@@ -137,3 +143,25 @@ def test_median_and_quantile_are_numpys_bit_for_bit(n: int) -> None:
             med, quant = median_and_quantile(a, q)
             assert med == float(np.median(a))
             assert quant == float(np.quantile(a, q))
+        assert median(a) == float(np.median(a))
+        ranks = sorted({0, n // 2, n - 1, (n - 1) // 3, max(n - 2, 0)})
+        stats = order_statistics(a, ranks)
+        assert [stats[k] for k in ranks] == [float(v) for v in np.sort(a)[ranks]]
+
+
+def test_detect_spikes_scale_equals_the_plain_numpy_formula() -> None:
+    """The in-place second differences and MAD give the plain expressions' scale and
+    z bit for bit (the same ufuncs on the same operands)."""
+    rng = np.random.default_rng(11)
+    for y in (rng.normal(size=20_001), np.round(rng.normal(size=20_000) * 3) / 3):
+        y[[50, 9000]] += 40.0
+        d = y[1:-1] - 0.5 * (y[:-2] + y[2:])
+        a = np.abs(d - np.median(d))
+        cut = np.quantile(a, 0.999)
+        central = a[a <= cut]
+        scale = max(1.482602218505602 * float(np.median(a)),
+                    float(np.sqrt(np.mean(central * central))))  # fmt: skip
+        rep = detect_spikes(y, 100.0)
+        assert rep.scale == scale
+        assert rep.max_z == float((a / scale).max())
+        assert rep.events >= 2

@@ -7,6 +7,7 @@ and the replacements of scipy.stats and lfilter give the values they replaced.
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -165,3 +166,115 @@ def test_static_command_runs_with_one_openblas_thread() -> None:
     out = subprocess.run([sys.executable, "-c", code, "simulate", "--help"], env=env,
                          capture_output=True, text=True, check=True).stdout.split()  # fmt: skip
     assert out[0] == "None"
+
+
+@pytest.mark.parametrize("fail", [False, True])
+def test_static_run_leaves_the_collector_as_it_found_it(tmp_path: Path, fail: bool) -> None:
+    """``imubounds static`` turns the cyclic collector off and freezes the heap while it
+    runs (cli.static._frozen_heap); an in-process caller gets it back on and unfrozen,
+    on success and on error (the heap is frozen again only at the interpreter's exit)."""
+    import gc
+
+    from imubounds.cli import main
+
+    t = np.arange(2000) / 100.0
+    rng = np.random.default_rng(3)
+    cols = [t] + [rng.normal(0, 1e-3, t.size) for _ in range(6)]
+    path = tmp_path / "log.csv"
+    head = "time_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="")
+    if fail:
+        path.write_text(path.read_text() + "1e9,x,y,z,1,2,3\n")
+    assert gc.isenabled()
+    gc.collect()
+    frozen = gc.get_freeze_count()
+    code = main(["static", str(path), "-o", str(tmp_path / "out"), "--quiet", "--no-plot",
+                 "--models", "none"])  # fmt: skip
+    assert (code != 0) == fail
+    assert gc.isenabled()
+    assert gc.get_freeze_count() == frozen
+    from imubounds.cli import static
+
+    assert static._FREEZE_AT_EXIT == [True]  # registered once, frozen only at the exit
+
+
+def test_edf_with_misfit_equals_the_polygamma_newton_bit_for_bit() -> None:
+    """record_length's ψ₁/ψ₂ from scipy.special.zeta give polygamma's values exactly."""
+    from scipy import special
+
+    from imubounds.stationary.record_length import _edf_with_misfit
+
+    def reference(edf: np.ndarray, eta: float) -> np.ndarray:
+        target = special.polygamma(1, edf / 2.0) + eta**2
+        x = 1.0 / target + 0.5
+        for _ in range(30):
+            step = (special.polygamma(1, x) - target) / special.polygamma(2, x)
+            x = np.maximum(x - step, x / 10.0)
+        return np.asarray(2.0 * x, dtype=np.float64)
+
+    edf = np.geomspace(0.5, 1e6, 200)
+    for eta in (1e-4, 0.03, 0.3, 2.0):
+        got = _edf_with_misfit(edf, eta)
+        assert np.array_equal(got, reference(edf, eta))
+        assert np.all(got < edf)  # a misfit lowers the EDF
+
+
+@pytest.mark.parametrize(("lo", "hi"), [(0.01, 1e4), (2e-4, 3e-2), (0.3, 0.9), (1.0, 10.0)])
+def test_view_log_locators_keep_every_tick_matplotlib_draws(lo: float, hi: float) -> None:
+    """The log locators of the figures return only ticks in view: the ticks drawn
+    (locations and labels) are those of matplotlib's own locators."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import LogLocator
+
+    from imubounds.report.static_plots import MINOR_MAX_DECADES, log_axes
+
+    def drawn(trim: bool) -> list[tuple[float, str]]:
+        fig = Figure()
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.plot([lo, hi], [lo, hi])
+        log_axes(ax)
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(lo, hi)
+        if not trim:  # matplotlib's own: every decade and sub-tick, one beyond each end
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_locator(LogLocator())
+                if math.log10(hi / lo) <= MINOR_MAX_DECADES:  # else no minor ticks at all
+                    axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+        fig.canvas.draw()
+        out = []
+        for axis in (ax.xaxis, ax.yaxis):
+            out += [(t.get_loc(), t.label1.get_text()) for t in axis._update_ticks()]
+        return out
+
+    trimmed, full = drawn(True), drawn(False)
+    assert trimmed == full
+    assert len(trimmed) >= 2
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi"), [(-1843.2, -1051.7), (0.0, 163.0), (-9.991, -9.934), (1e-9, 3e-9)]
+)
+def test_view_auto_locator_keeps_every_tick_matplotlib_draws(lo: float, hi: float) -> None:
+    """The linear axes of stationarity.png: the ticks drawn (locations, labels, offset
+    text) are those of matplotlib's AutoLocator."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import AutoLocator
+
+    from imubounds.report.static_plots import ViewAutoLocator
+
+    def drawn(locator: AutoLocator) -> tuple[list[tuple[float, str]], str]:
+        fig = Figure()
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.plot([0, 1], [lo, hi])
+        ax.yaxis.set_major_locator(locator)
+        fig.canvas.draw()
+        ticks = [(t.get_loc(), t.label1.get_text()) for t in ax.yaxis._update_ticks()]
+        return ticks, ax.yaxis.get_offset_text().get_text()
+
+    trimmed, full = drawn(ViewAutoLocator()), drawn(AutoLocator())
+    assert trimmed == full
+    assert len(trimmed[0]) >= 2

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
-from matplotlib.ticker import LogFormatter, LogLocator
+from matplotlib.ticker import AutoLocator, LogFormatter, LogLocator
 
 from imubounds.io.outputs import write_with
 from imubounds.stationary import theory
@@ -77,6 +77,44 @@ PNG_COMPRESS_LEVEL = 1
 MINOR_MAX_DECADES = 4.0
 
 
+def in_view(locs: Any, vmin: float, vmax: float) -> Any:
+    """The tick locations of a log axis within its view ``[vmin, vmax]`` (a margin of
+    1e-6 of the view in log10, wider than the 1e-10 within which matplotlib draws a
+    tick): matplotlib builds, places and labels a tick for every location the
+    locator returns, one decade beyond each end included, and draws only those in
+    view, so the ticks dropped here are never drawn."""
+    arr = np.asarray(locs, dtype=np.float64)
+    lo, hi = min(vmin, vmax), max(vmin, vmax)
+    if arr.size == 0 or not (lo > 0 and math.isfinite(hi)):
+        return locs
+    a, b = math.log10(lo), math.log10(hi)
+    slack = (b - a) * 1e-6
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.log10(arr)
+    keep = (t >= a - slack) & (t <= b + slack)
+    return arr[keep]
+
+
+class ViewLogLocator(LogLocator):
+    """Matplotlib's log locator (the major ticks of a log axis) returning only the
+    ticks in view (:func:`in_view`)."""
+
+    def tick_values(self, vmin: float, vmax: float) -> Any:
+        return in_view(super().tick_values(vmin, vmax), vmin, vmax)
+
+
+class ViewAutoLocator(AutoLocator):
+    """Matplotlib's locator of a linear axis returning only the ticks in view (a
+    margin of 1e-6 of the view, wider than matplotlib's 1e-10): it returns one
+    step beyond each end, built and labelled by matplotlib, never drawn."""
+
+    def tick_values(self, vmin: float, vmax: float) -> Any:
+        locs = np.asarray(super().tick_values(vmin, vmax), dtype=np.float64)
+        lo, hi = min(vmin, vmax), max(vmin, vmax)
+        slack = (hi - lo) * 1e-6
+        return locs[(locs >= lo - slack) & (locs <= hi + slack)]
+
+
 class SparseLogLocator(LogLocator):
     """Minor ticks at 2 and 5 of each decade, none on an axis spanning more than
     :data:`MINOR_MAX_DECADES` decades: there the decades carry the labels and the
@@ -90,7 +128,7 @@ class SparseLogLocator(LogLocator):
         lo, hi = min(vmin, vmax), max(vmin, vmax)
         if lo > 0 and math.log10(hi / lo) > MINOR_MAX_DECADES:
             return np.array([])
-        return super().tick_values(vmin, vmax)
+        return in_view(super().tick_values(vmin, vmax), vmin, vmax)
 
 
 def log_axes(ax: Any, x: bool = True, y: bool = True) -> None:
@@ -102,6 +140,7 @@ def log_axes(ax: Any, x: bool = True, y: bool = True) -> None:
         if not on:
             continue
         set_scale("log")
+        axis.set_major_locator(ViewLogLocator())
         axis.set_major_formatter(PlainLogFormatter())
         axis.set_minor_locator(SparseLogLocator())
         axis.set_minor_formatter(PlainLogFormatter(labelOnlyBase=False))
@@ -229,7 +268,9 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
             )
     log_axes(ax)
     ax.set_ylim(ymin / 3.0, ymax * 3.0)
-    ax.set_title(ch.name)
+    # at the top of the axes, where matplotlib's automatic placement puts it above
+    # bottom ticks and log axes (no offset text): placing it measures every y tick
+    ax.set_title(ch.name, y=1.0)
     ax.set_xlabel("averaging time τ (s)")
     ax.set_ylabel(f"{STAT_LABEL.get(a.estimator, 'Allan deviation')} ({unit})")
     ax.grid(True, which="both", alpha=0.3)
@@ -423,6 +464,9 @@ def stationarity_figure(result: StaticResult) -> Figure:
             top.axvspan(w.start_s / 60.0, w.end_s / 60.0, color="tab:orange", alpha=0.2,
                         label=f"warm-up to {w.end_s / 60:.3g} min")  # fmt: skip
             top.legend(fontsize=7, loc="upper right")
+        top.xaxis.set_major_locator(ViewAutoLocator())
+        top.yaxis.set_major_locator(ViewAutoLocator())
+        bottom.xaxis.set_major_locator(ViewAutoLocator())
         top.set_title(f"{name}" + ("" if st.stationary else " (not stationary)"))
         top.set_xlabel("time (min)")
         top.set_ylabel(f"block mean ({unit})")

@@ -153,6 +153,51 @@ def phase_from_rate_ref(y: np.ndarray, t0: float) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(y - np.mean(y)) * t0))
 
 
+@njit(cache=True, fastmath=False, boundscheck=False)
+def _window_sums_kernel(
+    x: np.ndarray, m: int, n: int, windows: int, lo: np.ndarray, hi: np.ndarray
+) -> None:
+    terms = n - 2 * m + 1
+    last = (windows - 1) * n + terms  # the last index of the running sum needed
+    c = 0.0  # sum of d[j]**2 for j < i, added in order (np.cumsum's order)
+    for i in range(last + 1):
+        if i % n == 0 and i // n < windows:
+            lo[i // n] = c
+        if i >= terms and (i - terms) % n == 0:
+            hi[(i - terms) // n] = c
+        if i < last:
+            d = (x[i + 2 * m] - 2.0 * x[i + m] + x[i]) / m
+            c += d * d
+
+
+def window_sums(
+    x: np.ndarray, m: int, n: int, windows: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The running sum ``c`` of the squared overlapping second differences
+    ``d[i] = (x[i+2m] - 2 x[i+m] + x[i]) / m`` at the ends of each window of ``n``
+    samples: ``lo[k] = c[k n]`` and ``hi[k] = c[k n + n - 2m + 1]`` (the window's
+    sum is ``hi - lo``), each value bit for bit that of
+    :func:`window_sums_ref` (the same additions in the same order, no
+    reassociation), without the two arrays of the log's length."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    if windows < 1 or n < 2 * m or x.shape[0] < windows * n + 1:
+        raise ValueError("window_sums: windows of n samples need n >= 2m and x of windows*n+1")
+    lo = np.empty(windows, dtype=np.float64)
+    hi = np.empty(windows, dtype=np.float64)
+    _window_sums_kernel(x, int(m), int(n), int(windows), lo, hi)
+    return lo, hi
+
+
+def window_sums_ref(
+    x: np.ndarray, m: int, n: int, windows: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Plain-numpy reference of :func:`window_sums` (``np.cumsum``)."""
+    d = (x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]) / m
+    c = np.concatenate(([0.0], np.cumsum(d * d)))
+    starts = np.arange(windows) * n
+    return c[starts], c[starts + n - 2 * m + 1]
+
+
 # --------------------------------------------------------------------------
 # term counts and ranges
 # --------------------------------------------------------------------------

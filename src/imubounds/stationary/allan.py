@@ -613,6 +613,13 @@ def _parse_noise(noise: str | int, estimator: str) -> int | None:
     return alpha
 
 
+def warm_kernels() -> None:
+    """Make numba's first call (its CPU target: type registries and lowering, ~0.2 s)
+    on one sample, e.g. in a thread while a log is read; the kernels' machine code
+    then comes from numba's cache as at any first call."""
+    _k.phase_from_rate(np.zeros(1), 1.0)
+
+
 def allan(
     y: np.ndarray | Sequence[float],
     rate_hz: float,

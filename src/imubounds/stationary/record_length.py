@@ -64,10 +64,13 @@ def _edf_with_misfit(edf: NDArray[np.float64], eta: float) -> NDArray[np.float64
     ψ₁(x) = ψ₁(EDF/2) + η², solved for x by Newton's method (ψ₁ is convex, falling)."""
     if eta <= 0:
         return edf
-    target = special.polygamma(1, edf / 2.0) + eta**2
+    # ψ₁(x) = ζ(2, x) and ψ₂(x) = −2 ζ(3, x): scipy's polygamma(n, x) is the product
+    # (−1)^(n+1) n! ζ(n+1, x) with n! exactly 1 and 2, so the values are its own bit
+    # for bit, without its wrapper (60 calls per curve, a third of their time)
+    target = special.zeta(2.0, edf / 2.0) + eta**2
     x = 1.0 / target + 0.5  # ψ₁(x) ≈ 1/x + 1/(2x²)
     for _ in range(30):
-        step = (special.polygamma(1, x) - target) / special.polygamma(2, x)
+        step = (special.zeta(2.0, x) - target) / (-2.0 * special.zeta(3.0, x))
         x = np.maximum(x - step, x / 10.0)
     return np.asarray(2.0 * x, dtype=np.float64)
 

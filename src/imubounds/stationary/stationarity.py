@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from scipy import special
 
 from imubounds.io.log import ImuLog
+from imubounds.stationary._allan_kernels import window_sums
 from imubounds.stationary.allan import allan, estimator_edf
 
 #: Windows of the time-resolved Allan deviation.
@@ -148,7 +149,8 @@ def sliding_adev(
     :data:`SLIDING_TAUS` octaves spread evenly from one sample to a tenth of a window.
 
     From one cumulative sum of the whole channel: the window's second differences of
-    the phase are those of the whole log inside it (each τ is a pass over the log);
+    the phase are those of the whole log inside it (each τ is a pass over the log,
+    :func:`~imubounds.stationary._allan_kernels.window_sums`);
     the noise type of each τ (for the EDF, Greenhall) is identified on the first
     window (:func:`~imubounds.stationary.allan.allan`). Returns (window length s,
     window starts s, τ s, {"dev", "edf", "ci_lower", "ci_upper"} arrays (window, τ)).
@@ -162,12 +164,10 @@ def sliding_adev(
     dev = np.empty((windows, len(ms)))
     edf = np.empty_like(dev)
     for j, m in enumerate(ms):
-        d = (x[2 * m :] - 2.0 * x[m:-m] + x[: -2 * m]) / m
-        c = np.concatenate(([0.0], np.cumsum(d * d)))
+        c0, c1 = window_sums(x, m, n, windows)  # np.cumsum's values at the window ends
         terms = n - 2 * m + 1
         for k in range(windows):
-            s0 = k * n
-            dev[k, j] = math.sqrt((c[s0 + terms] - c[s0]) / (2.0 * terms))
+            dev[k, j] = math.sqrt((float(c1[k]) - float(c0[k])) / (2.0 * terms))
             edf[k, j] = estimator_edf("overlapping", int(alphas[j]), m, n)
     p = 1.0 - confidence
     lo = dev * np.sqrt(edf / special.chdtri(edf, p / 2.0))
