@@ -75,6 +75,7 @@ _BENCH_OPTIONS = {
     "--repeat": "bench_fleet.py",
     "--pairs": "bench_fleet.py",
     "--clean": "sweep_faults.py",
+    "--runs": "bench_static.py",
 }
 
 
