@@ -407,7 +407,7 @@ def _reference_variance(
 
     dt = _median_step(it)
     idx = np.searchsorted(it, tq, side="right")
-    A = np.bincount(idx, weights=wj, minlength=it.size + 1)
+    A: np.ndarray = np.asarray(np.bincount(idx, weights=wj, minlength=it.size + 1), float)
     # R = the reversed cumulative sum of A without its first (the sum over the epochs
     # after sample k), times gain x dt: in place, chunk by chunk from the end
     g = np.broadcast_to(np.asarray(gain, float), it.shape)
