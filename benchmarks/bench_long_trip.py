@@ -18,8 +18,14 @@ loaded by one warm-up run on the 1 h trip first): wall time of the analysis, the
 the same trips are analysed by that version in the same run, up to
 ``--baseline-max-hours`` (the previous version needs about 0.35 GB per hour).
 
+With ``--cli`` each trip is also written once as a drive-layout directory of Parquet
+files (``write_layout``, next to the pickle) and analysed from the files by the command
+line (``imubounds dynamic DIR --mode full --no-plot --no-report -q -o OUT``, in a fresh
+process): the line ``version this-cli`` gives its wall time (reading included), its peak
+RSS and ``read_rss_mib``, the RSS after ``read_drive`` alone in another fresh process.
+
 Usage: ``python benchmarks/bench_long_trip.py [--hours 1,4,24] [--gps-rate 1]
-[--baseline SRC] [--baseline-max-hours 4]``. One line per trip and version::
+[--baseline SRC] [--baseline-max-hours 4] [--cli]``. One line per trip and version::
 
     hours 24 version this samples 8640000 seconds 31.2 peak_rss_mib 1502 drive_rss_mib 690
 """
@@ -97,6 +103,48 @@ def build(hours: float, gps_rate: float) -> Path:
     return path
 
 
+def layout_dir(path: Path) -> Path:
+    """The trip's drive-layout directory of Parquet files (written once from the pickle,
+    in a fresh process: the writer's memory is not the reader's)."""
+    out = path.with_name(path.stem + "_parquet")
+    if not (out / "imu.parquet").exists():
+        code = ("import pickle, sys; from imubounds.io.drive.layout import write_layout; "
+                "d = pickle.load(open(sys.argv[1], 'rb')); write_layout(d, sys.argv[2], "
+                "fmt='parquet')")
+        env = {**os.environ, "PYTHONPATH": str(HERE.parent / "src")}
+        subprocess.run([sys.executable, "-c", code, str(path), str(out)], env=env, check=True)
+    return out
+
+
+def child_cli(directory: str, read_only: bool) -> None:
+    """The command line on the drive-layout directory (or ``read_drive`` alone), one
+    JSON line: wall time, peak RSS, RSS at the end."""
+    import tempfile
+
+    t0 = time.perf_counter()
+    if read_only:
+        from imubounds.io.drive.readers import read_drive
+
+        drive = read_drive(directory)
+        n = 0 if drive.imu is None else int(drive.imu.t.size)
+    else:
+        from imubounds.cli import main as cli_main
+
+        with tempfile.TemporaryDirectory() as tmp:
+            rc = cli_main(["dynamic", directory, "--mode", "full", "--no-plot", "--no-report",
+                           "-q", "--force", "-o", tmp])
+            with open(Path(tmp) / "dynamic.json") as f:
+                out = json.load(f)
+        n = int(out.get("samples", 0) or 0) if isinstance(out, dict) else 0
+        if rc != 0:
+            raise SystemExit(f"imubounds dynamic exited with {rc}")
+    sec = time.perf_counter() - t0
+    print(json.dumps({
+        "samples": n, "seconds": sec, "rss_mib": _rss_mib(),
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    }))
+
+
 def _rss_mib() -> float:
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
@@ -121,9 +169,9 @@ def child(path: str) -> None:
     }))
 
 
-def run(src: str, path: Path) -> dict[str, Any]:
+def run(src: str, path: Path, how: str = "--child") -> dict[str, Any]:
     env = {**os.environ, "PYTHONPATH": src}
-    cmd = [sys.executable, __file__, "--child", str(path)]
+    cmd = [sys.executable, __file__, how, str(path)]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True)
     if res.returncode != 0:
         return {"error": (res.stderr.strip().splitlines() or ["?"])[-1]}
@@ -137,10 +185,17 @@ def main() -> None:
     ap.add_argument("--gps-rate", type=float, default=1.0)
     ap.add_argument("--baseline", default=None, help="src directory of the previous version")
     ap.add_argument("--baseline-max-hours", type=float, default=4.0)
+    ap.add_argument("--cli", action="store_true",
+                    help="also the command line on the trip written as Parquet files")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--child-cli", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--child-read", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(args.child)
+        return
+    if args.child_cli or args.child_read:
+        child_cli(args.child_cli or args.child_read, read_only=bool(args.child_read))
         return
     this = str(HERE.parent / "src")
     versions = [("this", this)] + ([("baseline", str(Path(args.baseline).resolve()))]
@@ -164,6 +219,20 @@ def main() -> None:
             print(f"hours {h:g} version {name} samples {r['samples']} seconds {r['seconds']:.1f} "
                   f"peak_rss_mib {r['peak_rss_mib']:.0f} drive_rss_mib {r['drive_rss_mib']:.0f} "
                   f"epochs {r['epochs']} sweeps {r['sweeps']} empty {r['empty']}", flush=True)
+        if args.cli:
+            for name, src in versions:
+                if name == "baseline" and h > args.baseline_max_hours:
+                    continue
+                d = layout_dir(path)
+                r = run(src, d, "--child-cli")
+                rd = run(src, d, "--child-read")
+                if "error" in r or "error" in rd:
+                    print(f"hours {h:g} version {name}-cli error {r.get('error', rd.get('error'))}",
+                          flush=True)
+                    continue
+                print(f"hours {h:g} version {name}-cli seconds {r['seconds']:.1f} peak_rss_mib "
+                      f"{r['peak_rss_mib']:.0f} read_rss_mib {rd['rss_mib']:.0f} read_peak_mib "
+                      f"{rd['peak_rss_mib']:.0f} read_seconds {rd['seconds']:.1f}", flush=True)
         a, b = res.get("this", {}), res.get("baseline", {})
         if "seconds" in a and "seconds" in b:
             print(f"hours {h:g} ratio_to_baseline seconds {a['seconds'] / b['seconds']:.2f} "

@@ -182,18 +182,65 @@ def imu_yaw_angle(
 
 def _sample_ends(imu_t: np.ndarray, stamp: str) -> tuple[np.ndarray, float]:
     t = np.asarray(imu_t, dtype=float)
-    dt = np.diff(t)
-    d0 = float(np.median(dt)) if dt.size else 0.0
+    d0 = _median_step(t)
     shift = {"end": 0.0, "centre": 0.5 * d0, "start": d0}.get(stamp, 0.0)
-    return t + shift, d0
+    return (t + shift if shift else t), d0
 
 
-def _integral(imu_t: np.ndarray, rate: np.ndarray) -> np.ndarray:
+#: samples per chunk of the passes over the IMU (:func:`_integral` and its kin): their
+#: temporaries stay small on a long trip (a 24 h trip at 100 Hz is 8.64 M samples)
+CHUNK = 1 << 18
+
+
+def _median_step(t: np.ndarray) -> float:
+    """The median of ``diff(t)`` (0 for fewer than two samples)."""
+    if t.size < 2:
+        return 0.0
+    return float(np.median(np.diff(t), overwrite_input=True))
+
+
+def _integral(
+    imu_t: np.ndarray, rate: np.ndarray, ok: np.ndarray | None = None
+) -> np.ndarray:
+    """``cumsum(nan_to_num(rate) x [d0, diff(t)])`` (``d0`` the median step; the rate
+    taken as 0 where ``ok`` is False): chunk by chunk into one array, the additions in
+    the order of one pass (the values are those of one pass, bit for bit)."""
     t = np.asarray(imu_t, dtype=float)
-    dt = np.diff(t)
-    d0 = float(np.median(dt)) if dt.size else 0.0
-    g = np.nan_to_num(np.asarray(rate, dtype=float))
-    return np.asarray(np.cumsum(g * np.concatenate([[d0], dt])))
+    r = np.asarray(rate, dtype=float)
+    n = t.size
+    d0 = _median_step(t)
+    out = np.empty(n)
+    carry = 0.0
+    for a in range(0, n, CHUNK):
+        b = min(n, a + CHUNK)
+        g = np.nan_to_num(r[a:b] if ok is None else np.where(ok[a:b], r[a:b], 0.0))
+        seg = out[a:b]
+        if a == 0:
+            seg[0] = d0
+            np.subtract(t[1:b], t[: b - 1], out=seg[1:])
+        else:
+            np.subtract(t[a:b], t[a - 1 : b - 1], out=seg)
+        seg *= g
+        seg[0] += carry
+        np.cumsum(seg, out=seg)
+        carry = float(seg[-1])
+    return out
+
+
+def _window_max(
+    x: np.ndarray, idx: np.ndarray, half: int, chunk: int = 4096
+) -> tuple[np.ndarray, np.ndarray]:
+    """(max, min) of ``x`` over ``[i - half, i + half]`` (clipped to the array: the
+    ``maximum_filter1d`` / ``minimum_filter1d`` of size ``2 half + 1``, mode nearest) at
+    the indices ``idx`` only."""
+    hi = np.empty(idx.shape)
+    lo = np.empty(idx.shape)
+    offs = np.arange(-half, half + 1)
+    for a in range(0, idx.size, chunk):
+        w = x[(idx[a : a + chunk, None] + offs[None, :]).clip(0, x.size - 1)]
+        hi[a : a + chunk] = w.max(axis=1)
+        lo[a : a + chunk] = w.min(axis=1)
+    return hi, lo
 
 
 class _Detrend:
@@ -262,13 +309,16 @@ def level_offset(
     ok = np.isfinite(r)
     if it.size < 10 or ok.sum() < 10:
         return None
-    Y = _integral(it, np.where(ok, r, 0.0))
+    Y = _integral(it, r, ok)
     # epochs whose reference window (+-max_abs) lies inside the IMU and its finite rate
-    bad = np.concatenate([[0.0], np.cumsum(~ok)])
+    bad = np.flatnonzero(~ok)  # the count of bad samples before i: searchsorted(bad, i)
+    del ok
     lo_i = np.searchsorted(it, t - max_abs - 1e-9)
     hi_i = np.searchsorted(it, t + max_abs + 1e-9)
     inside = (t - max_abs > it[0]) & (t + max_abs < it[-1])
-    inside &= (bad[hi_i.clip(0, it.size)] - bad[lo_i.clip(0, it.size)]) == 0
+    inside &= (np.searchsorted(bad, hi_i.clip(0, it.size))
+               - np.searchsorted(bad, lo_i.clip(0, it.size))) == 0
+    del bad
     m = inside & np.isfinite(y) & np.isfinite(sig) & (sig > 0)
     if valid is not None:
         m &= np.asarray(valid, dtype=bool)
@@ -355,12 +405,26 @@ def _reference_variance(
     estimator.budget.kernel_variance`; a constant bias cancels: ``sum wj = 0``)."""
     from imubounds.dynamic.estimator.budget import kernel_variance
 
-    dt = float(np.median(np.diff(it)))
+    dt = _median_step(it)
     idx = np.searchsorted(it, tq, side="right")
-    A = np.bincount(idx, weights=wj, minlength=it.size + 1)
-    R = np.cumsum(A[::-1])[::-1][1:]  # sum over the epochs after sample k
-    g = np.nan_to_num(np.broadcast_to(np.asarray(gain, float), it.shape))
-    return float(kernel_variance(noise, R * g * dt, dt, True))
+    A: np.ndarray = np.asarray(np.bincount(idx, weights=wj, minlength=it.size + 1), float)
+    # R = the reversed cumulative sum of A without its first (the sum over the epochs
+    # after sample k), times gain x dt: in place, chunk by chunk from the end
+    g = np.broadcast_to(np.asarray(gain, float), it.shape)
+    carry = 0.0
+    n = A.size
+    for b in range(n, 0, -CHUNK):
+        a = max(0, b - CHUNK)
+        seg = A[a:b][::-1]
+        seg[0] += carry
+        np.cumsum(seg, out=seg)
+        carry = float(seg[-1])
+    R = A[1:]
+    for a in range(0, R.size, CHUNK):
+        seg = R[a : a + CHUNK]
+        seg *= np.nan_to_num(g[a : a + CHUNK])
+        seg *= dt
+    return float(kernel_variance(noise, R, dt, True))
 
 
 def _speed(drive: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -406,9 +470,12 @@ def yaw_references(drive: Any, stamp: str) -> list[_Reference]:
     sp = _speed(drive)
     acc = getattr(imu, "accel", None)
     if sp is not None and acc is not None:
-        u = np.interp(te, sp[0], sp[1], left=np.nan, right=np.nan)
+        gain = np.interp(te, sp[0], sp[1], left=np.nan, right=np.nan)  # the speed
+        slow = ~(gain >= MIN_SPEED_MPS)
         with np.errstate(invalid="ignore", divide="ignore"):
-            gain = np.where(u >= MIN_SPEED_MPS, 1.0 / u, np.nan)
+            np.divide(1.0, gain, out=gain)
+        gain[slow] = np.nan
+        del slow
         rho = np.asarray(acc[:, 1], float) * gain
         out.append(_Reference("lateral acceleration / speed", te, rho, "accel_y", gain))
     return out
@@ -639,29 +706,32 @@ def rate_allowance(
     the bound of the integral's error over ``bound_s`` (bias x bound + k white noise);
     at most ``bound_s x rate_max``. Only the turns are widened: the gyro measures the
     turn around each epoch."""
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
     it = np.asarray(imu_t, dtype=float)
     tq = np.asarray(tq, dtype=float)
     cap = bound_s * rate_max
     if it.size < 2 or tq.size == 0 or bound_s <= 0:
         return np.zeros(tq.shape)
-    dt = float(np.median(np.diff(it)))
+    dt = _median_step(it)
     half = int(math.ceil(bound_s / max(dt, 1e-9))) + 1
-    r = np.nan_to_num(np.asarray(rate, dtype=float), nan=0.0)
-    G = np.cumsum(r * np.concatenate([[dt], np.diff(it)]))
-    gmax = maximum_filter1d(G, size=2 * half + 1, mode="nearest")
-    gmin = minimum_filter1d(G, size=2 * half + 1, mode="nearest")
+    r = np.asarray(rate, dtype=float)
+    G = _integral(it, r)  # cumsum(nan_to_num(rate) x [dt, diff(t)])
     i = np.searchsorted(it, tq).clip(0, it.size - 1)
     j = (i - 1).clip(0, it.size - 1)
+    # the running max / min of G over +-half samples, at i and j only
+    gmax_i, gmin_i = _window_max(G, i, half)
+    gmax_j, gmin_j = _window_max(G, j, half)
     g = np.interp(tq, it, G)
-    swing = np.maximum(np.maximum(gmax[i], gmax[j]) - g, g - np.minimum(gmin[i], gmin[j]))
+    del G
+    swing = np.maximum(np.maximum(gmax_i, gmax_j) - g, g - np.minimum(gmin_i, gmin_j))
     out = np.minimum((1.0 + scale) * swing + err_rad, cap)
     # outside the IMU's span or where the rate is not finite: the vehicle's bound
     bad = (tq < it[0]) | (tq > it[-1])
-    if not np.isfinite(rate).all():
-        fin = maximum_filter1d((~np.isfinite(rate)).astype(float), size=2 * half + 1)
-        bad |= (fin[i] > 0) | (fin[j] > 0)
+    nonfin = np.flatnonzero(~np.isfinite(r))
+    if nonfin.size:
+        # a non-finite rate within +-half samples of i or j
+        for q in (i, j):
+            bad |= (np.searchsorted(nonfin, q + half, side="right")
+                    - np.searchsorted(nonfin, q - half)) > 0
     return np.asarray(np.where(bad, cap, out))
 
 
@@ -712,7 +782,7 @@ def local_swing(
     ja, jb, ok = local_windows(th, half_s)
     if not ok.any() or it.size < 2:
         return turn, berr, ok
-    dt = float(np.median(np.diff(it)))
+    dt = _median_step(it)
     h = int(math.ceil(bound_s / max(dt, 1e-9))) + 1
     Ga, Gb = np.interp(th[ja], it, G), np.interp(th[jb], it, G)
     T = np.maximum(th[jb] - th[ja], 1e-9)

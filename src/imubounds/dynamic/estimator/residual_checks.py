@@ -220,41 +220,32 @@ def imu_trapezoid(
     # sub-segments: the IMU segments cut at the fixes; j = their pair, k = their segment
     inner = t[(t > bnd[0]) & (t < bnd[-1])]
     cuts = np.union1d(bnd, inner)
-    s0, s1 = cuts[:-1], cuts[1:]
-    mid_s = 0.5 * (s0 + s1)
-    j = np.searchsorted(t, mid_s, side="right") - 1
-    k = (np.searchsorted(bnd, mid_s, side="right") - 1).clip(0, bnd.size - 2)
-    sel = (j >= 0) & (j < n - 1) & (s1 > s0)
-    j, k, s0, s1, mid_s = j[sel], k[sel], s0[sel], s1[sel], mid_s[sel]
-    ln = s1 - s0
     npair = n - 1
-    covered = np.bincount(j, ln, npair)
-    bad = np.bincount(j, unk[k].astype(float), npair) > 0
+    sums = np.zeros((_TRAP_SUMS, npair))
+    lns: list[np.ndarray] = []
+    carry = 0.0
+    # in chunks of sub-segments that start at fixes (a pair's sub-segments in one chunk:
+    # the per-pair sums and the running sum of gz ln are those of one pass, bit for bit)
+    at_fix = np.searchsorted(cuts, inner)  # the cuts at fixes
+    starts = np.zeros(1, dtype=np.int64)
+    if at_fix.size:
+        want = np.arange(_TRAP_CHUNK, cuts.size - 1, _TRAP_CHUNK)
+        pick = np.searchsorted(at_fix, want).clip(0, at_fix.size - 1)
+        starts = np.unique(np.r_[starts, at_fix[pick]])
+    ends = np.r_[starts[1:], cuts.size - 1]
+    for c0, c1 in zip(starts, ends, strict=True):
+        if c1 <= c0:
+            continue
+        carry = _trap_chunk(cuts[c0 : c1 + 1], t, bnd, unk, sg, sx, sy, psi, bx, by, bg, bw,
+                            carry, sums, lns)
+    (covered, badsum, ch_e, ch_n, A1, A2, turn, cube, u2, c1s, dq) = sums
+    bad = badsum > 0
     ok = has[:-1] & ~bad & (np.abs(covered - dt) <= 1e-9 * np.maximum(dt, 1.0))
-    gz = sg.y[k] - bg
-    cg = np.cumsum(gz * ln)
-    first = np.r_[True, j[1:] != j[:-1]]
-    base = np.maximum.accumulate(np.where(first, np.arange(j.size), 0))
-    ph = (0.5 * (psi[j, 0] + psi[j, 1]) + cg - (cg[base] - gz[base] * ln[base])
-          - 0.5 * gz * ln)  # fmt: skip
-    fx, fy = sx.y[k] - bx, sy.y[k] - by
-    u = mid_s - 0.5 * (t[j] + t[j + 1])
-    ce, cn = np.cos(ph), np.sin(ph)
-    cu = u * ln
-    ch_e = np.bincount(j, cu * (ce * fx - cn * fy), npair)
-    ch_n = np.bincount(j, cu * (cn * fx + ce * fy), npair)
-    fa = np.hypot(fx, fy) + math.sqrt(2.0) * bw
-    A1 = np.bincount(j, np.abs(cu) * fa, npair)
-    A2 = np.bincount(j, u * cu * fa, npair)
-    turn = np.bincount(j, np.abs(sg.y[k]) * ln, npair)
-    cube = np.bincount(j, ln**3, npair)
-    # noise of c^: white exactly, the rest (flicker, rate random walk) by sum |c_k|
-    u2 = np.bincount(j, u * cu, npair)
-    c1 = np.bincount(j, np.abs(cu), npair)
-    last = np.r_[j[1:] != j[:-1], True]
-    dc = np.where(first, cu, cu - np.r_[0.0, cu[:-1]])
-    dq = np.bincount(j, dc**2 + np.where(last, cu**2, 0.0), npair)
-    h = float(np.median(ln)) if ln.size else 1.0
+    ln = np.concatenate(lns) if lns else np.zeros(0)
+    del lns
+    h = float(np.median(ln, overwrite_input=True)) if ln.size else 1.0
+    del ln
+    c1 = c1s
 
     def noise_var(cn_: Any) -> np.ndarray:
         slow = sum(sg_ * sg_ for sg_, _ in cn_.gm_terms()) + 0.5 * cn_.K**2 * dt
@@ -273,6 +264,70 @@ def imu_trapezoid(
     var[use] = np.maximum(noise_var(nx), noise_var(ny))[use]
     det[use] = dj[use]
     return chat, var, det
+
+
+#: sub-segments per chunk of :func:`imu_trapezoid` (its memory: ~30 arrays of this size)
+_TRAP_CHUNK = 1 << 19
+#: the per-pair sums of :func:`_trap_chunk`
+_TRAP_SUMS = 11
+
+
+def _trap_chunk(
+    cuts: np.ndarray, t: np.ndarray, bnd: np.ndarray, unk: np.ndarray, sg: Any, sx: Any,
+    sy: Any, psi: np.ndarray, bx: float, by: float, bg: float, bw: float, carry: float,
+    sums: np.ndarray, lns: list[np.ndarray],
+) -> float:
+    """:func:`imu_trapezoid`'s per-pair sums over the sub-segments between ``cuts``
+    (starting at a fix, or at the first cut) added to ``sums``; the selected
+    sub-segments' lengths appended to ``lns``; returns the running sum of ``gz ln``
+    (``carry`` its value before the chunk)."""
+    n = t.size
+    s0, s1 = cuts[:-1], cuts[1:]
+    mid_s = 0.5 * (s0 + s1)
+    j = np.searchsorted(t, mid_s, side="right") - 1
+    k = (np.searchsorted(bnd, mid_s, side="right") - 1).clip(0, bnd.size - 2)
+    sel = (j >= 0) & (j < n - 1) & (s1 > s0)
+    j, k, s0, s1, mid_s = j[sel], k[sel], s0[sel], s1[sel], mid_s[sel]
+    if j.size == 0:
+        return carry
+    ln = s1 - s0
+    lns.append(ln)
+    j0 = int(j[0])
+    m = int(j[-1]) - j0 + 1
+    jl = j - j0
+    out = sums[:, j0 : j0 + m]
+    out[0] += np.bincount(jl, ln, m)
+    out[1] += np.bincount(jl, unk[k].astype(float), m)
+    gz = sg.y[k] - bg
+    x = gz * ln
+    x[0] += carry
+    cg = np.cumsum(x)
+    del x
+    first = np.r_[True, j[1:] != j[:-1]]
+    base = np.maximum.accumulate(np.where(first, np.arange(j.size), 0))
+    ph = (0.5 * (psi[j, 0] + psi[j, 1]) + cg - (cg[base] - gz[base] * ln[base])
+          - 0.5 * gz * ln)  # fmt: skip
+    carry = float(cg[-1])
+    del cg, base
+    fx, fy = sx.y[k] - bx, sy.y[k] - by
+    u = mid_s - 0.5 * (t[j] + t[j + 1])
+    ce, cn = np.cos(ph), np.sin(ph)
+    del ph
+    cu = u * ln
+    out[2] += np.bincount(jl, cu * (ce * fx - cn * fy), m)
+    out[3] += np.bincount(jl, cu * (cn * fx + ce * fy), m)
+    del ce, cn
+    fa = np.hypot(fx, fy) + math.sqrt(2.0) * bw
+    out[4] += np.bincount(jl, np.abs(cu) * fa, m)
+    out[5] += np.bincount(jl, u * cu * fa, m)
+    out[6] += np.bincount(jl, np.abs(sg.y[k]) * ln, m)
+    out[7] += np.bincount(jl, ln**3, m)
+    out[8] += np.bincount(jl, u * cu, m)
+    out[9] += np.bincount(jl, np.abs(cu), m)
+    last = np.r_[j[1:] != j[:-1], True]
+    dc = np.where(first, cu, cu - np.r_[0.0, cu[:-1]])
+    out[10] += np.bincount(jl, dc**2 + np.where(last, cu**2, 0.0), m)
+    return carry
 
 
 def _pair_sums(i: np.ndarray, m: int, x: np.ndarray, power: int) -> np.ndarray:

@@ -671,13 +671,16 @@ def smooth(
         CF = np.zeros((n, 5), dtype=np.int64)
         CB = np.zeros((n, 5), dtype=np.int64)
         run_filters(x0, link, YR, FH, QH, DT, beta0, vlat, PF, PB, XF, XB, CF, CB)
+        del CF, CB
         new = _screen(te, x0, has & ~drop, PF, PB, link, drop, dropped, t_offset)
+        del PF, PB  # the predictions serve the screening only (n x 7 x 2 each)
         if new and rounds < max_rounds:
             continue
-        both = _intersect(XF, XB)
-        ok = np.all(both[..., 0] <= both[..., 1], axis=1)
-        X = x0.copy()
-        X[ok] = both[ok]
+        # X = the filters' intersection where it is not empty, x0 elsewhere (in place)
+        X = _intersect(XF, XB)
+        ok = np.all(X[..., 0] <= X[..., 1], axis=1)
+        X[~ok] = x0[~ok]
+        del x0, ok
         start = X.copy()
         beta = beta0.copy()
         st, ep, what, sw = fixpoint(X, link, YR, FH, QH, DT, beta, vlat, True, tol, max_sweeps)
@@ -745,9 +748,10 @@ def smooth(
 
 
 def _intersect(X: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    lo = np.maximum(X[..., 0], x0[..., 0])
-    hi = np.minimum(X[..., 1], x0[..., 1])
-    return np.stack([lo, hi], -1)
+    out = np.empty(np.broadcast_shapes(X.shape, x0.shape))
+    np.maximum(X[..., 0], x0[..., 0], out=out[..., 0])
+    np.minimum(X[..., 1], x0[..., 1], out=out[..., 1])
+    return out
 
 
 def _group_of(var: int) -> int:
@@ -771,12 +775,12 @@ def _screen(
     """The two-sided check of every kept measurement (q-relaxed intersection of the
     measurement and the predictions from the past and from the future)."""
     new = False
-    lo = np.maximum(PF[..., 0], PB[..., 0])
-    hi = np.minimum(PF[..., 1], PB[..., 1])
     for g, vs in enumerate(GROUP_VARS):
         vs_ = list(vs)
         m_lo, m_hi = x0[:, vs_, 0], x0[:, vs_, 1]
-        L_lo, L_hi = lo[:, vs_], hi[:, vs_]
+        # the predictions' intersection, for this group's variables only
+        L_lo = np.maximum(PF[:, vs_, 0], PB[:, vs_, 0])
+        L_hi = np.minimum(PF[:, vs_, 1], PB[:, vs_, 1])
         preds_meet = np.all(L_lo <= L_hi, axis=1)
         miss = np.any((m_lo > L_hi) | (m_hi < L_lo), axis=1)
         if g == G_POS:

@@ -85,6 +85,7 @@ from imubounds.io.drive.layout import (
     drive_from_tables,
     is_layout,
     read_layout,
+    release_freed_memory,
 )
 from imubounds.io.drive.mount import apply_mount, warn_mount
 from imubounds.io.drive.settings import (
@@ -743,7 +744,9 @@ def read_drive(
         raise OptionError("--columns applies to CSV logs only")
     if validate:
         validate_drive(drive, max_speed_mps=max_speed_mps)
+    release_freed_memory()
     return drive
+
 
 
 def _settings_from_streams(drive: Drive) -> None:
