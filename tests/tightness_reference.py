@@ -176,18 +176,21 @@ def accel_x_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[Level
             continue
         terms = accel_x_limits(ctx, plan, lp)
         # the vehicle bounds alone enclose the same mean: the limit is the smaller
-        veh = ctx.vehicle.max_accel + terms["gravity"]
-        lim = np.minimum(sum(terms.values()), veh)
-        est = 0.5 * (lv.e_hi - lv.e_lo)
-        out.append(
-            LevelRatio(
-                lp.tau_s,
-                float(np.median(est)),
-                float(np.median(lim)),
-                {k: float(np.median(v)) for k, v in terms.items()},
-            )
-        )
+        out.append(_ratio(lp, lv, terms, ctx.vehicle.max_accel + terms["gravity"]))
     return out
+
+
+def _ratio(lp: Any, lv: Any, terms: dict[str, np.ndarray], cap: Any) -> LevelRatio:
+    """The level's median half-width against the median of the smaller of the terms'
+    sum and ``cap`` (what the vehicle bounds alone allow)."""
+    lim = np.minimum(sum(terms.values()), cap)
+    est = 0.5 * (lv.e_hi - lv.e_lo)
+    return LevelRatio(
+        lp.tau_s,
+        float(np.median(est)),
+        float(np.median(lim)),
+        {k: float(np.median(v)) for k, v in terms.items()},
+    )
 
 
 def gyro_z_limits(ctx: Any, lp: Any) -> dict[str, np.ndarray]:
@@ -219,15 +222,5 @@ def gyro_z_ratios(ctx: Any, margins: Any) -> list[LevelRatio]:
     for lp, lv in zip(levels, margins.levels, strict=True):
         if lp.kind != "aided":
             continue
-        terms = gyro_z_limits(ctx, lp)
-        lim = np.minimum(sum(terms.values()), ctx.vehicle.max_rate)
-        est = 0.5 * (lv.e_hi - lv.e_lo)
-        out.append(
-            LevelRatio(
-                lp.tau_s,
-                float(np.median(est)),
-                float(np.median(lim)),
-                {k: float(np.median(v)) for k, v in terms.items()},
-            )
-        )
+        out.append(_ratio(lp, lv, gyro_z_limits(ctx, lp), ctx.vehicle.max_rate))
     return out
