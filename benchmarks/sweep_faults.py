@@ -10,7 +10,7 @@ offsets estimated (and those applied).
 Usage: ``python benchmarks/sweep_faults.py [CASES] [SEEDS]`` (comma-separated; default
 every case, seeds 1,2,3).
 
-``python benchmarks/sweep_faults.py --clean N [FIRST]``: the clean sweep of issue 27's
+``python benchmarks/sweep_faults.py clean-sweep N [FIRST]``: the clean sweep of issue 27's
 done-when: N clean trips (seeds FIRST .. FIRST + N - 1, default 1), one JSON line each,
 then a summary line counting the enclosed trips and, per check (violation test), the
 trips that raised it against what the check's stated level allows (the binomial 99 %
@@ -165,7 +165,7 @@ def clean_sweep(n: int, first: int = 1) -> dict[str, Any]:
 def main() -> None:
     from imubounds.dynamic.scenario.faults import FAULTS
 
-    if len(sys.argv) > 2 and sys.argv[1] == "--clean":
+    if len(sys.argv) > 2 and sys.argv[1] == "clean-sweep":
         first = int(sys.argv[3]) if len(sys.argv) > 3 else 1
         print(json.dumps({"summary": clean_sweep(int(sys.argv[2]), first)}), flush=True)
         return

@@ -74,8 +74,6 @@ _FOREIGN_OPTIONS = {
 _BENCH_OPTIONS = {
     "--repeat": "bench_fleet.py",
     "--pairs": "bench_fleet.py",
-    "--clean": "sweep_faults.py",
-    "--runs": "bench_static.py",
 }
 
 

@@ -390,7 +390,7 @@ def test_multipath_5m_former_silent_misses_and_clean_trips(seed: int) -> None:
     intervals at 6 and 2 epochs with ``guaranteed: true`` before the IMU corrected the
     step test's trapezoid; now the step test withdraws the guarantee. The same clean
     trips stay guaranteed with no violation (the 50-trip clean sweep is
-    ``benchmarks/sweep_faults.py --clean 50``)."""
+    ``benchmarks/sweep_faults.py clean-sweep 50``)."""
     clean = _sweep_trip(seed)
     r = dynamic_margins(clean)
     d = r.to_dict()
@@ -436,7 +436,7 @@ def test_imu_trapezoid_correction_holds_the_truth() -> None:
 
 
 def test_clean_sweep_command_counts_per_check(capsys: Any) -> None:
-    """``benchmarks/sweep_faults.py --clean N [FIRST]`` (the 50-trip clean sweep of issue
+    """``benchmarks/sweep_faults.py clean-sweep N [FIRST]`` (the 50-trip clean sweep of issue
     27's done-when, by hand) on 2 trips: every trip enclosed and guaranteed, and the
     summary counts the trips per check against what its stated level allows."""
     import importlib.util
