@@ -159,19 +159,10 @@ def harmonic_fit(
     sum_i dW_ji/dpsi_i``, whose absolute values are added to the bound. Returns, per
     coefficient (the constant first), ``{index, cycle, term, coef, limit, det, sd}`` (rad;
     ``cycle`` 0 the constant); empty when the design is singular (headings not spread)."""
-    cols, dcols = [np.ones_like(psi)], [np.zeros_like(psi)]
-    for m in range(1, COURSE_CHECK_HARMONICS + 1):
-        cols += [np.cos(m * psi), np.sin(m * psi)]
-        dcols += [-m * np.sin(m * psi), m * np.cos(m * psi)]
-    if rate is not None:
-        cols.append(rate)
-        dcols.append(np.zeros_like(psi))
-    a, da = np.column_stack(cols), np.column_stack(dcols)
-    w = 1.0 / sig2
-    nrm = a.T @ (a * w[:, None])
-    if a.shape[0] <= a.shape[1] or np.linalg.cond(nrm) > 1e8:
+    lsq = _harmonic_lsq(psi, sig2, rate)
+    if lsq is None:
         return []
-    wm = np.linalg.solve(nrm, (a * w[:, None]).T)  # rows: the coefficients' weights
+    a, da, w, nrm, wm = lsq
     coef = wm @ d
     # dW_:,i/dpsi_i = M^-1 a'_i w_i (1 - h_i) - W_:,i w_i a'_i.M^-1 a_i (M = A'wA, h_i the
     # leverage w_i a_i.M^-1 a_i): the derivative of the column W_:,i = M^-1 a_i w_i
@@ -187,6 +178,66 @@ def harmonic_fit(
                     "term": "const" if j == 0 else "cos" if j % 2 else "sin",
                     "coef": float(coef[j]), "limit": det + k * sd, "det": det, "sd": sd})
     return out
+
+
+def _harmonic_lsq(
+    psi: np.ndarray, sig2: np.ndarray, rate: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(A, dA/dpsi, weights, A'wA, W) of :func:`harmonic_fit`'s weighted least squares;
+    None when the design is singular."""
+    cols, dcols = [np.ones_like(psi)], [np.zeros_like(psi)]
+    for m in range(1, COURSE_CHECK_HARMONICS + 1):
+        cols += [np.cos(m * psi), np.sin(m * psi)]
+        dcols += [-m * np.sin(m * psi), m * np.cos(m * psi)]
+    if rate is not None:
+        cols.append(rate)
+        dcols.append(np.zeros_like(psi))
+    a, da = np.column_stack(cols), np.column_stack(dcols)
+    w = 1.0 / sig2
+    nrm = a.T @ (a * w[:, None])
+    if a.shape[0] <= a.shape[1] or np.linalg.cond(nrm) > 1e8:
+        return None
+    wm = np.linalg.solve(nrm, (a * w[:, None]).T)  # rows: the coefficients' weights
+    return a, da, w, nrm, wm
+
+
+def model_adequacy(
+    psi: np.ndarray,
+    d: np.ndarray,
+    sig2: np.ndarray,
+    bound: np.ndarray,
+    k: float,
+    rate: np.ndarray | None = None,
+) -> list[dict[str, Any]] | None:
+    """Whether the compass error model describes ``d``: the mean, over each of
+    :data:`COURSE_CHECK_BINS` heading bins (3 epochs or more), of the residual of
+    :func:`harmonic_fit`'s least squares ``e = (I - A W) d``. The projection takes every
+    coefficient of the model (and the clock offset's yaw-rate column) out exactly, so
+    with ``d = A c + e_d + n`` (``|e_d| <= bound``) the bin's mean ``u_B . d`` (``u_B =
+    1_B / n_B - mean_B(A) W``) lies within ``sum_i |u_Bi| bound_i + k sqrt(sum_i u_Bi^2
+    sig2_i)``; a larger one is a shape the model does not have (three cycles or more,
+    a deviation beyond the unmodelled bound). Returns the failed bins
+    ``{heading_from_deg, mean_deg, limit_deg}`` (empty: adequate); None when the design is
+    singular."""
+    lsq = _harmonic_lsq(psi, sig2, rate)
+    if lsq is None:
+        return None
+    a, wm = lsq[0], lsq[4]
+    bins = np.floor(np.mod(psi, TWO_PI) / (TWO_PI / COURSE_CHECK_BINS)).astype(int)
+    failed: list[dict[str, Any]] = []
+    for bn in range(COURSE_CHECK_BINS):
+        sel = bins == bn
+        nb = int(sel.sum())
+        if nb < 3:
+            continue
+        u = -(a[sel].mean(axis=0) @ wm)
+        u[sel] += 1.0 / nb
+        stat = float(u @ d)
+        lim = float(np.abs(u) @ bound) + k * math.sqrt(float(u**2 @ sig2))
+        if abs(stat) > lim:
+            failed.append({"heading_from_deg": bn * 360.0 / COURSE_CHECK_BINS,
+                           "mean_deg": math.degrees(stat), "limit_deg": math.degrees(lim)})
+    return failed
 
 
 def harmonic_basis(j: int, psi: np.ndarray) -> np.ndarray:
@@ -284,6 +335,8 @@ class HeadingModel:
     #: factor on the heading noise (the correction evaluated at the noisy reading)
     noise_gain: float = 1.0
     notes: list[str] = field(default_factory=list)
+    #: the heading bins where the fit's residual is beyond its bound (model_adequacy)
+    adequacy_failed: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def applied(self) -> bool:
@@ -304,6 +357,8 @@ class HeadingModel:
             "remainder_bound_deg": deg(self.remainder_rad),
             "unmodelled_bound_deg": deg(self.unmodelled_rad),
             "noise_gain": self.noise_gain,
+            "adequate": not self.adequacy_failed,
+            "adequacy_bins_failed": list(self.adequacy_failed),
             "k": self.k,
             "epochs": self.n,
             "method": (
@@ -343,15 +398,30 @@ def estimate_heading_model(
                        ch.noise_sigma_rad**2)
     if not fit:
         return None
+    # the model's adequacy, tested at the check's k: a shape it does not have leaves it
+    # unapplied (the check of the stated bound decides)
+    k_check = float(norm.isf(alpha * COURSE_CHECK_SHARE / (2.0 * COURSE_CHECK_TESTS)))
+    bad = model_adequacy(data.h, data.d, data.sig2, unmodelled + data.slip, k_check,
+                         data.rate) or []
     for c in fit:
         detected = abs(c["coef"]) > c["limit"]
-        c["applied"] = bool(detected or (c["cycle"] == 0 and c["limit"] < alignment_rad))
+        c["applied"] = bool(not bad and (
+            detected or (c["cycle"] == 0 and c["limit"] < alignment_rad)))
     const = fit[0]["applied"]
     rem = (unmodelled if const else ch.deviation_bound_rad) + sum(
         c["limit"] for c in fit if c["applied"])
     gain = 1.0 + sum(c["cycle"] * abs(c["coef"]) for c in fit if c["applied"])
-    return HeadingModel(fit, ch.deviation_bound_rad, rem, unmodelled, k, int(data.d.size),
-                        gain)
+    model = HeadingModel(fit, ch.deviation_bound_rad, rem, unmodelled, k,
+                         int(data.d.size), gain, adequacy_failed=bad)
+    if bad:
+        worst = max(bad, key=lambda b: abs(b["mean_deg"]) - b["limit_deg"])
+        model.notes.append(
+            f"compass error model not applied: in {len(bad)} heading bin(s) the residual of "
+            f"its fit to the GNSS course is beyond its bound (worst {worst['mean_deg']:+.2f} "
+            f"deg against {worst['limit_deg']:.2f} from {worst['heading_from_deg']:g} deg): "
+            "a deviation shape it does not have; the stated bound stays, checked"
+        )
+    return model
 
 
 def apply_heading_model(ch: CompassHeading, model: HeadingModel) -> None:

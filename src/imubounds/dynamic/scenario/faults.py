@@ -49,12 +49,20 @@ def heading_offset(drive: Any, offset_deg: float) -> Any:
     return d
 
 
-def heading_two_cycle(drive: Any, amplitude_deg: float) -> Any:
-    """A two-cycle compass deviation ``amplitude_deg * sin(2 heading)``."""
+def heading_two_cycle(drive: Any, amplitude_deg: float, cycles: int = 2) -> Any:
+    """A two-cycle compass deviation ``amplitude_deg * sin(2 heading)`` (``cycles``
+    another number of cycles)."""
     d = _copy(drive)
     h = d.heading.heading_rad
-    d.heading.heading_rad = np.mod(h + math.radians(amplitude_deg) * np.sin(2 * h), 2 * math.pi)
+    d.heading.heading_rad = np.mod(
+        h + math.radians(amplitude_deg) * np.sin(cycles * h), 2 * math.pi)
     return d
+
+
+def heading_three_cycle(drive: Any, amplitude_deg: float) -> Any:
+    """A three-cycle compass deviation ``amplitude_deg * sin(3 heading)``: a shape the
+    compass error model (constant, harmonics 1 and 2) does not take."""
+    return heading_two_cycle(drive, amplitude_deg, cycles=3)
 
 
 def _shift_fixes(d: Any, sel: np.ndarray, de: np.ndarray, dn: np.ndarray) -> None:
