@@ -165,8 +165,28 @@ def test_heading_errors_are_unknowns_of_the_trip(seed: int, case: str) -> None:
         assert c["applied"] is True and hs["independent_of_gnss"] is False
         assert hs["deviation_bound_deg"] == pytest.approx(
             hs["model"]["remainder_bound_deg"])
-    # the family of the heading intervals counts the model's coefficients
+    # the family of the heading intervals counts the model's coefficients, whose k is
+    # taken at alpha over at most ALPHA_FAMILIES_MAX families
+    from imubounds.dynamic.aiding.course_check import ALPHA_FAMILIES_MAX
+
     assert d["alpha"]["families"]["heading"]["count"] == r.full.ctx.heading.t.size + 5
+    assert len(r.full.ctx.alpha.counts) <= ALPHA_FAMILIES_MAX
+    assert hs["model"]["k"] >= d["alpha"]["families"]["heading"]["k"]
+
+
+@pytest.mark.parametrize(("off", "amp"), [(8.0, 4.0), (-8.0, 4.0), (3.0, 3.0)])
+def test_offset_and_two_cycle_deviation_together(base: Any, off: float, amp: float) -> None:
+    """A mount offset and a two-cycle deviation at once: both estimated, both applied,
+    the truth inside at every epoch and guaranteed (the basis at the compass reading:
+    the offset shifts the deviation's phase, which stays within the two harmonics)."""
+    bad_drive = F.heading_two_cycle(F.heading_offset(base, off), amp)
+    r = dynamic_margins(bad_drive)
+    d = r.to_dict()
+    bad, _ = truth_misses(r, bad_drive)
+    assert d["guaranteed"] is True and not bad.any()
+    applied = {(c["cycle"], c["term"]) for c in d["heading_sensor"]["model"]["coefficients"]
+               if c["applied"]}
+    assert {(0, "const"), (2, "sin")} <= applied
 
 
 @pytest.mark.parametrize("lag", [0.1, 0.2, 0.3])
