@@ -375,7 +375,8 @@ class HeadingModel:
                 "weighted least squares of heading - GNSS course on 1, cos psi, sin psi, "
                 "cos 2psi, sin 2psi (psi the compass reading) and the yaw rate; interval "
                 "coef +- (sum|W| (unmodelled bound + sideslip bound) + the heading noise's "
-                "bias + k sd), k at the heading family's share (compass.estimate_heading_model)"
+                "bias + k sd), k at the heading family's share "
+                "(course_check.estimate_heading_model)"
             ),
             "notes": list(self.notes),
         }
