@@ -493,3 +493,24 @@ def test_turn_test_budgets_the_heading_clock_allowance(seed: int) -> None:
     late = compass_heading(_offset_trip(seed, 0.0, lag=0.3)).detail["gnss_course_check"]
     assert late["turns"]["mean_diff_deg"] > late["turns"]["limit_deg"]
     assert late["passed"] is False
+
+
+def test_drive_yaml_heading_errors_stated_turns_the_model_off(tmp_path: Path) -> None:
+    """drive.yaml ``heading.errors``: ``estimate`` (default) or ``stated`` (the compass
+    error model off: the stated bound only, checked); any other value is refused."""
+    import dataclasses
+
+    from imubounds.errors import InputError
+    from imubounds.io.drive.settings import parse_settings
+
+    drive = _offset_trip(7, 3.0)
+    assert drive.settings.heading.errors == "estimate"
+    assert compass_heading(drive).detail["heading_model"]["applied"] is True
+    hs = dataclasses.replace(drive.settings.heading, errors="stated")
+    stated = dataclasses.replace(drive, settings=dataclasses.replace(drive.settings, heading=hs))
+    ch = compass_heading(stated)
+    assert "heading_model" not in ch.detail
+    assert ch.detail["gnss_course_check"]["passed"] is False
+    assert parse_settings({"heading": {"errors": "stated"}}).heading.errors == "stated"
+    with pytest.raises(InputError, match="heading.errors"):
+        parse_settings({"heading": {"errors": "off"}})

@@ -388,7 +388,7 @@ def compass_heading(
     alignment_deg: float | None = None,
     alpha: float = 0.01,
     min_speed_mps: float = 3.0,
-    estimate_errors: bool = True,
+    estimate_errors: bool | None = None,
 ) -> CompassHeading:
     """The drive's heading, corrected, with a deterministic bound and a noise level.
 
@@ -427,9 +427,12 @@ def compass_heading(
         Estimate the compass error model (constant offset, harmonics 1 and 2) against
         the GNSS course and take what the data detect off the headings
         (:func:`~imubounds.dynamic.aiding.course_check.estimate_heading_model`); False:
-        the stated bound only, checked.
+        the stated bound only, checked. None: ``heading.errors`` of drive.yaml
+        (``"estimate"`` by default, or ``"stated"``).
     """
     hs = drive.settings.heading
+    if estimate_errors is None:
+        estimate_errors = hs.errors != "stated"
     fit = hs.fit if fit is None else fit
     use = hs.use if use is None else use
     if fit not in FITS:
