@@ -108,10 +108,10 @@ def run(case: str, seed: int) -> dict[str, Any]:
 
 
 #: stated level of each check as a share of the trip's alpha (docs/dynamic-method.md 5b):
-#: residual checks (violations.CHECK_SHARE) and the course check (compass.COURSE_CHECK_SHARE)
+#: residual checks (violations.CHECK_SHARE) and the course check (course_check.COURSE_CHECK_SHARE)
 #: have theirs; a drop or a bias disagreement fails only when a bound fails (alpha)
 def _levels() -> dict[str, float]:
-    from imubounds.dynamic.aiding.compass import COURSE_CHECK_SHARE
+    from imubounds.dynamic.aiding.course_check import COURSE_CHECK_SHARE
     from imubounds.dynamic.estimator.violations import CHECK_SHARE
 
     return {"residual checks (every test of residual_checks)": CHECK_SHARE,

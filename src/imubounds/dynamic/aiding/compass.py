@@ -33,6 +33,25 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.aiding.course_check import (  # noqa: F401 (re-exported)
+    COURSE_CHECK_BINS,
+    COURSE_CHECK_HARMONICS,
+    COURSE_CHECK_MIN_SPEED,
+    COURSE_CHECK_SHARE,
+    COURSE_CHECK_TESTS,
+    COURSE_CHORD,
+    TURN_MIN_DPS,
+    HeadingModel,
+    _interp_heading,
+    _velocity_course,
+    against_course,
+    apply_heading_model,
+    check_against_course,
+    course_noise,
+    estimate_heading_model,
+    harmonic_fit,
+    harmonic_test,
+)
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.frames import TWO_PI, compass_to_model, wrap_pi
 from imubounds.geodesy import course_over_ground
@@ -307,6 +326,9 @@ class CompassHeading:
     notes: list[str] = field(default_factory=list)
     assumed: list[str] = field(default_factory=list)
     detail: dict[str, Any] = field(default_factory=dict)
+    #: the part of ``deviation_bound_rad`` that bounds a constant offset (the alignment
+    #: allowance, or the half-width of the offset estimated against the GNSS course)
+    constant_bound_rad: float = 0.0
 
     def halfwidth_rad(self, k: float) -> float:
         """Half-width of one sample's heading interval at ``k`` sigma of the noise."""
@@ -336,23 +358,6 @@ def k_sigma(alpha: float, n: int) -> float:
     return float(norm.isf(alpha / (2.0 * max(n, 1))))
 
 
-def _velocity_course(
-    g: Any, ok: np.ndarray, min_speed: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(t, course rad clockwise from true north, speed m/s) from the receiver's velocity
-    where usable and faster than ``min_speed``; None without velocity or with fewer than
-    three such fixes."""
-    ne = g.velocity_ne()
-    if ne is None:
-        return None
-    vn, ve = ne
-    sp = np.hypot(vn, ve)
-    keep = ok & np.isfinite(sp) & (sp >= min_speed)
-    if keep.sum() < 3:
-        return None
-    return g.t[keep], np.mod(np.arctan2(ve[keep], vn[keep]), TWO_PI), sp[keep]
-
-
 def _gnss_course(drive: Any, min_speed: float) -> tuple[np.ndarray, np.ndarray] | None:
     """(t, course rad clockwise from true north) of the GNSS while moving faster than
     ``min_speed``: the receiver's velocity if it has one, else consecutive positions."""
@@ -372,10 +377,6 @@ def _gnss_course(drive: Any, min_speed: float) -> tuple[np.ndarray, np.ndarray] 
     return (tm, cog) if tm.size >= 3 else None
 
 
-def _interp_heading(t: np.ndarray, tq: np.ndarray, h: np.ndarray) -> np.ndarray:
-    return np.mod(np.interp(tq, t, np.unwrap(h)), TWO_PI)
-
-
 def compass_heading(
     drive: Any,
     *,
@@ -387,6 +388,7 @@ def compass_heading(
     alignment_deg: float | None = None,
     alpha: float = 0.01,
     min_speed_mps: float = 3.0,
+    estimate_errors: bool | None = None,
 ) -> CompassHeading:
     """The drive's heading, corrected, with a deterministic bound and a noise level.
 
@@ -421,8 +423,16 @@ def compass_heading(
         of an ellipse fit into a noise level).
     min_speed_mps:
         GNSS course is used (fit or check) only above this speed.
+    estimate_errors:
+        Estimate the compass error model (constant offset, harmonics 1 and 2) against
+        the GNSS course and take what the data detect off the headings
+        (:func:`~imubounds.dynamic.aiding.course_check.estimate_heading_model`); False:
+        the stated bound only, checked. None: ``heading.errors`` of drive.yaml
+        (``"estimate"`` by default, or ``"stated"``).
     """
     hs = drive.settings.heading
+    if estimate_errors is None:
+        estimate_errors = hs.errors != "stated"
     fit = hs.fit if fit is None else fit
     use = hs.use if use is None else use
     if fit not in FITS:
@@ -535,12 +545,13 @@ def compass_heading(
         notes=notes,
         assumed=assumed,
         detail=detail,
+        constant_bound_rad=math.radians(align),
     )
     if not independent_of_imu:
         notes.append("the heading is an AHRS yaw: it uses the IMU's gyros and is not "
                      "independent of the IMU")
     if fit != "gnss-course":
-        _check_against_course(drive, out, alpha, min_speed_mps)
+        against_course(drive, out, alpha, min_speed_mps, math.radians(align), estimate_errors)
     return out
 
 
@@ -656,268 +667,3 @@ def _imu_turn_deg(drive: Any, t0: float, t1: float) -> float | None:
     t, gz = imu.t[sel], imu.gyro[sel, 2]
     psi = np.concatenate(([0.0], np.cumsum(0.5 * (gz[1:] + gz[:-1]) * np.diff(t))))
     return float(np.degrees(np.ptp(psi)))
-
-
-#: heading bins of the check against the GNSS course (the deviation's shape)
-COURSE_CHECK_BINS = 12
-#: the check against the GNSS course uses epochs at least this fast (m/s) and this many
-#: times the lateral speed bound (the sideslip bound asin(lateral / speed) stays small)
-COURSE_CHECK_MIN_SPEED = 5.0
-#: share of the trip's alpha given to the check against the GNSS course (the residual
-#: checks get another quarter; dynamic-method.md 5b)
-COURSE_CHECK_SHARE = 0.25
-#: turns for the signed test of the check against the GNSS course: |yaw rate| at least
-#: this (deg/s) and half the trip's 99th percentile
-TURN_MIN_DPS = 2.0
-#: fixes spanned by one chord of the course from positions (no receiver velocity)
-COURSE_CHORD = 5
-#: harmonics of the deviation tested by the check against the GNSS course (cycles 1 and 2:
-#: the cos and sin coefficient of each, one test each)
-COURSE_CHECK_HARMONICS = 2
-#: tests of the check against the GNSS course: the mean, the turns, the heading bins and
-#: the 2 x COURSE_CHECK_HARMONICS coefficients (Bonferroni within COURSE_CHECK_SHARE)
-COURSE_CHECK_TESTS = 2 + COURSE_CHECK_BINS + 2 * COURSE_CHECK_HARMONICS
-
-
-def course_noise(
-    drive: Any, min_speed: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """(t, course rad clockwise from north, 1-sigma of the course rad, a lower bound of
-    the speed m/s at 3 sigma) of the GNSS while faster than ``min_speed``: from the
-    receiver's velocity (sigma = vel sigma / speed) or from chords of
-    :data:`COURSE_CHORD` fixes (sigma = sqrt(2) x position sigma per axis / length),
-    the GNSS errors being isotropic Gaussian (drive.yaml gnss: cep_m, vel_sigma_mps)."""
-    from imubounds.geodesy import geodetic_to_enu
-
-    g = drive.gnss
-    if g is None:
-        return None
-    st = drive.settings.gnss
-    ok = g.usable()
-    vel = _velocity_course(g, ok, min_speed)
-    if vel is not None:
-        sv = float(st.vel_sigma_mps)
-        return vel[0], vel[1], sv / vel[2], vel[2] - 3.0 * sv
-    if ok.sum() < 3:
-        return None
-    e, n, _ = geodetic_to_enu(g.lat_deg[ok], g.lon_deg[ok])
-    t = g.t[ok]
-    hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
-    hd = np.where(np.isfinite(hd) & (hd > 0), hd, float(st.default_hdop))
-    s_ax = hd * float(st.cep_m) / math.sqrt(2.0 * math.log(2.0))
-    # chords of COURSE_CHORD fixes (not overlapping): the chord of an arc points along
-    # its tangent at the middle, and its noise is COURSE_CHORD times smaller
-    c = COURSE_CHORD
-    i0 = np.arange(0, e.size - c, c)
-    i1 = i0 + c
-    de, dn = e[i1] - e[i0], n[i1] - n[i0]
-    dt = t[i1] - t[i0]
-    dist = np.hypot(de, dn)
-    med = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = dist / dt
-    keep = np.isfinite(speed) & (speed >= min_speed) & (dt <= 1.5 * c * med)
-    if keep.sum() < 3:
-        return None
-    s_d = np.hypot(s_ax[i0], s_ax[i1])[keep]
-    return (
-        0.5 * (t[i0] + t[i1])[keep],
-        np.arctan2(de, dn)[keep] % TWO_PI,
-        s_d / dist[keep],
-        speed[keep] - 3.0 * s_d / dt[keep],
-    )
-
-
-def harmonic_test(
-    psi: np.ndarray,
-    d: np.ndarray,
-    sig2: np.ndarray,
-    bound: np.ndarray,
-    k: float,
-    rate: np.ndarray | None = None,
-    psi_var: float = 0.0,
-) -> list[dict[str, Any]]:
-    """The deviation's harmonics in ``d = heading - course`` (rad), one test per coefficient.
-
-    ``c = W d`` the weighted least-squares coefficients (weights ``1/sig2``) of the basis
-    ``1, cos psi, sin psi, ..., cos(H psi), sin(H psi)`` (H = :data:`COURSE_CHECK_HARMONICS`)
-    and, when ``rate`` is given, the yaw rate (a clock offset between the two streams shows
-    as offset x rate: its column takes it out of the harmonics, to first order). With
-    ``d_i = e_i + n_i``, ``|e_i| <= bound_i`` (deviation bound + sideslip bound, any sign)
-    and ``n_i`` independent Gaussian of variance ``sig2_i``, every coefficient of a
-    harmonic obeys ``|c_j| <= sum_i |W_ji| bound_i + k sqrt(sum_i W_ji^2 sig2_i)`` but
-    with the probability of a Gaussian beyond k sigma: a larger ``|c_j|`` is a deviation
-    the bound does not cover. The weights are taken at the measured ``psi``, whose noise
-    (variance ``psi_var``, rad^2) is part of ``d``'s: to second order it biases ``c_j`` by
-    ``psi_var sum_i dW_ji/dpsi_i``, whose absolute values are added to the bound. Returns,
-    per harmonic coefficient, ``{cycle, term, coef, limit, det, sd}`` (rad); empty when
-    the design is singular (headings not spread)."""
-    cols, dcols = [np.ones_like(psi)], [np.zeros_like(psi)]
-    for m in range(1, COURSE_CHECK_HARMONICS + 1):
-        cols += [np.cos(m * psi), np.sin(m * psi)]
-        dcols += [-m * np.sin(m * psi), m * np.cos(m * psi)]
-    if rate is not None:
-        cols.append(rate)
-        dcols.append(np.zeros_like(psi))
-    a, da = np.column_stack(cols), np.column_stack(dcols)
-    w = 1.0 / sig2
-    nrm = a.T @ (a * w[:, None])
-    if a.shape[0] <= a.shape[1] or np.linalg.cond(nrm) > 1e8:
-        return []
-    wm = np.linalg.solve(nrm, (a * w[:, None]).T)  # rows: the coefficients' weights
-    coef = wm @ d
-    # dW_:,i/dpsi_i = M^-1 a'_i w_i (1 - h_i) - W_:,i w_i a'_i.M^-1 a_i (M = A'wA, h_i the
-    # leverage w_i a_i.M^-1 a_i): the derivative of the column W_:,i = M^-1 a_i w_i
-    dm = np.linalg.solve(nrm, (da * w[:, None]).T)
-    lev = np.einsum("ij,ji->i", a, wm)
-    cross = np.einsum("ij,ji->i", da, wm)
-    dwm = dm * (1.0 - lev) - wm * cross
-    out: list[dict[str, Any]] = []
-    for j in range(1, 1 + 2 * COURSE_CHECK_HARMONICS):
-        det = float(np.abs(wm[j]) @ bound) + psi_var * float(np.sum(np.abs(dwm[j])))
-        sd = math.sqrt(float(wm[j] ** 2 @ sig2))
-        out.append({"cycle": (j + 1) // 2, "term": "cos" if j % 2 else "sin",
-                    "coef": float(coef[j]), "limit": det + k * sd, "det": det, "sd": sd})
-    return out
-
-
-def _check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_speed: float) -> None:
-    """Compare (never fit) the corrected heading with the GNSS course, signed.
-
-    ``d = heading - course`` at the GNSS epochs faster than :data:`COURSE_CHECK_MIN_SPEED`
-    (and 5 x the lateral speed bound). With the stated assumptions (a compass error
-    within its deviation bound plus white Gaussian noise, the sideslip within
-    asin(lateral bound / speed) at the speed's 3-sigma lower bound, isotropic Gaussian
-    GNSS errors), the mean of ``d`` over all the epochs and over each of
-    :data:`COURSE_CHECK_BINS` heading bins, and of ``d`` x sign(yaw rate) over the turns
-    (a clock offset between the streams), lies within the deviation bound + the mean
-    sideslip bound + k sigma_mean; and each cos / sin coefficient of the deviation's
-    harmonics 1 to :data:`COURSE_CHECK_HARMONICS` (least squares of ``d`` on the harmonics,
-    a constant and the yaw rate, :func:`harmonic_test`) lies within ``sum_i |W_ji|
-    (deviation bound + sideslip bound_i) + k sd_j``; k two-sided at level ``alpha`` x
-    :data:`COURSE_CHECK_SHARE` split over the :data:`COURSE_CHECK_TESTS` tests. A larger
-    signed mean is a constant offset (mount, declination), a deviation shape the bound
-    does not cover or a clock offset: ``detail['gnss_course_check']['passed']`` is False
-    and the check says which.
-    """
-    veh = drive.settings.vehicle
-    lat = veh.lateral_speed_bound_mps
-    vmin = max(min_speed, COURSE_CHECK_MIN_SPEED, 5.0 * (lat or 0.0))
-    gc = course_noise(drive, vmin)
-    if gc is None:
-        return
-    tc, course, sig_c, v_lo = gc
-    inside = (tc >= ch.t[0]) & (tc <= ch.t[-1])
-    if inside.sum() < 10:
-        return
-    tc, course, sig_c, v_lo = tc[inside], course[inside], sig_c[inside], v_lo[inside]
-    h = _interp_heading(ch.t, tc, ch.heading_rad)
-    d = np.asarray(wrap_pi(h - course), dtype=float)
-    if lat is None:
-        ch.detail["gnss_course_check"] = {
-            "n": int(d.size),
-            "mean_diff_deg": math.degrees(float(np.mean(d))),
-            "passed": None,
-            "rule": "not tested: no lateral speed bound (the sideslip is not bounded)",
-        }
-        return
-    sig2 = sig_c**2 + ch.noise_sigma_rad**2
-    # the course's own noise is large at a single epoch: the test is on means
-    slip = np.arcsin(np.minimum(1.0, lat / np.maximum(v_lo, 1e-9)))
-    from scipy.stats import norm
-
-    level = alpha * COURSE_CHECK_SHARE
-    k = float(norm.isf(level / (2.0 * COURSE_CHECK_TESTS)))
-    dev = ch.deviation_bound_rad
-
-    def test(sel: np.ndarray, sign: np.ndarray | None = None) -> tuple[float, float]:
-        x = d[sel] if sign is None else d[sel] * sign[sel]
-        m = float(np.mean(x))
-        noise = k * math.sqrt(float(np.sum(sig2[sel]))) / int(sel.sum())
-        lim = dev + float(np.mean(slip[sel])) + noise
-        return m, lim
-
-    m_all, lim_all = test(np.ones(d.size, dtype=bool))
-    # in the turns, signed by the turn: a clock offset between the two streams shows
-    # as offset x yaw rate (the yaw rate from the IMU's gyro, independent of d's noise)
-    turn: dict[str, float] | None = None
-    imu = drive.imu
-    r = None
-    if imu is not None and np.isfinite(imu.gyro[:, 2]).all() and imu.t.size > 1:
-        r = np.interp(tc, imu.t, imu.gyro[:, 2])
-        thr = max(math.radians(TURN_MIN_DPS), 0.5 * float(np.percentile(np.abs(r), 99)))
-        sel_t = np.abs(r) >= thr
-        if sel_t.sum() >= 5:
-            m_t, lim_t = test(sel_t, np.sign(r))
-            turn = {"mean_diff_deg": math.degrees(m_t), "limit_deg": math.degrees(lim_t),
-                    "n": int(sel_t.sum()), "mean_rate_dps": math.degrees(
-                        float(np.mean(np.abs(r[sel_t]))))}
-    worst: list[tuple[float, float, float]] = []
-    bins = np.floor(np.mod(h, TWO_PI) / (TWO_PI / COURSE_CHECK_BINS)).astype(int)
-    for b in range(COURSE_CHECK_BINS):
-        sel = bins == b
-        if sel.sum() >= 3:
-            m, lim = test(sel)
-            if abs(m) > lim:
-                worst.append((b * 360.0 / COURSE_CHECK_BINS, m, lim))
-    turn_failed = turn is not None and abs(turn["mean_diff_deg"]) > turn["limit_deg"]
-    # the deviation's harmonics, least squares over every epoch (the bins' power pooled)
-    harm = harmonic_test(h, d, sig2, dev + slip, k, r, ch.noise_sigma_rad**2)
-    harm_failed = [c for c in harm if abs(c["coef"]) > c["limit"]]
-    passed = abs(m_all) <= lim_all and not worst and not turn_failed and not harm_failed
-    ch.detail["gnss_course_check"] = {
-        "n": int(d.size),
-        "mean_diff_deg": math.degrees(m_all),
-        "limit_deg": math.degrees(lim_all),
-        "bins_failed": [
-            {"heading_from_deg": a, "mean_diff_deg": math.degrees(m), "limit_deg": math.degrees(li)}
-            for a, m, li in worst
-        ],
-        "turns": turn,
-        "harmonics": [
-            {"cycle": c["cycle"], "term": c["term"], "coef_deg": math.degrees(c["coef"]),
-             "limit_deg": math.degrees(c["limit"]), "bound_part_deg": math.degrees(c["det"]),
-             "sd_deg": math.degrees(c["sd"])}
-            for c in harm
-        ],
-        "passed": passed,
-        "rule": (
-            f"signed mean of heading - GNSS course (speed >= {vmin:g} m/s) within deviation "
-            f"bound + sideslip bound + k sigma of the mean, k = {k:.3g} (two-sided, level "
-            f"{level:g} over 1 + {COURSE_CHECK_BINS} heading bins + the turns signed by the "
-            f"yaw rate + the cos and sin coefficients of the deviation's harmonics 1 to "
-            f"{COURSE_CHECK_HARMONICS} (least squares with the yaw rate, limit sum|W| x "
-            "(deviation + sideslip bound) + k sd))"
-        ),
-    }
-    if abs(m_all) > lim_all:
-        ch.notes.append(
-            f"check failed: the corrected heading differs from the GNSS course by a mean "
-            f"{math.degrees(m_all):+.2f} deg, beyond the {math.degrees(lim_all):.2f} deg its "
-            "bounds allow: a constant heading offset (declination, mount, "
-            "heading.alignment_deg)"
-        )
-    elif turn_failed and turn is not None:
-        lag = turn["mean_diff_deg"] / max(turn["mean_rate_dps"], 1e-9)
-        ch.notes.append(
-            f"check failed: in the turns the corrected heading differs from the GNSS course "
-            f"by a mean {turn['mean_diff_deg']:+.2f} deg signed by the turn, beyond the "
-            f"{turn['limit_deg']:.2f} deg its bounds allow: a clock offset between the "
-            f"heading and the GNSS (about {lag:+.2f} s at the mean turn rate "
-            f"{turn['mean_rate_dps']:.1f} deg/s), or a deviation the bound does not cover"
-        )
-    elif worst:
-        ch.notes.append(
-            f"check failed: in {len(worst)} heading bin(s) the corrected heading differs "
-            f"from the GNSS course by more than its bounds allow (worst mean "
-            f"{math.degrees(max(abs(w[1]) for w in worst)):.2f} deg): the compass deviation "
-            "is larger than heading.deviation_deg or has more cycles than the calibration"
-        )
-    elif harm_failed:
-        c = max(harm_failed, key=lambda c: abs(c["coef"]) - c["limit"])
-        ch.notes.append(
-            f"check failed: the {c['term']} coefficient of the heading's {c['cycle']}-cycle "
-            f"deviation against the GNSS course is {math.degrees(c['coef']):+.2f} deg, beyond "
-            f"the {math.degrees(c['limit']):.2f} deg its bounds allow: the compass deviation "
-            "is larger than heading.deviation_deg or has more cycles than the calibration"
-        )

@@ -41,6 +41,8 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.aiding import course_check as CC
+
 GRID_STEP_S = 0.0025
 MAX_OFFSET_S = 1.0
 COARSE_STEP_S = 0.05
@@ -521,7 +523,7 @@ def estimate_gnss(
     lateral acceleration over the speed (exact kinematics: no deterministic term) and
     the gyro z (the sideslip, bounded by asin(lateral bound / speed), its deterministic
     error; not without a lateral bound)."""
-    from imubounds.dynamic.aiding.compass import COURSE_CHECK_MIN_SPEED, course_noise
+    from imubounds.dynamic.aiding.course_check import COURSE_CHECK_MIN_SPEED, course_noise
 
     if drive.gnss is None:
         return None
@@ -685,7 +687,7 @@ def budget_timing(ag: Any, veh: Any, timing: dict[str, OffsetEstimate]) -> None:
 #: the stated bound (s) on an undeclared clock offset of the heading stream against the
 #: IMU (drive.yaml heading.time_offset_s / time_offset_bound_s replace it); a larger
 #: offset is what the check against the GNSS course in the turns tests
-DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
+DEFAULT_HEADING_CLOCK_BOUND_S = CC.DEFAULT_HEADING_CLOCK_BOUND_S
 #: half-length (s) of the window around each heading epoch over which the gyro z bias is
 #: taken from the heading stream itself (:func:`local_swing`)
 LOCAL_BIAS_HALF_S = 10.0

@@ -71,7 +71,7 @@ def heading_stated(drive: Any, o: dict[str, Any], timing: dict[str, Any]) -> Any
 
 def relative_offset(heading: HeadingInput) -> Any:
     """The heading's clock offset relative to the GNSS, from the signed turn test of the
-    check against the GNSS course (``compass._check_against_course``): in the turns
+    check against the GNSS course (``course_check.check_against_course``): in the turns
     ``d x sign(r) = offset x |r|`` within the check's limit, so the offset is the mean
     over the mean turn rate, its interval the limit over that rate. Reported (a
     diagnostic), not applied."""
@@ -80,12 +80,25 @@ def relative_offset(heading: HeadingInput) -> Any:
     if not tu or not tu.get("mean_rate_dps"):
         return None
     rate = float(tu["mean_rate_dps"])
-    off, half = float(tu["mean_diff_deg"]) / rate, float(tu["limit_deg"]) / rate
+    # the limit without the heading clock allowance the check budgets (that is the
+    # offset being estimated here)
+    lim = float(tu["limit_deg"]) - float(tu.get("clock_allowance_deg", 0.0))
+    off, half = float(tu["mean_diff_deg"]) / rate, lim / rate
     return TM.OffsetEstimate(
         off, 0.0, "heading minus GNSS course in the turns over the mean turn rate "
         "(heading relative to the GNSS)", False, int(tu["n"]), half, off - half, off + half,
         "relative to the GNSS, not the IMU: reported, not applied",
     )
+
+
+def model_events(heading: HeadingInput | None) -> int:
+    """The coefficients of the compass error model estimated against the GNSS course
+    (``course_check.estimate_heading_model``): events of the heading family, each at
+    most its share (the model's k is taken at alpha / ALPHA_FAMILIES_MAX over the heading
+    epochs and these)."""
+    if heading is None or not heading.model:
+        return 0
+    return len(heading.model["coefficients"])
 
 
 def clock_bound_events(heading: HeadingInput | None, timing: dict[str, Any]) -> int:

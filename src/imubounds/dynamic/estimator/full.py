@@ -236,7 +236,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_drift": 6 if any_k else 0,
             "gnss_position": n_fix,
             "gnss_velocity": n_vel,
-            "heading": n_head,
+            # + the compass error model's coefficients (course_check.estimate_heading_model)
+            "heading": n_head + CK.model_events(heading),
         },
         descriptions={
             "imu_samples": "each sample's error (per-sample bounds: magnitudes, bias over "
@@ -252,7 +253,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_drift": "the rate random walk over the trip (reflection principle)",
             "gnss_position": "each fix's position error (Rayleigh radius)",
             "gnss_velocity": "each fix's velocity error (Rayleigh radius)",
-            "heading": "each heading epoch's noise",
+            "heading": "each heading epoch's noise (and the coefficients of the compass "
+            "error model estimated against the GNSS course)",
         },
     )
     from scipy.special import ndtri
@@ -267,6 +269,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             return float(-ndtri(alpha.share() / 2 / n))
         return k_two_sided(alpha.share(), alpha.counts.get(fam, 0) + n)
 
+    n_model = CK.model_events(heading)
     drive, moved = TM.apply_offsets(drive, timing, k_of)
     for name, est in timing.items():
         fam = TM.ALPHA_FAMILY.get(name)
@@ -281,6 +284,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         te = _epochs(drive, heading, imu.t0, o)[0]
         te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
         alpha.counts["imu_intervals"] = 7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
+        alpha.counts["heading"] += CK.model_events(heading) - n_model
     k_ps = alpha.k("imu_samples")
     T = imu.duration
 

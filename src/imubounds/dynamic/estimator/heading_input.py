@@ -28,8 +28,11 @@ class HeadingInput:
     independent_of_gnss: bool = True
     independent_of_imu: bool = True
     notes: list[str] = field(default_factory=list)
-    #: the signed check against the GNSS course (compass._check_against_course)
+    #: the signed check against the GNSS course (course_check.check_against_course)
     course_check: dict[str, Any] | None = None
+    #: the compass error model estimated against the GNSS course
+    #: (course_check.estimate_heading_model; HeadingModel.to_dict), None when not estimated
+    model: dict[str, Any] | None = None
 
 
 def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
@@ -88,6 +91,10 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
         if isinstance(cal, dict) and "B_rad" in cal and "C_rad" in cal:
             # the correction is evaluated at the noisy reading
             gain = 1.0 + abs(float(cal["B_rad"])) + abs(float(cal["C_rad"]))
+    model = ch.detail.get("heading_model")
+    if isinstance(model, dict) and model.get("applied"):
+        # the estimated correction is evaluated at the noisy reading too
+        gain *= float(model["noise_gain"])
     dev_src = f"compass_heading() ({ch.calibration})"
     if opts.get("heading_deviation_deg") is not None:
         dev_src = "option"
@@ -106,4 +113,5 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
         independent_of_imu=bool(ch.independent_of_imu),
         notes=list(ch.notes) + list(ch.assumed),
         course_check=ch.detail.get("gnss_course_check"),
+        model=model if isinstance(model, dict) else None,
     )

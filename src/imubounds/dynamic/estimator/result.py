@@ -174,36 +174,57 @@ class DynamicResult:
 
 
 def heading_sensor(heading: Any) -> dict[str, Any] | None:
-    """The heading sensor's constant offset from the check against the GNSS course
-    (``compass._check_against_course``): the signed mean of ``d = heading - course`` is
-    ``offset + mean(deviation + sideslip + noise)``, whose second part the check bounds,
-    so the offset lies in ``mean d +- limit`` at the check's level (compass frame,
-    clockwise, deg). Reported, not applied: the heading intervals assume the offset
-    within the deviation bound, and a check that fails withdraws the guarantee
-    (docs/dynamic-method.md, section 5b)."""
+    """The heading sensor's errors against the GNSS course (compass frame, clockwise,
+    deg): ``model``, the compass error model estimated from ``d = heading - course``
+    (``course_check.estimate_heading_model``: constant offset and harmonics 1 and 2, each
+    with an interval, the detected ones taken off the headings, ``applied``, and the
+    remainder bound that replaces the stated deviation bound); ``offset``, its constant
+    term (or, without a model, the signed mean of ``d`` +- the check's limit of
+    ``course_check.check_against_course``); ``course_check_passed``, the check of the
+    corrected heading (a failure withdraws the guarantee; docs/dynamic-method.md, 5b)."""
     if heading is None or not heading.t.size:
         return None
     cc = heading.course_check or {}
+    model = getattr(heading, "model", None)
+    applied = bool(model and model.get("applied"))
     out: dict[str, Any] = {
         "source": heading.source,
         "deviation_bound_deg": math.degrees(heading.deviation_bound_rad),
-        "deviation_source": heading.deviation_source,
+        "deviation_source": (
+            "remainder of the compass error model (estimated against the GNSS course)"
+            if applied else heading.deviation_source),
         "noise_sigma_deg": math.degrees(heading.noise_sigma_rad),
+        "independent_of_gnss": bool(heading.independent_of_gnss),
         "course_check_passed": cc.get("passed"),
         "offset": None,
-        "modelled": "offset within the deviation bound (an assumption, tested); one-cycle "
-        "deviation by the calibration; higher harmonics within the deviation bound or the "
-        "heading clock allowance",
+        "model": model,
+        "modelled": (
+            "constant offset and harmonics 1-2 estimated against the GNSS course, the "
+            "detected ones applied (their interval half-widths in the deviation bound); "
+            "the rest within the stated deviation bound (an assumption, tested)"
+            if model else
+            "offset within the deviation bound (an assumption, tested); one-cycle "
+            "deviation by the calibration; higher harmonics within the deviation bound or "
+            "the heading clock allowance"),
     }
-    if cc.get("limit_deg") is not None and cc.get("mean_diff_deg") is not None:
+    if model:
+        c0 = model["coefficients"][0]
+        out["offset"] = {
+            "estimate_deg": c0["estimate_deg"],
+            "interval_deg": list(c0["interval_deg"]),
+            "epochs": int(model["epochs"]),
+            "method": "constant term of the compass error model " + model["method"],
+            "applied": bool(c0["applied"]),
+        }
+    elif cc.get("limit_deg") is not None and cc.get("mean_diff_deg") is not None:
         m, lim = float(cc["mean_diff_deg"]), float(cc["limit_deg"])
         out["offset"] = {
             "estimate_deg": m,
             "interval_deg": [m - lim, m + lim],
             "epochs": int(cc.get("n", 0)),
             "method": "signed mean of heading - GNSS course over the epochs >= the check's "
-            "speed, +- the check's limit (deviation bound + mean sideslip bound + k sigma "
-            "of the mean)",
+            "speed, +- the check's limit (deviation bound + mean sideslip bound + the heading "
+            "clock allowance x mean |yaw rate| + k sigma of the mean)",
             "applied": False,
         }
     return out

@@ -49,12 +49,20 @@ def heading_offset(drive: Any, offset_deg: float) -> Any:
     return d
 
 
-def heading_two_cycle(drive: Any, amplitude_deg: float) -> Any:
-    """A two-cycle compass deviation ``amplitude_deg * sin(2 heading)``."""
+def heading_two_cycle(drive: Any, amplitude_deg: float, cycles: int = 2) -> Any:
+    """A two-cycle compass deviation ``amplitude_deg * sin(2 heading)`` (``cycles``
+    another number of cycles)."""
     d = _copy(drive)
     h = d.heading.heading_rad
-    d.heading.heading_rad = np.mod(h + math.radians(amplitude_deg) * np.sin(2 * h), 2 * math.pi)
+    d.heading.heading_rad = np.mod(
+        h + math.radians(amplitude_deg) * np.sin(cycles * h), 2 * math.pi)
     return d
+
+
+def heading_three_cycle(drive: Any, amplitude_deg: float) -> Any:
+    """A three-cycle compass deviation ``amplitude_deg * sin(3 heading)``: a shape the
+    compass error model (constant, harmonics 1 and 2) does not take."""
+    return heading_two_cycle(drive, amplitude_deg, cycles=3)
 
 
 def _shift_fixes(d: Any, sel: np.ndarray, de: np.ndarray, dn: np.ndarray) -> None:
@@ -116,16 +124,20 @@ FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "gnss_lag_0.3": (gnss_lag, {"lag_s": 0.3}),
     "gnss_lag_0.5": (gnss_lag, {"lag_s": 0.5}),
     "compass_lag_0.1": (heading_lag, {"lag_s": 0.1}),
+    "compass_lag_0.15": (heading_lag, {"lag_s": 0.15}),
     "compass_lag_0.2": (heading_lag, {"lag_s": 0.2}),
     "compass_lag_0.3": (heading_lag, {"lag_s": 0.3}),
     "compass_lag_0.5": (heading_lag, {"lag_s": 0.5}),
     "wheel_lag_0.3": (velocity_lag, {"lag_s": 0.3}),
     "dvl_lag_0.3": (velocity_lag, {"lag_s": 0.3}),
     "compass_offset_3": (heading_offset, {"offset_deg": 3.0}),
+    "compass_offset_-3": (heading_offset, {"offset_deg": -3.0}),
     "compass_offset_8": (heading_offset, {"offset_deg": 8.0}),
     "compass_two_cycle_2": (heading_two_cycle, {"amplitude_deg": 2.0}),
     "compass_two_cycle_3": (heading_two_cycle, {"amplitude_deg": 3.0}),
     "compass_two_cycle_4": (heading_two_cycle, {"amplitude_deg": 4.0}),
+    "compass_three_cycle_3": (heading_three_cycle, {"amplitude_deg": 3.0}),
+    "compass_three_cycle_4": (heading_three_cycle, {"amplitude_deg": 4.0}),
     "multipath_5m": (multipath, {"step_m": 5.0, "t0_s": 100.0}),
     "multipath_8m": (multipath, {"step_m": 8.0, "t0_s": 100.0}),
     "multipath_12m": (multipath, {"step_m": 12.0, "t0_s": 100.0}),

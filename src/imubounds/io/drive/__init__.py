@@ -284,6 +284,10 @@ class HeadingSettings:
     iron); ``use``: which stream gives the heading (``"auto"``: an
     independent heading stream, else the magnetometer, else an AHRS yaw;
     ``"heading"``, ``"mag"``, ``"attitude"``).
+    ``errors``: ``"estimate"`` (the compass error model, constant offset and harmonics 1
+    and 2, estimated against the GNSS course and the terms the data detect taken off:
+    ``course_check.estimate_heading_model``) or ``"stated"`` (the stated bounds only,
+    checked).
     """
 
     deviation_deg: float | None = None
@@ -295,6 +299,7 @@ class HeadingSettings:
     fit: str = "auto"
     alignment_deg: float = 0.0
     use: str = "auto"
+    errors: str = "estimate"
     #: clock offset of the heading stamps (true time = stamp - offset, s) and its bound
     time_offset_s: float = 0.0
     time_offset_bound_s: float | None = None

@@ -28,6 +28,7 @@ _CHOICES: dict[str, tuple[str, ...]] = {
     "heading.reference": ("magnetic", "true"),
     "heading.fit": ("auto", "ellipse", "swing", "gnss-course", "none"),
     "heading.use": ("auto", "heading", "mag", "attitude"),
+    "heading.errors": ("estimate", "stated"),
     "vehicle.kind": ("ground", "marine", "air"),
 }
 _RANGES: dict[str, tuple[float, bool, float | None]] = {
