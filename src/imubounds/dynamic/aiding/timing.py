@@ -4,7 +4,9 @@ A stream whose time stamps are late by ``L`` (stamp = true time + L) shows the v
 motion ``L`` late. Its levels ``y_i`` (an angle: compass heading, GNSS course,
 counter-clockwise, rad; or a speed, m/s) are compared with an IMU reference ``Y(t) =
 int_0^t rho dt'`` (``rho`` the yaw rate, from the gyro z or from the lateral
-acceleration over the speed ``a_y / u``; or the forward acceleration ``a_x``):
+acceleration over the speed ``a_y / u``; or the forward acceleration ``a_x``, whose
+interval is a score test inverted over the offsets: :mod:`~imubounds.dynamic.aiding.
+speed_clock`):
 
     y_i = s Y(t_i - L) + c(t_i) + d_i + e_i
 
