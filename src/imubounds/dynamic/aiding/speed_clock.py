@@ -183,13 +183,48 @@ def speed_offset(
     return out
 
 
+def level_acceleration(
+    drive: Any, te: np.ndarray, cn: Any
+) -> tuple[np.ndarray, Any, bool]:
+    """(forward acceleration less the gravity of the pitch, the accel_x noise with the
+    attitude's error added, whether the pitch was taken off). The accelerometer reads
+    ``a_x = du/dt + g sin(theta)``: with an attitude stream, ``g sin(theta)`` at its
+    pitch (interpolated to the IMU samples) is taken off and its error (sigma a third of
+    ``attitude.bound_deg``) joins the white noise as ``g sigma sqrt(attitude step)``;
+    without one the pitch stays in (level ground is then an assumption of the estimate,
+    which is reported only: :func:`estimate_velocity`)."""
+    import dataclasses
+
+    from imubounds.units import G0
+
+    acc = np.asarray(drive.imu.accel[:, 0], float)
+    att = drive.attitude
+    if att is None or att.t.size < 2 or not np.isfinite(att.pitch_rad).all():
+        return acc, cn, False
+    th = np.interp(te, np.asarray(att.t, float), np.asarray(att.pitch_rad, float))
+    acc = acc - G0 * np.sin(th)
+    if cn is not None:
+        sd = math.radians(float(drive.settings.attitude.bound_deg)) / 3.0
+        step = TM._median_step(np.asarray(att.t, float))
+        cn = dataclasses.replace(cn, N=math.hypot(cn.N, G0 * sd * math.sqrt(step)))
+    return acc, cn, True
+
+
+#: why a body-velocity offset without an attitude stream is reported, not applied
+NO_PITCH = ("reported, not applied: no attitude stream, so the forward acceleration "
+            "holds the gravity of the pitch, which the spline takes only where it changes "
+            "slowly (on hills with sharp corners the estimate is off by up to 0.2 s); the "
+            "stamps are taken as exact (an assumption)")
+
+
 def estimate_velocity(
     drive: Any, stamp: str, noise: dict[str, Any] | None = None
 ) -> TM.OffsetEstimate | None:
     """The body-velocity stream's (wheel, DVL) clock offset against the IMU: its forward
-    speed against the integrated forward acceleration (:func:`speed_offset`; the
-    gravity of a slow pitch and the IMU's bias drift taken by the spline), sigma a third
-    of the stated bound."""
+    speed against the integrated forward acceleration (:func:`speed_offset`), less the
+    gravity of the attitude stream's pitch (:func:`level_acceleration`; the IMU's bias
+    drift taken by the spline), sigma a third of the stated bound. Without an attitude
+    stream it is reported only (:data:`NO_PITCH`)."""
     bv, imu = drive.velocity, drive.imu
     if bv is None or imu is None or getattr(imu, "accel", None) is None:
         return None
@@ -200,7 +235,11 @@ def estimate_velocity(
     # the true scale of the speed against the integrated acceleration: at most this
     s_max = (1.0 + float(drive.settings.velocity.scale)) / max(
         1.0 - (0.0 if cn is None else float(cn.scale)), 0.5)
-    return speed_offset(np.asarray(bv.t, float), np.asarray(bv.u_mps, float), sig, te,
-                        np.asarray(imu.accel[:, 0], float),
-                        f"{bv.kind} speed against the integrated forward acceleration "
-                        "(score test inverted over the offsets)", noise=cn, s_max=s_max)
+    acc, cn, level = level_acceleration(drive, te, cn)
+    how = "less the gravity of the attitude's pitch" if level else "(level ground assumed)"
+    est = speed_offset(np.asarray(bv.t, float), np.asarray(bv.u_mps, float), sig, te, acc,
+                       f"{bv.kind} speed against the integrated forward acceleration {how} "
+                       "(score test inverted over the offsets)", noise=cn, s_max=s_max)
+    if est is not None and not level:
+        est.report_why = NO_PITCH
+    return est

@@ -87,6 +87,9 @@ class OffsetEstimate:
     #: ``(L, S, sd, det)`` sorted by ``L``; the interval is then the offsets not rejected
     #: (``|S| <= k sd + det``), widened to the next rejected grid point on each side
     score: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: not empty: the estimate rests on an assumption the data do not check, so it is
+    #: reported, never applied, with this note
+    report_why: str = ""
 
     @property
     def half_s(self) -> float:
@@ -100,7 +103,7 @@ class OffsetEstimate:
         it): the stamps are then shifted by ``offset_s`` and the half-width budgeted.
         Otherwise the allowance stays (the estimate is reported). ``allowance_s`` None:
         a diagnostic, never applied (the stamps taken as exact)."""
-        report_only = allowance_s is None
+        report_only = allowance_s is None or bool(self.report_why)
         allowance_s = 0.0 if allowance_s is None else allowance_s
         half = k * self.sd + self.det_s + GRID_STEP_S
         self.lo, self.hi = self.offset_s - half, self.offset_s + half
@@ -122,8 +125,8 @@ class OffsetEstimate:
         b = allowance_s
         if report_only:
             self.applied = False
-            self.reason = ("reported, not applied: the stamps are taken as exact (an "
-                           "assumption)")
+            self.reason = self.report_why or ("reported, not applied: the stamps are taken "
+                                              "as exact (an assumption)")
         elif self.at_edge:
             self.applied = False
             what = (f"the allowance (+-{b:g} s) stays" if b > 0
