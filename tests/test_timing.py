@@ -276,8 +276,9 @@ def test_speed_offset_on_a_braking_robot_within_50_ms(seed: int) -> None:
 def test_speed_offset_on_hills_needs_the_pitch() -> None:
     """The braking robot on hills (pitch up to 6.7 deg): a_x holds g sin(pitch). With
     the attitude stream's pitch taken off, a 0.34 s lag is found within 0.05 s and the
-    clean trip's interval holds 0 (without it the estimate was 0.19 s off, its interval
-    excluding 0 on the clean trip); without an attitude stream the estimate is reported,
+    clean trip's interval holds 0 (without it the score test was 0.19 s off, its
+    interval excluding 0 on the clean trip; the least-squares estimator of before gave
+    none: its fitted scale left 0.5-1.5); without an attitude stream it is reported,
     never applied, and the note says why."""
     import dataclasses
 
