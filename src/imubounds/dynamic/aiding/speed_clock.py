@@ -47,7 +47,7 @@ from imubounds.dynamic.aiding import timing as TM
 
 #: the range of k (the stream's share of alpha) whose acceptance boundary the grid
 #: resolves to :data:`~imubounds.dynamic.aiding.timing.GRID_STEP_S`
-K_RANGE = (2.5, 6.0)
+K_RANGE = (2.5, 7.0)
 #: spacing (s) of the offsets at which the stated IMU noise's share of Var S is computed
 ANCHOR_S = 0.2
 #: a coarse cell is refined when ``|S| / sd`` changes by more than this across it
