@@ -625,3 +625,39 @@ def test_course_check_harmonics_on_ten_seeds() -> None:
             c0 = ch.detail["heading_model"]["coefficients"][0]
             assert c0["applied"] is True and ch.detail["gnss_course_check"]["passed"] is True
             assert c0["interval_deg"][0] <= off <= c0["interval_deg"][1], (seed, off, c0)
+
+
+#: the simulated ground robot of test_real_vehicles.py at 10 m/s, braking for each of its
+#: 20 m corners (the speed changes that pin a wheel odometry's clock), with attitude
+BRAKING_ROBOT = {"duration_s": 300.0, "distance_m": 3000.0, "corner_length_m": 20.0,
+                 "aiding": ("gnss", "gnss-vel", "wheel", "attitude"),
+                 "attitude_yaw_sigma_deg": 0.5, "imu_preset": "industrial"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_wheel_lag_on_a_braking_robot_is_found_and_enclosed(seed: int) -> None:
+    """Wheel odometry 0.34 s (a real robot's) and 0.5 s late on a braking robot: the
+    offset is applied (aiding/speed_clock.py: the lag inside its interval, within 0.05
+    s), the run is guaranteed (before, the smoother's checks withdrew it) and the truth
+    is inside at every epoch: position, heading and the forward speed u (states.csv,
+    against the simulator's true speed)."""
+    res = make_trip("paper", seed=seed, **BRAKING_ROBOT)
+    for lag in (0.34, 0.5):
+        drive = F.velocity_lag(res.drive, lag)
+        r = dynamic_margins(drive)
+        d = r.to_dict()
+        tv = d["timing"]["velocity"]
+        lo, hi = tv["interval_s"]
+        assert tv["applied"] and lo <= lag <= hi and abs(tv["estimate_s"] - lag) <= 0.05, tv
+        assert d["guaranteed"] is True, d["violations"]  # the lag taken off: no check fails
+        bad, guar = truth_misses(r, drive)
+        assert not (bad & guar).any(), f"lag {lag}: {int((bad & guar).sum())} silent"
+        st = r.states_frame()
+        t = st["time_s"].to_numpy()
+        tt = np.asarray(res.truth["t"], float)
+        u = np.interp(t, tt, np.asarray(res.truth["speed"], float))
+        ok = (st["u_lo_mps"].to_numpy() <= u) & (u <= st["u_hi_mps"].to_numpy())
+        valid = (t >= tt[0]) & (t <= tt[-1])
+        miss = ~ok & valid & guar
+        assert not miss.any(), f"lag {lag}: u outside at {int(miss.sum())} epoch(s)"

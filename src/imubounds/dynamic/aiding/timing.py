@@ -4,7 +4,9 @@ A stream whose time stamps are late by ``L`` (stamp = true time + L) shows the v
 motion ``L`` late. Its levels ``y_i`` (an angle: compass heading, GNSS course,
 counter-clockwise, rad; or a speed, m/s) are compared with an IMU reference ``Y(t) =
 int_0^t rho dt'`` (``rho`` the yaw rate, from the gyro z or from the lateral
-acceleration over the speed ``a_y / u``; or the forward acceleration ``a_x``):
+acceleration over the speed ``a_y / u``; or the forward acceleration ``a_x``, whose
+interval is a score test inverted over the offsets: :mod:`~imubounds.dynamic.aiding.
+speed_clock`):
 
     y_i = s Y(t_i - L) + c(t_i) + d_i + e_i
 
@@ -83,6 +85,13 @@ class OffsetEstimate:
     applied_s: float = 0.0
     #: the estimates against the other references (their intervals intersected)
     parts: list[OffsetEstimate] = field(default_factory=list)
+    #: a score test inverted over a grid of offsets (``speed_clock.speed_offset``):
+    #: ``(L, S, sd, det)`` sorted by ``L``; the interval is then the offsets not rejected
+    #: (``|S| <= k sd + det``), widened to the next rejected grid point on each side
+    score: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: not empty: the estimate rests on an assumption the data do not check, so it is
+    #: reported, never applied, with this note
+    report_why: str = ""
 
     @property
     def half_s(self) -> float:
@@ -96,10 +105,12 @@ class OffsetEstimate:
         it): the stamps are then shifted by ``offset_s`` and the half-width budgeted.
         Otherwise the allowance stays (the estimate is reported). ``allowance_s`` None:
         a diagnostic, never applied (the stamps taken as exact)."""
-        report_only = allowance_s is None
+        report_only = allowance_s is None or bool(self.report_why)
         allowance_s = 0.0 if allowance_s is None else allowance_s
         half = k * self.sd + self.det_s + GRID_STEP_S
         self.lo, self.hi = self.offset_s - half, self.offset_s + half
+        if self.score is not None:
+            self.lo, self.hi = score_interval(self.score, k)
         for p in self.parts:
             ph = k * p.sd + p.det_s + GRID_STEP_S
             self.lo, self.hi = max(self.lo, p.offset_s - ph), min(self.hi, p.offset_s + ph)
@@ -116,10 +127,15 @@ class OffsetEstimate:
         b = allowance_s
         if report_only:
             self.applied = False
-            self.reason = ("reported, not applied: the stamps are taken as exact (an "
-                           "assumption); on the simulator's MTx-grade trips this estimate "
-                           "is up to 0.5 s off, near its interval's edge (two speed ramps "
-                           "per trip against a drifting forward acceleration)")
+            self.reason = self.report_why or ("reported, not applied: the stamps are taken "
+                                              "as exact (an assumption)")
+        elif self.at_edge:
+            self.applied = False
+            what = (f"the allowance (+-{b:g} s) stays" if b > 0
+                    else "the stamps are taken as exact (an assumption)")
+            self.reason = (f"not applied: the data do not bound the offset within the "
+                           f"offsets tried (+-{MAX_OFFSET_S:g} s: too few speed changes); "
+                           f"{what}")
         elif max(-self.lo, self.hi) < b and self.lo <= 0.0 <= self.hi:
             # the data bound the offset within the allowance and hold 0: the stamps
             # stay (shifting them would split the epochs shared with other streams),
@@ -143,6 +159,13 @@ class OffsetEstimate:
                     else "the stamps are taken as exact (an assumption)")
             self.reason = (f"not applied: the interval (+-{half:.3f} s) holds the stated "
                            f"allowance (+-{b:g} s); {what}")
+
+    @property
+    def at_edge(self) -> bool:
+        """A score-test interval that reaches the end of the offsets tried (+-
+        :data:`MAX_OFFSET_S`): the data do not bound the offset there."""
+        return self.score is not None and (self.lo <= float(self.score[0][0])
+                                           or self.hi >= float(self.score[0][-1]))
 
     @classmethod
     def stated(cls, offset_s: float, bound_s: float) -> OffsetEstimate:
@@ -172,6 +195,22 @@ class OffsetEstimate:
             "epochs": self.n,
             "note": self.reason,
         }
+
+
+def score_interval(
+    score: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], k: float
+) -> tuple[float, float]:
+    """The offsets a score test does not reject at ``k``: ``|S(L)| <= k sd(L) + det(L)``
+    on the grid ``L``; the interval runs from the last rejected grid point below the
+    first accepted one to the first rejected one above the last accepted one (the ends
+    of the grid when none: the offset is not bounded within them). None accepted: the
+    whole grid (the reference does not describe the stream at any offset)."""
+    L, S, sd, det = score
+    ok = np.abs(S) <= k * sd + det
+    if not ok.any():
+        return float(L[0]), float(L[-1])
+    i = np.flatnonzero(ok)
+    return float(L[max(int(i[0]) - 1, 0)]), float(L[min(int(i[-1]) + 1, L.size - 1)])
 
 
 def imu_yaw_angle(
@@ -302,34 +341,10 @@ def level_offset(
     :class:`~imubounds.dynamic.estimator.budget.ChannelNoise`) is the stated noise of the
     IMU channel whose samples times ``gain`` make ``rho``: the estimate's variance then
     includes what that noise does to it (:func:`_reference_variance`)."""
-    t = np.asarray(t, dtype=float)
-    y = np.asarray(y, dtype=float)
-    sig = np.broadcast_to(np.asarray(sigma, dtype=float), t.shape)
-    dd = np.broadcast_to(np.asarray(det, dtype=float), t.shape)
-    it = np.asarray(imu_t, dtype=float)
-    r = np.asarray(rho, dtype=float)
-    ok = np.isfinite(r)
-    if it.size < 10 or ok.sum() < 10:
+    prep = _prepare(t, y, sigma, det, imu_t, rho, valid, max_abs)
+    if prep is None:
         return None
-    Y = _integral(it, r, ok)
-    # epochs whose reference window (+-max_abs) lies inside the IMU and its finite rate
-    bad = np.flatnonzero(~ok)  # the count of bad samples before i: searchsorted(bad, i)
-    del ok
-    lo_i = np.searchsorted(it, t - max_abs - 1e-9)
-    hi_i = np.searchsorted(it, t + max_abs + 1e-9)
-    inside = (t - max_abs > it[0]) & (t + max_abs < it[-1])
-    inside &= (np.searchsorted(bad, hi_i.clip(0, it.size))
-               - np.searchsorted(bad, lo_i.clip(0, it.size))) == 0
-    del bad
-    m = inside & np.isfinite(y) & np.isfinite(sig) & (sig > 0)
-    if valid is not None:
-        m &= np.asarray(valid, dtype=bool)
-    t, y, sig, dd = t[m], y[m], sig[m], dd[m]
-    if t.size > MAX_EPOCHS:
-        keep = np.linspace(0, t.size - 1, MAX_EPOCHS).astype(int)
-        t, y, sig, dd = t[keep], y[keep], sig[keep], dd[keep]
-    if t.size < 20 or np.any(np.diff(t) <= 0):
-        return None
+    t, y, sig, dd, it, Y = prep
     w = 1.0 / sig**2
     P = _Detrend(t, w, knot_s)
     if t.size - P.p - 1 < 10:
@@ -380,6 +395,45 @@ def level_offset(
     # J is orthogonal to the spline: <J, P d> = <J, d>, so |dL| <= sum w |J| D / info
     det_s = float(np.sum(w * np.abs(J) * dd)) / info
     return OffsetEstimate(L, math.sqrt(var), method, False, int(t.size), det_s)
+
+
+def _prepare(
+    t: np.ndarray, y: np.ndarray, sigma: np.ndarray | float, det: np.ndarray | float,
+    imu_t: np.ndarray, rho: np.ndarray, valid: np.ndarray | None, max_abs: float,
+) -> tuple[np.ndarray, ...] | None:
+    """The epochs of a stream that enter the fit, ``(t, y, sigma, det, imu_t, Y)`` with
+    ``Y`` the integrated rate: finite, ``valid``, their reference window (+-``max_abs``)
+    inside the IMU and its finite rate, at most :data:`MAX_EPOCHS` (a faster stream is
+    thinned); None when fewer than 20 or not increasing."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), t.shape)
+    dd = np.broadcast_to(np.asarray(det, dtype=float), t.shape)
+    it = np.asarray(imu_t, dtype=float)
+    r = np.asarray(rho, dtype=float)
+    ok = np.isfinite(r)
+    if it.size < 10 or ok.sum() < 10:
+        return None
+    Y = _integral(it, r, ok)
+    # epochs whose reference window (+-max_abs) lies inside the IMU and its finite rate
+    bad = np.flatnonzero(~ok)  # the count of bad samples before i: searchsorted(bad, i)
+    del ok
+    lo_i = np.searchsorted(it, t - max_abs - 1e-9)
+    hi_i = np.searchsorted(it, t + max_abs + 1e-9)
+    inside = (t - max_abs > it[0]) & (t + max_abs < it[-1])
+    inside &= (np.searchsorted(bad, hi_i.clip(0, it.size))
+               - np.searchsorted(bad, lo_i.clip(0, it.size))) == 0
+    del bad
+    m = inside & np.isfinite(y) & np.isfinite(sig) & (sig > 0)
+    if valid is not None:
+        m &= np.asarray(valid, dtype=bool)
+    t, y, sig, dd = t[m], y[m], sig[m], dd[m]
+    if t.size > MAX_EPOCHS:
+        keep = np.linspace(0, t.size - 1, MAX_EPOCHS).astype(int)
+        t, y, sig, dd = t[keep], y[keep], sig[keep], dd[keep]
+    if t.size < 20 or np.any(np.diff(t) <= 0):
+        return None
+    return t, y, sig, dd, it, Y
 
 
 def _profile(
@@ -573,23 +627,6 @@ def estimate_heading(
                      np.unwrap(-np.asarray(h.heading_rad, float)), sig, det_of)
 
 
-def estimate_velocity(
-    drive: Any, stamp: str, noise: dict[str, Any] | None = None
-) -> OffsetEstimate | None:
-    """The body-velocity stream's (wheel, DVL) clock offset against the IMU: its
-    forward speed against the integrated forward acceleration (the gravity of the pitch
-    and the IMU's bias drift taken by the spline), sigma a third of the stated bound."""
-    bv, imu = drive.velocity, drive.imu
-    if bv is None or imu is None or getattr(imu, "accel", None) is None:
-        return None
-    te, _ = _sample_ends(imu.t, stamp)
-    sig = float(drive.settings.velocity.bound_mps)
-    sig = sig / 3.0 if sig > 0 else 0.05
-    ref = _Reference("forward acceleration", te, np.asarray(imu.accel[:, 0], float), "accel_x")
-    return _fit_refs([ref], noise, f"{bv.kind} speed", np.asarray(bv.t, float),
-                     np.asarray(bv.u_mps, float), sig, lambda r: 0.0)
-
-
 def shifted(obj: Any, name: str | None, est: OffsetEstimate) -> Any:
     """A shallow copy of ``obj`` (a drive with stream ``name``, or a stream when ``name``
     is None) with an applied offset taken off the time stamps (true time = stamp -
@@ -605,19 +642,22 @@ def shifted(obj: Any, name: str | None, est: OffsetEstimate) -> Any:
 
 
 #: the alpha plan's family whose Bonferroni count an applied offset's intervals join
-#: (the bound it rests on fails with them); the body velocity's is reported only
+#: (the bound it rests on fails with them); the body velocity's bound is stated, not
+#: drawn from the plan: its offset joins the IMU intervals (the test's variance is
+#: mostly the integrated accel_x noise)
 ALPHA_FAMILY: dict[str, str | None] = {"gnss": "gnss_position", "heading": "heading",
-                                       "velocity": None}
+                                       "velocity": "imu_intervals"}
 
 
 def apply_offsets(
     drive: Any, timing: dict[str, OffsetEstimate], k_of: Callable[[str, int], float]
 ) -> tuple[Any, bool]:
     """Finalize the estimated offsets (``k_of(stream, n_intervals)`` their k; the heading
-    against the default clock allowance, the GNSS against exact stamps, the body
-    velocity reported only) and take the applied ones off the drive's stamps (the
-    heading: its compass and magnetometer streams): (drive, whether any stream moved)."""
-    allowance = {"gnss": 0.0, "heading": DEFAULT_HEADING_CLOCK_BOUND_S, "velocity": None}
+    against the default clock allowance, the GNSS and the body velocity against exact
+    stamps: applied when their interval excludes 0 and is bounded) and take the applied
+    ones off the drive's stamps (the heading: its compass and magnetometer streams):
+    (drive, whether any stream moved)."""
+    allowance = {"gnss": 0.0, "heading": DEFAULT_HEADING_CLOCK_BOUND_S, "velocity": 0.0}
     moved = False
     for name, est in timing.items():
         if est.method == "drive.yaml" or name not in allowance:

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.dynamic.aiding import speed_clock as SC
 from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
 from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
@@ -49,7 +50,7 @@ def clock_offsets(
         if rel is not None:
             timing["heading_vs_gnss"] = rel
     if drive.velocity is not None and o.get("use_velocity", True):
-        est = TM.estimate_velocity(drive, o["imu_stamp"], noise)
+        est = SC.estimate_velocity(drive, o["imu_stamp"], noise)
         if est is not None:
             timing["velocity"] = est
     return drive, heading, timing

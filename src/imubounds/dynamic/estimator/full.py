@@ -260,8 +260,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     from scipy.special import ndtri
 
     # the estimated clock offsets: finalized with the k of the family of the stream they
-    # move (Bonferroni over its count + their intervals; the body velocity's at the
-    # share of a family), the applied ones taken off the stamps before the aiding, the
+    # move (Bonferroni over its count + their intervals; the body velocity's in the IMU
+    # intervals), the applied ones taken off the stamps before the aiding, the
     # windows and the smoother use them, and counted in that family
     def k_of(stream: str, n: int) -> float:
         fam = TM.ALPHA_FAMILY.get(stream)
@@ -271,9 +271,11 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
 
     n_model = CK.model_events(heading)
     drive, moved = TM.apply_offsets(drive, timing, k_of)
+    joined: dict[str, int] = {}
     for name, est in timing.items():
         fam = TM.ALPHA_FAMILY.get(name)
         if fam is not None and est.applied and est.method != "drive.yaml":
+            joined[fam] = joined.get(fam, 0) + 1 + len(est.parts)
             alpha.counts[fam] = alpha.counts.get(fam, 0) + 1 + len(est.parts)
     if moved:
         # the heading input again: its calibration and check against the GNSS course
@@ -283,7 +285,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             timing["heading_vs_gnss"] = rel
         te = _epochs(drive, heading, imu.t0, o)[0]
         te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
-        alpha.counts["imu_intervals"] = 7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
+        alpha.counts["imu_intervals"] = (7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
+                                         + joined.get("imu_intervals", 0))
         alpha.counts["heading"] += CK.model_events(heading) - n_model
     k_ps = alpha.k("imu_samples")
     T = imu.duration
