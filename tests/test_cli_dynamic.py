@@ -201,3 +201,41 @@ def test_bad_inputs(main, shared_data: Path, tmp_path: Path,  # type: ignore[no-
         err = capsys.readouterr().err
         assert msg in err, (argv, err)
         assert "Traceback" not in err
+
+
+def test_dynamic_console_names_the_corrections_applied(main, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                        capsys: pytest.CaptureFixture) -> None:
+    """A compass 3 deg off and GNSS stamps 0.3 s late, as a user's files would have them:
+    the console says, before the verdicts, what mode full estimated from the data and took
+    off (the compass offset with its interval, the GNSS clock offset), and the clean trip
+    says nothing of the kind."""
+    sim = tmp_path / "sim"
+    assert main(["simulate", "-o", str(sim), "--aiding", "gnss,gnss-vel,compass", "--seed",
+                 "4", "-q"]) == 0
+    out = tmp_path / "clean"
+    assert main(["dynamic", str(sim), "-o", str(out), "--no-plot", "--no-report"]) == 0
+    assert "applied:" not in capsys.readouterr().out
+    h = pd.read_csv(sim / "heading.csv")
+    h["heading_deg"] = (h["heading_deg"] + 3.0) % 360.0
+    h.to_csv(sim / "heading.csv", index=False)
+    g = pd.read_csv(sim / "gnss.csv")
+    g["time_s"] += 0.3
+    g.to_csv(sim / "gnss.csv", index=False)
+    out = tmp_path / "faulty"
+    assert main(["dynamic", str(sim), "-o", str(out), "--no-plot"]) == 0
+    text = capsys.readouterr().out
+    full = text.split("mode full")[1].split("mode paper")[0]
+    lines = [ln.strip() for ln in full.splitlines() if ln.strip().startswith("applied:")]
+    assert len(lines) == 2, full
+    gnss = next(ln for ln in lines if "gnss clock offset" in ln)
+    lo, hi = (float(x) for x in gnss.split("[")[1].split("]")[0].split(","))
+    assert lo <= 0.3 <= hi, gnss
+    comp = next(ln for ln in lines if "compass error" in ln)
+    lo, hi = (float(x) for x in comp.split("offset ")[1].split("[")[1].split("]")[0].split(","))
+    assert lo <= 3.0 <= hi, comp
+    doc = json.loads((out / "dynamic.json").read_text())
+    assert doc["modes"]["full"]["guaranteed"] is True
+    assert doc["modes"]["full"]["enclosure"]["heading"] == 1.0
+    html = (out / "report.html").read_text()  # the report says it too, above the verdicts
+    assert html.index("Applied: compass error") < html.index("id='verdict'")
+    assert "Applied: gnss clock offset" in html

@@ -325,6 +325,16 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     for w in drive.warnings:
         say(f"imubounds: note: {w}")
     say(f"dynamic ({', '.join(results)}) -> {args.out}")
+    _summary(results, say)
+    del np
+    return messages
+
+
+def _summary(results: dict[str, Any], say: Any) -> None:
+    """The console summary of each mode: guarantee, violations, corrections applied,
+    verdicts with the tightest margin (or why none is decidable), the truth inside."""
+    from imubounds.dynamic.estimator.result import applied_corrections
+
     for mode, r in results.items():
         s = r.summary
         tag = "guaranteed" if s.get("guaranteed") else "NOT guaranteed"
@@ -337,6 +347,8 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
                 say(f"      {v['stream']}: {v['test']}: {v['detail']}")
             if len(viol) > 5:
                 say(f"      ... and {len(viol) - 5} more")
+        for line in applied_corrections(s):
+            say(f"    {line}")
         for ch, v in s.get("verdict", {}).items():
             rows = s.get("margins", {}).get(ch) or []
             best = [x for x in rows if x.get("halfwidth_median") is not None]
@@ -374,8 +386,6 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
         ei = s.get("empty_intersections")
         if ei and ei.get("count"):
             say(f"    empty intersections: {ei['count']} (see dynamic.json)")
-    del np
-    return messages
 
 
 def _steps_table(res: Any) -> Any:

@@ -392,6 +392,8 @@ def _change_cell(r: dict[str, Any], f: float) -> str:
 
 
 def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
+    from imubounds.dynamic.estimator.result import applied_corrections
+
     viol = mode.get("violations") or []
     head = (
         "<h3 id='full'>Mode full — guaranteed</h3>"
@@ -407,6 +409,7 @@ def _full_block(mode: dict[str, Any], warnings: list[str]) -> str:
     parts = [
         head,
         f"<p>{_e(mode.get('statement', ''))}.</p>",
+        *(f"<p><b>{_e(line[:1].upper() + line[1:])}</b></p>" for line in applied_corrections(mode)),
         "<h3 id='verdict'>Verdicts: the IMU error during the trip vs the stationary band</h3>",
         _verdict_items(mode),
     ]

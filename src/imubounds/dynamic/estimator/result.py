@@ -594,3 +594,28 @@ def _margins_truth(run: Any, drive: Any) -> dict[str, Any]:
         out[ch] = {"windows": n_all, "enclosed_fraction": n_ok / n_all if n_all else None,
                    "worst_miss": worst}
     return out
+
+
+def applied_corrections(s: dict[str, Any]) -> list[str]:
+    """One line per correction mode ``full`` estimated from the data and applied: a
+    stream's clock offset (``timing``) and the compass error model (``heading_sensor``)."""
+    out: list[str] = []
+    for stream, tm in (s.get("timing") or {}).items():
+        if isinstance(tm, dict) and tm.get("applied"):
+            lo, hi = tm.get("interval_s") or (float("nan"), float("nan"))
+            out.append(
+                f"applied: {stream} clock offset {tm['offset_s']:+.3f} s [{lo:+.3f}, {hi:+.3f}] "
+                f"estimated from the data (true time = stamp - offset; timing in dynamic.json)"
+            )
+    model = (s.get("heading_sensor") or {}).get("model") or {}
+    if model.get("applied"):
+        terms = ", ".join(
+            ("offset" if c["cycle"] == 0 else f"{c['term']} {c['cycle']}psi")
+            + f" {c['estimate_deg']:+.2f} [{c['interval_deg'][0]:+.2f}, "
+            f"{c['interval_deg'][1]:+.2f}] deg"
+            for c in model.get("coefficients", []) if c.get("applied"))
+        out.append(
+            f"applied: compass error estimated against the GNSS course and taken off ({terms}); "
+            "heading.errors: stated in drive.yaml keeps the stated bound instead"
+        )
+    return out
