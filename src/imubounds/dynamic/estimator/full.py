@@ -15,6 +15,7 @@ import numpy as np
 from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator import clock as CK
 from imubounds.dynamic.estimator import smoother as SM
+from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
@@ -92,6 +93,7 @@ FULL_DEFAULTS: dict[str, Any] = {
     "use_gnss_velocity": True,
     "use_velocity": True,
     "use_attitude": True,
+    "use_gnss_altitude": True,
     "reverses": False,
     "tol": 1e-3,
     "max_sweeps": 200,
@@ -224,17 +226,25 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     any_k = any(noise_terms[c].K > 0 or noise_terms[c].R > 0 for c in CHANNELS)
     # a stated drift bound: + each sample's flicker deviation from its window mean
     any_d = any(drift_rule(noise_terms[c]) != "model" for c in CHANNELS)
+    # the pitch from GNSS altitude (pitch_gnss.py): each fix's altitude joins the GNSS
+    # position family, the gyro_y noise over its chords the IMU intervals, and (unless a
+    # stated drift bound gives it) gyro_y's per-sample flicker the IMU samples
+    use_pitch = PG.applicable(drive, vehicle, o, imu.available)
+    n_pitch = PG.interval_events(n_fix, imu.duration) if use_pitch else 0
+    n_alt = n_fix if use_pitch else 0
+    n_fl = imu.n if use_pitch and drift_rule(noise_terms["gyro_y"]) != "stated" else 0
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
-            "imu_samples": imu.n * 6 * (2 if any_d else 1),
+            "imu_samples": imu.n * 6 * (2 if any_d else 1) + n_fl,
             "imu_windows": 1,
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
-            "imu_intervals": 7 * (te.size - 1) + CK.clock_bound_events(heading, timing),
+            "imu_intervals": 7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
+            + n_pitch,
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
-            "gnss_position": n_fix,
+            "gnss_position": n_fix + n_alt,
             "gnss_velocity": n_vel,
             # + the compass error model's coefficients (course_check.estimate_heading_model)
             "heading": n_head + CK.model_events(heading),
@@ -286,7 +296,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         te = _epochs(drive, heading, imu.t0, o)[0]
         te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
         alpha.counts["imu_intervals"] = (7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
-                                         + joined.get("imu_intervals", 0))
+                                         + joined.get("imu_intervals", 0) + n_pitch)
         alpha.counts["heading"] += CK.model_events(heading) - n_model
     k_ps = alpha.k("imu_samples")
     T = imu.duration
@@ -355,9 +365,43 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 "; ".join(n for n in heading.notes if n.startswith("check failed")) or str(cc),
             )
         )
+    if use_pitch:
+        _pitch_from_gnss(ctx)
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
     return ctx
+
+
+def _pitch_from_gnss(ctx: Context) -> None:
+    """Pitch intervals from GNSS altitude (pitch_gnss.py), used where they narrow the
+    max tilt; a chord with no feasible pitch is a violation."""
+    pb = PG.pitch_boxes(ctx)
+    if pb is None:
+        return
+    t0 = float(ctx.imu.t0)
+    for a, b in pb.infeasible:
+        ctx.violations.append(V.Violation(
+            "gnss", a + t0, b + t0, PG.TEST_PITCH,
+            "no pitch within the max tilt makes these GNSS altitude changes reachable with "
+            "the gyro_y propagation and the vehicle's off-axis velocity bound: the altitude "
+            "error (gnss.vertical_sigma_ratio), the gyro budget or the vehicle bounds fail; "
+            "those spans keep +-max tilt",
+        ))
+    ag = ctx.aiding
+    ag.budget["pitch_from_gnss"] = pb.budget
+    m = ctx.vehicle.max_tilt
+    if not pb.narrows(m):
+        ctx.notes.append(
+            "pitch from GNSS altitude: nothing narrower than the max tilt "
+            f"({m / DEG:g} deg; median half-width {pb.median_halfwidth / DEG:.3g} deg)"
+        )
+        return
+    ag.pitch = pb
+    ctx.notes.append(
+        f"pitch from GNSS altitude, the gyros and the non-holonomic bounds: median "
+        f"half-width {pb.median_halfwidth / DEG:.3g} deg (max tilt {m / DEG:g} deg); roll "
+        "stays +-max tilt (docs/dynamic-method.md section 3a)"
+    )
 
 
 def _plan_windows(ctx: Context) -> None:

@@ -249,6 +249,9 @@ class GnssSettings:
     cep_m: float = DEFAULT_CEP_M
     default_hdop: float = DEFAULT_HDOP
     vel_sigma_mps: float = 0.1
+    #: 1-sigma of each fix's altitude error as a multiple of its horizontal 1-sigma per
+    #: axis (the pitch from GNSS altitude, docs/dynamic-method.md section 3a)
+    vertical_sigma_ratio: float = 1.5
     #: clock offset of the GNSS stamps against the IMU (true time = stamp - offset, s)
     #: and a bound on what remains of it (s); the dynamic estimator applies and budgets
     #: them (docs/dynamic-method.md, timing)
