@@ -14,8 +14,8 @@ import numpy as np
 
 from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator import clock as CK
-from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import pitch_gnss as PG
+from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
@@ -232,7 +232,8 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     use_pitch = PG.applicable(drive, vehicle, o, imu.available)
     n_pitch = PG.interval_events(n_fix, imu.duration) if use_pitch else 0
     n_alt = n_fix if use_pitch else 0
-    n_fl = imu.n if use_pitch and drift_rule(noise_terms["gyro_y"]) != "stated" else 0
+    n_fl = imu.n * sum(drift_rule(noise_terms[c]) != "stated"
+                       for c in ("gyro_x", "gyro_y", "gyro_z")) if use_pitch else 0
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
@@ -258,10 +259,14 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "change test; split equally over the tau levels)",
             "imu_intervals": "the noise integrated over each link of the smoother (flat and "
             "ramp weights, per channel) and, under the default heading clock bound, the gyro "
-            "z noise over that bound at each heading epoch",
+            "z noise over that bound at each heading epoch"
+            + (" and, for the pitch from GNSS altitude, the gyro noise over each altitude "
+               "chord's halves (reflection principle) and its rate-error magnitudes"
+               if n_pitch else ""),
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
-            "gnss_position": "each fix's position error (Rayleigh radius)",
+            "gnss_position": "each fix's position error (Rayleigh radius)"
+            + (" and its altitude error (pitch from GNSS altitude)" if n_alt else ""),
             "gnss_velocity": "each fix's velocity error (Rayleigh radius)",
             "heading": "each heading epoch's noise (and the coefficients of the compass "
             "error model estimated against the GNSS course)",
@@ -389,6 +394,15 @@ def _pitch_from_gnss(ctx: Context) -> None:
         ))
     ag = ctx.aiding
     ag.budget["pitch_from_gnss"] = pb.budget
+    st = ctx.drive.settings
+    dflt = "gnss.vertical_sigma_ratio" in getattr(st, "defaulted", [])
+    ctx.assumptions.append(
+        "GNSS altitude (pitch from GNSS altitude): each fix's vertical error Gaussian with "
+        f"1-sigma = {st.gnss.vertical_sigma_ratio:g} x its horizontal 1-sigma per axis ("
+        + ("default: state gnss.vertical_sigma_ratio in drive.yaml" if dflt
+           else "drive.yaml gnss.vertical_sigma_ratio")
+        + "); no altitude step beyond that model (multipath)"
+    )
     m = ctx.vehicle.max_tilt
     if not pb.narrows(m):
         ctx.notes.append(

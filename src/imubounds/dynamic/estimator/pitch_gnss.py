@@ -46,6 +46,8 @@ from imubounds.units import DEG
 REF_STEP_S = 1.0
 #: chord half-lengths in node steps (chords of about 4 to 128 s)
 HALF_NODES = (2, 4, 8, 16, 32, 64)
+#: integration cells per span between two nodes (the speed hull's resolution)
+SPLIT = 2
 #: bisection steps over [-max tilt, max tilt] (resolution 2 max_tilt / 2^steps)
 BISECT = 16
 #: name of the failed check (violations)
@@ -62,6 +64,8 @@ class PitchBoxes:
     budget: list[Term] = field(default_factory=list)
     infeasible: list[tuple[float, float]] = field(default_factory=list)
     median_halfwidth: float = math.inf
+    #: the reference epochs (relative s) and their intervals (before the spans)
+    nodes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def narrows(self, max_tilt: float) -> bool:
         return bool(np.any(self.hi - self.lo < 2 * max_tilt * (1 - 1e-9)))
@@ -90,9 +94,10 @@ def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[s
 def interval_events(n_fix: int, duration_s: float) -> int:
     """Events the method adds to the ``imu_intervals`` family (an upper bound: per
     reference epoch, each chord's two halves and the two spans next to it, each a
-    reflection-principle bound counted twice)."""
+    reflection-principle bound of the white noise counted twice, and the deviation of the
+    rate-error magnitudes once)."""
     n_ref = min(int(n_fix), int(duration_s / REF_STEP_S) + 2)
-    return n_ref * (2 * len(HALF_NODES) + 2) * 2
+    return n_ref * (2 * len(HALF_NODES) + 2) * 3
 
 
 def _nodes(t: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -105,62 +110,96 @@ def _nodes(t: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return idx[first]
 
 
-def _speed_hull(
-    tn: np.ndarray, s_lo: np.ndarray, s_hi: np.ndarray, amax: float, smax: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of the horizontal speed over each span between nodes: from both ends, the
-    speed moves by at most ``max_accel`` per s (``max_accel`` bounds the horizontal
-    acceleration, centripetal part included)."""
+def _cells(tn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boundaries of the integration cells (each span between nodes cut in :data:`SPLIT`
+    equal parts) and each cell's span."""
     d = np.diff(tn)
+    frac = np.arange(SPLIT) / SPLIT
+    tc = np.concatenate([(tn[:-1, None] + d[:, None] * frac[None, :]).ravel(), tn[-1:]])
+    return tc, np.repeat(np.arange(d.size), SPLIT)
+
+
+def _speed_hull(
+    tn: np.ndarray, tc: np.ndarray, span: np.ndarray, s_lo: np.ndarray, s_hi: np.ndarray,
+    amax: float, smax: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the horizontal speed over each cell ``[tc[c], tc[c + 1]]`` of a span
+    between two nodes: from both ends the speed moves by at most ``max_accel`` per s
+    (``max_accel`` bounds the horizontal acceleration, centripetal part included)."""
     a = max(amax, 1e-12)
-    L0, L1 = s_lo[:-1], s_lo[1:]
-    x = np.clip((L0 - L1 + a * d) / (2 * a), 0.0, d)
-    lo = np.maximum(L0 - a * x, 0.0)
-    H0, H1 = s_hi[:-1], s_hi[1:]
-    y = np.clip((H1 - H0 + a * d) / (2 * a), 0.0, d)
-    hi = np.minimum(H0 + a * y, smax)
-    return _dn(lo), _up(np.maximum(hi, lo))
+    t0, t1 = tn[span], tn[span + 1]
+    d = t1 - t0
+    xa, xb = tc[:-1] - t0, tc[1:] - t0
+    L0, L1 = s_lo[span], s_lo[span + 1]
+    x = np.clip((L0 - L1 + a * d) / (2 * a), xa, xb)
+    lo = np.maximum(np.maximum(L0 - a * x, L1 - a * (d - x)), 0.0)
+    H0, H1 = s_hi[span], s_hi[span + 1]
+    y = np.clip((H1 - H0 + a * d) / (2 * a), xa, xb)
+    hi = np.minimum(np.minimum(H0 + a * y, H1 + a * (d - y)), smax)
+    return _dn(lo * (1 - 1e-12)), _up(np.maximum(hi, lo) * (1 + 1e-12))
+
+
+def _bias_bound(ctx: Any, ch: str) -> float:
+    """A channel's turn-on bound plus its per-sample wander bound (:class:`budget.Wander`:
+    the model's flicker and K, R, or the stated drift bound's point bound)."""
+    cn, wd = ctx.noise[ch], ctx.wander[ch]
+    model = ctx.k_ps * cn.flicker_sigma() + wd.kr
+    return float(cn.turn_on_bound(ctx.alpha.k("imu_turn_on")) + wd.pick(model, wd.point))
 
 
 def _gyro_parts(ctx: Any, m: float) -> tuple[Any, ...]:
-    """Cumulative gyro_y integral and deterministic rate-error integral at the IMU
-    boundaries, the bias bound b (rad/s), white density, quantization term, edge term."""
+    """At the IMU boundaries: the cumulative gyro_y integral ``C`` and the integral ``P`` of
+    the rate error's deterministic part ``sum_c a_c |x_c|`` (``a_q = s + 1 - cos(phi_m)``,
+    ``a_p = m_q``, ``a_r = m_q + sin(phi_m)``; ``|x_c| <= (|y_c| + m_c |x_perp| + b_c +
+    sigma_c sqrt(2/pi) + quantization) / (1 - s_c)``, the white part's mean absolute value
+    with its deviation ``sigma_a`` left to the caller); the gyro_y bias bound, white
+    density, ``sigma_a`` (rad/s per sqrt(sample count)) and the constant terms."""
     imu, noise, E0 = ctx.imu, ctx.noise, ctx.E0
     veh = ctx.vehicle
-    bnd = imu.bnd
-    dl = np.diff(bnd)
-
-    def mag(ch: str) -> np.ndarray:
-        s = imu.sig[ch]
-        if not imu.available.get(ch, False):
-            return np.full(dl.size, veh.max_rate)
-        x = (np.abs(s.y) + E0[ch]) / (1.0 - noise[ch].scale)
-        return np.where(s.unknown, veh.max_rate, x)
-
-    qs = imu.sig["gyro_y"]
+    dl = np.diff(imu.bnd)
+    dt = imu.dt
     cq = noise["gyro_y"]
-    aq, ap, ar = mag("gyro_y"), mag("gyro_x"), mag("gyro_z")
-    rho = (cq.scale * aq + cq.misalignment_rad * (ap + ar) + aq * (1.0 - math.cos(m))
-           + ar * math.sin(m))
-    # an unknown span: the gyro_y integral there is not measured (y = 0): + max rate
-    rho = rho + np.where(qs.unknown, veh.max_rate, 0.0)
+    coef = {"gyro_y": cq.scale + 1.0 - math.cos(m), "gyro_x": cq.misalignment_rad,
+            "gyro_z": cq.misalignment_rad + math.sin(m)}
+    rho = np.zeros(dl.size)
+    var = 0.0
+    unknown = np.zeros(dl.size, bool)
+    for ch, a in coef.items():
+        cn = noise[ch]
+        if not imu.available.get(ch, False):
+            rho += a * veh.max_rate
+            continue
+        s = imu.sig[ch]
+        unknown |= s.unknown
+        perp = sum(np.abs(imu.sig[o].y) + E0[o] for o in coef if o != ch
+                   and imu.available.get(o, False))
+        sig_w = cn.N / math.sqrt(dt)
+        quant = ctx.k_ps * math.sqrt(2.0) * cn.Q / dt
+        x = (np.abs(s.y) + cn.misalignment_rad * perp + _bias_bound(ctx, ch)
+             + sig_w * math.sqrt(2.0 / math.pi) + quant) / (1.0 - cn.scale)
+        rho += a * x
+        var += (a * sig_w / (1.0 - cn.scale)) ** 2
+    # an unknown span: the rates there are not measured (y = 0 there): + the rate bound
+    rho = np.where(unknown, rho + veh.max_rate * (1.0 + sum(coef.values())), rho)
+    qs = imu.sig["gyro_y"]
     C = np.concatenate([[0.0], np.cumsum(qs.y * dl)])
     P = np.concatenate([[0.0], np.cumsum(rho * dl)]) * (1 + 1e-9)
-    k_to = ctx.alpha.k("imu_turn_on")
-    wd = ctx.wander["gyro_y"]
-    model = ctx.k_ps * cq.flicker_sigma() + wd.kr
-    wander_pt = float(wd.pick(model, wd.point))
-    b = cq.turn_on_bound(k_to) + wander_pt
+    b = _bias_bound(ctx, "gyro_y")
     const = 2.0 * ctx.k_ps * cq.Q + 2.0 * veh.max_ang_accel * imu.max_len**2 + 1e-9
-    return C, P, b, cq.N, const
+    # the deviation of sum_k dt a |w_k| over n samples from its mean: sub-Gaussian with
+    # variance proxy n dt^2 sum a^2 sigma^2, i.e. sigma_a sqrt(dt T) over T s
+    return C, P, b, cq.N, const, math.sqrt(var)
 
 
-def _rows(lo_base: np.ndarray, w: np.ndarray, ulo: np.ndarray, uhi: np.ndarray,
+def _rows(cb: np.ndarray, sb: np.ndarray, w: np.ndarray, ulo: np.ndarray, uhi: np.ndarray,
           m: float, theta: np.ndarray, upper: bool) -> np.ndarray:
     """Lower (``upper`` False) or upper bound of ``int u sin(theta)`` over each chord's
-    spans for the candidate ``theta(t_r)`` per row."""
-    x = np.clip(theta[:, None] + lo_base, -m, m)
-    s = np.sin(x)
+    cells for the candidate ``theta(t_r)`` per row: ``sin(clip(theta_r + base, -m, m))``
+    as ``clip(sin(theta_r) cos(base) + cos(theta_r) sin(base), -sin m, sin m)`` (base
+    within +-2m, m < 30 deg: sin is monotone there), rounding widened outward."""
+    sm = math.sin(m)
+    s = np.sin(theta)[:, None] * cb + np.cos(theta)[:, None] * sb
+    s = np.clip(s + (4e-16 if upper else -4e-16), -sm, sm)
     if upper:
         v = np.where(s >= 0, uhi * s, ulo * s)
     else:
@@ -168,10 +207,17 @@ def _rows(lo_base: np.ndarray, w: np.ndarray, ulo: np.ndarray, uhi: np.ndarray,
     return np.sum(v * w, axis=1)
 
 
-def _bisect(f: Any, target: np.ndarray, m: float, n: int, sup: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``sup``: the least upper bound of {theta: f(theta) <= target} (f nondecreasing);
-    else the greatest lower bound of {theta: f(theta) >= target}. Returns (bound, ok);
-    ok False where the set is empty."""
+def _bisect(rows: tuple[np.ndarray, ...], target: np.ndarray, m: float,
+            sup: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``sup``: the least upper bound of {theta: Lo(theta) <= target}; else the greatest
+    lower bound of {theta: Hi(theta) >= target} (Lo, Hi of :func:`_rows` over ``rows``,
+    both nondecreasing). Returns (bound, ok); ok False where the set is empty."""
+    n = target.size
+
+    def f(theta: np.ndarray) -> np.ndarray:
+        cb, sb, w, ulo, uhi = rows
+        return _rows(cb, sb, w, ulo, uhi, m, theta, not sup)
+
     lo = np.full(n, -m)
     hi = np.full(n, m)
     if sup:
@@ -192,6 +238,26 @@ def _bisect(f: Any, target: np.ndarray, m: float, n: int, sup: bool) -> tuple[np
     if sup:
         return np.where(full, m, hi), ok
     return np.where(full, -m, lo), ok
+
+
+def _c_hull(
+    bnd: np.ndarray, C: np.ndarray, P: np.ndarray, tc: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """``C`` and ``P`` at the cell boundaries (linear inside a sample, as the sample
+    model) and the hull of ``C`` over each cell (its values at the IMU boundaries inside
+    and at the cell's ends), widened by its rounding."""
+    from imubounds.dynamic.estimator.inputs import RangeExt
+
+    Cc = np.interp(tc, bnd, C)
+    Pc = np.interp(tc, bnd, P)
+    i0 = np.searchsorted(bnd, tc[:-1], side="right")
+    i1 = np.searchsorted(bnd, tc[1:], side="left") - 1
+    has = i1 >= i0
+    mn, mx = RangeExt(C).query(np.where(has, i0, 0), np.where(has, i1, 0))
+    Cmin = np.minimum(np.minimum(Cc[:-1], Cc[1:]), np.where(has, mn, np.inf))
+    Cmax = np.maximum(np.maximum(Cc[:-1], Cc[1:]), np.where(has, mx, -np.inf))
+    tol = 1e-9 * (1.0 + float(np.abs(C).max()))
+    return Cc, Pc, Cmin - tol, Cmax + tol
 
 
 def pitch_boxes(ctx: Any) -> PitchBoxes | None:
@@ -220,34 +286,26 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     if nd.size < 2 * HALF_NODES[0] + 1:
         return None
     tn, an, hn = t[nd], ag.gnss_alt[nd], h_fix[nd]
+    tc, span = _cells(tn)
     sp = np.hypot(ag.gvel_e[nd], ag.gvel_n[nd])
-    s_lo, s_hi = _speed_hull(tn, sp - ag.gvel_hi[nd], sp + ag.gvel_hi[nd], veh.max_accel,
-                             veh.max_speed)
+    s_lo, s_hi = _speed_hull(tn, tc, span, sp - ag.gvel_hi[nd], sp + ag.gvel_hi[nd],
+                             veh.max_accel, veh.max_speed)
     c = np.sqrt(np.maximum(s_lo**2 - vh**2, 0.0)) - E * math.sin(m)
     ulo = _dn(np.where(c >= 0, c, c / math.cos(m)) * (1 - 1e-12))
     uhi = _up((s_hi + E * math.sin(m)) / math.cos(m) * (1 + 1e-12))
-    irregular = ulo < 0  # near standstill: the span's u sin(theta) taken as a slack
-    umax = np.maximum(np.abs(ulo), uhi)
-    dspan = np.diff(tn)
-    slack_span = np.where(irregular, umax * math.sin(m) * dspan, 0.0)
+    irregular = ulo < 0  # near standstill: the cell's u sin(theta) taken as a slack
+    dcell = np.diff(tc)
+    slack_cell = np.where(irregular, np.maximum(-ulo, uhi) * math.sin(m) * dcell, 0.0)
     ulo_r = np.where(irregular, 0.0, ulo)
     uhi_r = np.where(irregular, 0.0, uhi)
-    # gyro parts at the nodes and the hull of the gyro_y integral over each span
-    C, P, b, N, const = _gyro_parts(ctx, m)
-    bnd = imu.bnd
-    Cn = np.interp(tn, bnd, C)
-    Pn = np.interp(tn, bnd, P)
-    from imubounds.dynamic.estimator.inputs import RangeExt
-
-    i0 = np.searchsorted(bnd, tn[:-1], side="right")
-    i1 = np.searchsorted(bnd, tn[1:], side="left") - 1
-    has = i1 >= i0
-    mn, mx = RangeExt(C).query(np.where(has, i0, 0), np.where(has, i1, 0))
-    Cmin = np.minimum(np.minimum(Cn[:-1], Cn[1:]), np.where(has, mn, np.inf))
-    Cmax = np.maximum(np.maximum(Cn[:-1], Cn[1:]), np.where(has, mx, -np.inf))
-    tol = 1e-9 * (1.0 + np.abs(C).max())
-    Cmin, Cmax = Cmin - tol, Cmax + tol
+    C, P, b, N, const, sig_a = _gyro_parts(ctx, m)
+    Cc, Pc, Cmin, Cmax = _c_hull(imu.bnd, C, P, tc)
     k_w = alpha.k("imu_intervals")
+    # the sub-Gaussian deviation of the rate-error magnitudes' white part (Doob's maximal
+    # inequality for its exponential martingale): P <= exp(-k^2/2) at the family's share
+    p_int = alpha.share() / max(1, alpha.counts.get("imu_intervals", 1))
+    k_sg = math.sqrt(2.0 * math.log(1.0 / p_int))
+    kn = k_w * N + k_sg * sig_a * math.sqrt(ctx.imu.dt)
     nn = tn.size
     lo_r = np.full(nn, -m)
     hi_r = np.full(nn, m)
@@ -256,39 +314,39 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
         r = np.arange(h, nn - h)
         if r.size == 0:
             continue
-        K = (r - h)[:, None] + np.arange(2 * h)[None, :]  # span indices of each chord
-        tr = tn[r][:, None]
-        right = K >= r[:, None]
-        far = np.where(right, tn[K + 1], tn[K])
-        Pfar = np.where(right, Pn[K + 1], Pn[K])
+        rc = r * SPLIT  # the reference's cell boundary
+        K = (rc - h * SPLIT)[:, None] + np.arange(2 * h * SPLIT)[None, :]
+        right = K >= rc[:, None]
+        far = np.where(right, K + 1, K)
         half = np.maximum(tn[r] - tn[r - h], tn[r + h] - tn[r])
-        delta = (np.abs(Pfar - Pn[r][:, None]) + b * np.abs(far - tr)
-                 + (k_w * N * np.sqrt(half) + const)[:, None])
-        Cr = Cn[r][:, None]
+        delta = (np.abs(Pc[far] - Pc[rc][:, None]) + b * np.abs(tc[far] - tn[r][:, None])
+                 + (kn * np.sqrt(half) + const)[:, None])
+        Cr = Cc[rc][:, None]
         base_lo = np.maximum(-(Cmax[K] - Cr) - delta, -2.0 * m)
         base_hi = np.minimum(-(Cmin[K] - Cr) + delta, 2.0 * m)
-        w = dspan[K]
+        w = dcell[K]
         ul, uh = ulo_r[K], uhi_r[K]
         dalt = an[r + h] - an[r - h]
         L = tn[r + h] - tn[r - h]
-        slack = hn[r + h] + hn[r - h] + E * L + slack_span[K].sum(axis=1)
+        slack = hn[r + h] + hn[r - h] + E * L + slack_cell[K].sum(axis=1)
         eps = 1e-9 * (np.abs(dalt) + slack + uhi.max() * L)
-        a_hi = dalt + slack + eps
-        a_lo = dalt - slack - eps
-        th_max, ok_max = _bisect(lambda th: _rows(base_lo, w, ul, uh, m, th, False),
-                                 a_hi, m, r.size, True)
-        th_min, ok_min = _bisect(lambda th: _rows(base_hi, w, ul, uh, m, th, True),
-                                 a_lo, m, r.size, False)
+        th_max, ok_max = _bisect((np.cos(base_lo), np.sin(base_lo), w, ul, uh),
+                                 dalt + slack + eps, m, True)
+        th_min, ok_min = _bisect((np.cos(base_hi), np.sin(base_hi), w, ul, uh),
+                                 dalt - slack - eps, m, False)
         bad[r] |= ~(ok_max & ok_min)
         lo_r[r] = np.maximum(lo_r[r], th_min)
         hi_r[r] = np.minimum(hi_r[r], th_max)
     bad |= lo_r > hi_r
     lo_r = np.where(bad, -m, lo_r)
     hi_r = np.where(bad, m, hi_r)
+    # span hulls of the gyro_y integral and the rate-error integral
+    Cn, Pn = Cc[::SPLIT], Pc[::SPLIT]
+    Cmin = np.minimum.reduceat(Cmin, np.arange(0, Cmin.size, SPLIT))
+    Cmax = np.maximum.reduceat(Cmax, np.arange(0, Cmax.size, SPLIT))
+    dspan = np.diff(tn)
     # each span: the two nodes' intervals propagated over it, intersected
-    dP = Pn[1:] - Pn[:-1]
-    dd = dspan
-    dspan_w = k_w * N * np.sqrt(dd) + const + b * dd + dP
+    dspan_w = kn * np.sqrt(dspan) + const + b * dspan + (Pn[1:] - Pn[:-1])
     f_lo = lo_r[:-1] - (Cmax - Cn[:-1]) - dspan_w
     f_hi = hi_r[:-1] - (Cmin - Cn[:-1]) + dspan_w
     g_lo = lo_r[1:] - (Cmax - Cn[1:]) - dspan_w
@@ -303,7 +361,8 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     phi = _up(np.concatenate([[m], phi, [m]]) * (1 + 1e-12) + 1e-12)
     plo, phi = np.maximum(plo, -m), np.minimum(phi, m)
     hw = 0.5 * (phi - plo)
-    out = PitchBoxes(pb, plo, phi, median_halfwidth=float(np.median(hw[1:-1])))
+    out = PitchBoxes(pb, plo, phi, median_halfwidth=float(np.median(hw[1:-1])),
+                     nodes=(tn, lo_r, hi_r))
     out.infeasible = _bad_spans(tn, bad) if np.any(bad) else []
     defaulted = "gnss.vertical_sigma_ratio" in getattr(st, "defaulted", [])
     src_ratio = "default" if defaulted else "drive.yaml"
