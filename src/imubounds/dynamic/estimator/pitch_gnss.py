@@ -49,7 +49,7 @@ HALF_NODES = (2, 4, 8, 16, 32, 64)
 #: integration cells per span between two nodes (the speed hull's resolution)
 SPLIT = 2
 #: bisection steps over [-max tilt, max tilt] (resolution 2 max_tilt / 2^steps)
-BISECT = 16
+BISECT = 12
 #: name of the failed check (violations)
 TEST_PITCH = "pitch from GNSS altitude (altitude chords against the gyro-propagated pitch)"
 
@@ -191,20 +191,21 @@ def _gyro_parts(ctx: Any, m: float) -> tuple[Any, ...]:
     return C, P, b, cq.N, const, math.sqrt(var)
 
 
-def _rows(cb: np.ndarray, sb: np.ndarray, w: np.ndarray, ulo: np.ndarray, uhi: np.ndarray,
+def _rows(cb: np.ndarray, sb: np.ndarray, wlo: np.ndarray, whi: np.ndarray,
           m: float, theta: np.ndarray, upper: bool) -> np.ndarray:
     """Lower (``upper`` False) or upper bound of ``int u sin(theta)`` over each chord's
-    cells for the candidate ``theta(t_r)`` per row: ``sin(clip(theta_r + base, -m, m))``
-    as ``clip(sin(theta_r) cos(base) + cos(theta_r) sin(base), -sin m, sin m)`` (base
-    within +-2m, m < 30 deg: sin is monotone there), rounding widened outward."""
+    cells for the candidate ``theta(t_r)`` per row (``wlo``, ``whi``: the cells' speed
+    bounds times their lengths): ``sin(clip(theta_r + base, -m, m))`` as
+    ``clip(sin(theta_r) cos(base) + cos(theta_r) sin(base), -sin m, sin m)`` (base within
+    +-2m, m < 30 deg: sin is monotone there), rounding widened outward."""
     sm = math.sin(m)
     s = np.sin(theta)[:, None] * cb + np.cos(theta)[:, None] * sb
     s = np.clip(s + (4e-16 if upper else -4e-16), -sm, sm)
     if upper:
-        v = np.where(s >= 0, uhi * s, ulo * s)
+        v = np.where(s >= 0, whi, wlo) * s
     else:
-        v = np.where(s >= 0, ulo * s, uhi * s)
-    return np.sum(v * w, axis=1)
+        v = np.where(s >= 0, wlo, whi) * s
+    return np.asarray(v.sum(axis=1))
 
 
 def _bisect(rows: tuple[np.ndarray, ...], target: np.ndarray, m: float,
@@ -215,8 +216,8 @@ def _bisect(rows: tuple[np.ndarray, ...], target: np.ndarray, m: float,
     n = target.size
 
     def f(theta: np.ndarray) -> np.ndarray:
-        cb, sb, w, ulo, uhi = rows
-        return _rows(cb, sb, w, ulo, uhi, m, theta, not sup)
+        cb, sb, wlo, whi = rows
+        return _rows(cb, sb, wlo, whi, m, theta, not sup)
 
     lo = np.full(n, -m)
     hi = np.full(n, m)
@@ -330,9 +331,10 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
         L = tn[r + h] - tn[r - h]
         slack = hn[r + h] + hn[r - h] + E * L + slack_cell[K].sum(axis=1)
         eps = 1e-9 * (np.abs(dalt) + slack + uhi.max() * L)
-        th_max, ok_max = _bisect((np.cos(base_lo), np.sin(base_lo), w, ul, uh),
+        wlo, whi = _dn(ul * w), _up(uh * w)
+        th_max, ok_max = _bisect((np.cos(base_lo), np.sin(base_lo), wlo, whi),
                                  dalt + slack + eps, m, True)
-        th_min, ok_min = _bisect((np.cos(base_hi), np.sin(base_hi), w, ul, uh),
+        th_min, ok_min = _bisect((np.cos(base_hi), np.sin(base_hi), wlo, whi),
                                  dalt - slack - eps, m, False)
         bad[r] |= ~(ok_max & ok_min)
         lo_r[r] = np.maximum(lo_r[r], th_min)
