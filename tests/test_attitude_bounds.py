@@ -110,3 +110,151 @@ def test_simulated_hills_pitch_within_the_nonholonomic_bound(seed: int) -> None:
     assert np.all(np.abs(off) <= hw + 1e-12), float(np.degrees(np.max(np.abs(off) - hw)))
     half = _nhc(u, 0.5 * veh.vertical_speed_bound_mps, v_b, tilt)
     assert np.any(np.abs(off) > half)
+
+
+# ----------------------------------------------------------- the wired pitch (pitch_gnss)
+
+
+def _hills(seed: int, **kw: object) -> object:
+    """A hilly ground trip (+-19 m) with GNSS position and velocity, a compass and an
+    industrial IMU (gyro bias bound ~3e-4 rad/s), no attitude stream; IMU and truth at
+    50 Hz so that every window mean is checked."""
+    from imubounds.dynamic.scenario import make_trip
+
+    args: dict[str, object] = {
+        "duration_s": 792.0, "distance_m": 9400.0, "hill_amplitude_m": 19.0,
+        "imu_preset": "industrial", "aiding": ("gnss", "gnss-vel", "compass"),
+        "rate_hz": 50.0, "truth_rate_hz": 50.0,
+    }
+    args.update(kw)
+    return make_trip("hills", seed=seed, **args)
+
+
+def _pitch_inside(ctx: object, drive: object) -> tuple[np.ndarray, float]:
+    """Whether the simulator's true pitch lies in the wired pitch boxes at every truth
+    sample, read on the boxes' own grid (code independent of pitch_gnss), and their
+    median half-width as a fraction of the max tilt the drive states."""
+    pb = ctx.aiding.pitch  # type: ignore[attr-defined]
+    tr = drive.truth  # type: ignore[attr-defined]
+    t = tr.t - ctx.imu.t0  # type: ignore[attr-defined]
+    k = np.clip(np.searchsorted(pb.bnd, t, side="right") - 1, 0, pb.lo.size - 1)
+    p = tr.extra["pitch_rad"]
+    inside = (p >= pb.lo[k]) & (p <= pb.hi[k])
+    # on a boundary both neighbouring boxes must hold it
+    on = np.isin(t, pb.bnd[1:-1])
+    if np.any(on):
+        kb = np.clip(k[on] - 1, 0, pb.lo.size - 1)
+        inside[on] &= (p[on] >= pb.lo[kb]) & (p[on] <= pb.hi[kb])
+    hw = float(np.median(0.5 * (pb.hi - pb.lo)[1:-1]))
+    return inside, hw / ctx.vehicle.max_tilt  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("seed", [2, 3, 7])
+def test_wired_pitch_encloses_the_truth_and_the_run_stays_sound(seed: int) -> None:
+    """The pitch intervals from GNSS altitude (pitch_gnss.pitch_boxes) contain the true
+    pitch at every truth sample, narrow the max tilt (9-11 deg) to a median below 0.6 of it,
+    and the whole run stays enclosed (states, biases, every window mean of the true
+    signal) without a violation."""
+    from imubounds.dynamic.estimator import dynamic_margins
+    from imubounds.dynamic.estimator.full import build_context
+    from tests.test_dynamic_full import enclosed_everywhere
+
+    r = _hills(seed)
+    ctx = build_context(r.drive, None, {})
+    assert ctx.aiding.pitch is not None
+    inside, hw = _pitch_inside(ctx, r.drive)
+    assert inside.all(), int((~inside).sum())
+    assert hw < 0.6, hw
+    assert "pitch_from_gnss" in ctx.aiding.budget
+    d = dynamic_margins(r.drive).to_dict()
+    assert d["guaranteed"] and not d["violations"], d["violations"]
+    assert enclosed_everywhere(d) == []
+    assert d["vehicle"]["pitch"]["source"].startswith("GNSS altitude")
+    assert any("gnss.vertical_sigma_ratio" in a for a in d["assumptions"])
+    fam = d["alpha"]["families"]
+    assert "altitude" in fam["gnss_position"]["what"]
+    assert fam["gnss_position"]["count"] == 2 * r.drive.gnss.t.size
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_wired_pitch_with_the_gyro_bias_at_its_bound(sign: float) -> None:
+    """gyro_y's turn-on bias moved to 0.95 x its stated bound (its in-run wander as
+    simulated): the true pitch stays inside at every sample."""
+    from imubounds.dynamic.estimator.full import build_context
+    from imubounds.units import DEG
+
+    r = _hills(4)
+    d = r.drive
+    b_to = d.settings.imu.gyro_turn_on_dps * DEG
+    b0 = float(d.truth.extra["bias_gyro_y"][0])
+    d.imu.gyro[:, 1] += sign * 0.95 * b_to - b0
+    ctx = build_context(d, None, {})
+    inside, hw = _pitch_inside(ctx, d)
+    assert inside.all(), int((~inside).sum())
+    assert hw < 0.7, hw
+
+
+def test_wired_pitch_with_altitude_errors_near_their_bound() -> None:
+    """Each fix's altitude error replaced by +-0.9 x its bound (the estimator's k of the
+    gnss_position family x 1.5 x the horizontal sigma), alternating in blocks of 60 fixes:
+    the true pitch stays inside at every sample, and no violation is raised."""
+    from imubounds.dynamic.estimator.budget import k_two_sided
+    from imubounds.dynamic.estimator.full import build_context
+    from imubounds.geodesy import enu_to_geodetic_3d
+
+    r = _hills(5)
+    d = r.drive
+    ctx = build_context(d, None, {})
+    k = k_two_sided(ctx.alpha.share(), ctx.alpha.counts["gnss_position"])
+    g = d.gnss
+    tr = r.truth
+    e, n, u = (np.interp(g.t, tr["t"], tr[x]) for x in ("east", "north", "up"))
+    alt_true = np.asarray(enu_to_geodetic_3d(e, n, u, r.config.origin)[2], float)
+    sig = ctx.aiding.gnss_sig
+    assert sig.size == g.t.size
+    blocks = np.where((np.arange(g.t.size) // 60) % 2 == 0, 1.0, -1.0)
+    g.alt_m = alt_true + 0.9 * k * 1.5 * sig * blocks
+    ctx = build_context(d, None, {})
+    inside, hw = _pitch_inside(ctx, d)
+    assert inside.all(), int((~inside).sum())
+    assert not [v for v in ctx.violations if "altitude" in v.test]
+    assert hw < 0.7, hw
+
+
+def test_wired_pitch_tightens_accel_x_on_the_hilly_industrial_trip() -> None:
+    """accel_x at tau ~ 10 s on the hilly trip: the gravity term follows the pitch from
+    GNSS altitude (before: g sin 9 deg = 1.54 m/s^2 of it); the window means of the true
+    signal stay enclosed; the notes no longer blame the default tilt."""
+    from imubounds.dynamic.estimator import dynamic_margins
+    from tests.test_dynamic_full import enclosed_everywhere
+
+    r = _hills(2)
+
+    def at10(d: dict) -> float:
+        rows = d["margins"]["accel_x"]
+        return float(min(rows, key=lambda x: abs(x["tau_s"] - 10.0))["halfwidth_median"])
+
+    before = dynamic_margins(r.drive, use_gnss_altitude=False).to_dict()
+    after = dynamic_margins(r.drive).to_dict()
+    assert before["vehicle"]["pitch"]["source"].startswith("max tilt")
+    assert at10(after) < 0.7 * at10(before), (at10(before), at10(after))
+    assert enclosed_everywhere(after) == [] and after["guaranteed"]
+
+
+def test_comma2k19_pitch_from_gnss_does_not_run(shared_data: Path) -> None:
+    """comma2k19: the phone's gyro (bias bound from the default preset) moves the pitch
+    by more than half the max tilt over the shortest chord: the method is not applied,
+    so nothing is counted and nothing changes (test_real_vehicles keeps the figures)."""
+    from imubounds.cli.dynamic import load_drive
+    from imubounds.dynamic.estimator import pitch_gnss as PG
+    from imubounds.dynamic.estimator.budget import resolve_noise
+    from imubounds.dynamic.estimator.full import check_options
+    from imubounds.dynamic.estimator.inputs import ImuSeries, vehicle_from
+
+    drive = load_drive([str(shared_data / "dynamic" / "comma2k19_example1")])
+    o = check_options({})
+    veh, _ = vehicle_from(drive.settings, o)
+    noise, _ = resolve_noise(drive.settings, None, o, None)
+    imu = ImuSeries.from_drive(drive, o["imu_stamp"], veh)
+    assert drive.gnss is not None and drive.gnss.alt_m is not None
+    assert not PG.applicable(drive, veh, o, imu.available, noise)

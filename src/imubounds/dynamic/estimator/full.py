@@ -229,7 +229,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     # the pitch from GNSS altitude (pitch_gnss.py): each fix's altitude joins the GNSS
     # position family, the gyro_y noise over its chords the IMU intervals, and (unless a
     # stated drift bound gives it) gyro_y's per-sample flicker the IMU samples
-    use_pitch = PG.applicable(drive, vehicle, o, imu.available)
+    use_pitch = PG.applicable(drive, vehicle, o, imu.available, noise_terms)
     n_pitch = PG.interval_events(n_fix, imu.duration) if use_pitch else 0
     n_alt = n_fix if use_pitch else 0
     n_fl = imu.n * sum(drift_rule(noise_terms[c]) != "stated"

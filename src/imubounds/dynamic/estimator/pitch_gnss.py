@@ -71,10 +71,24 @@ class PitchBoxes:
         return bool(np.any(self.hi - self.lo < 2 * max_tilt * (1 - 1e-9)))
 
 
-def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[str, bool]) -> bool:
-    """Whether the method runs (decided before the alpha plan: its events are counted
-    then): a ground vehicle with a stated lateral bound, that does not reverse, GNSS
-    altitude and velocity in use, gyro_y and gyro_z, and no attitude stream in use."""
+#: the method runs only when gyro_y's bias (a settings-only estimate: the turn-on bound
+#: or 5 sigma, plus the stated drift bound or 5 flicker sigmas) moves the pitch by less
+#: than this fraction of the max tilt over the shortest chord's half
+USEFUL_FRACTION = 0.5
+
+
+def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[str, bool],
+               noise: dict[str, Any]) -> bool:
+    """Whether the method runs, decided from the settings alone before the alpha plan
+    (its events are counted then, whatever the data): a ground vehicle with a stated
+    lateral bound, that does not reverse, GNSS altitude and velocity in use, gyro_y and
+    gyro_z, no attitude stream in use, and a gyro_y whose bias can leave the pitch
+    narrower than the max tilt (:data:`USEFUL_FRACTION`)."""
+    cq = noise["gyro_y"]
+    drift = cq.drift_bound if cq.drift_bound is not None else 5.0 * cq.flicker_sigma()
+    b_est = cq.turn_on_bound(5.0) + drift
+    if b_est * HALF_NODES[0] * REF_STEP_S >= USEFUL_FRACTION * vehicle.max_tilt:
+        return False
     g = drive.gnss
     if vehicle.kind != "ground" or vehicle.lateral_speed_bound_mps is None:
         return False
