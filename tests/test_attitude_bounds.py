@@ -1,13 +1,15 @@
 """What a non-holonomic bound says about the pitch (issue 24, item 2; docs/dynamic-method.md
-section 3a, "Measured: pitch from GNSS altitude ..."), checked on independent truth.
+section 3a, "Pitch from GNSS altitude ..."), checked on independent truth.
 
 With ``n = sin(roll) v + cos(roll) w`` (|n| <= E = sin(max tilt) V + W), the level-frame
 velocity along the heading and up are ``(u, n)`` turned by the pitch, so
-``|pitch - elevation of the velocity| <= atan(E/u)``. The estimator takes no tilt from
-it (the default max tilt stays without an attitude stream): on comma2k19 the bound is
-8.4 deg at the median even with the true vertical velocity, because the phone's mount
-pitch needs W = 2.5 m/s; a smaller W is false there. These tests lock those figures and
-the inequality itself with code that does not use imubounds.
+``|pitch - elevation of the velocity| <= atan(E/u)``. On comma2k19 the bound is 8.4 deg
+at the median even with the true vertical velocity, because the phone's mount pitch
+needs W = 2.5 m/s; a smaller W is false there (the method is not applied there: the
+phone's gyro is too coarse). The estimator's wired pitch from GNSS altitude
+(``estimator/pitch_gnss.py``) is checked against the simulator's true pitch on hilly
+trips, with the gyro bias and the altitude errors near their bounds, and for the
+accel_x margin it tightens.
 """
 
 from __future__ import annotations
