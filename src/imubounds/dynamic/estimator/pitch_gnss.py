@@ -50,6 +50,10 @@ HALF_NODES = (2, 4, 8, 16, 32, 64)
 SPLIT = 2
 #: bisection steps over [-max tilt, max tilt] (resolution 2 max_tilt / 2^steps)
 BISECT = 12
+#: Earth rate (rad/s) and a lower bound of the Earth's radius (m): the rate of the
+#: local level frame against inertial space is at most Omega + v / R
+EARTH_RATE = 7.2921159e-5
+EARTH_RADIUS_M = 6.35e6
 #: name of the failed check (violations)
 TEST_PITCH = "pitch from GNSS altitude (altitude chords against the gyro-propagated pitch)"
 
@@ -166,7 +170,8 @@ def _gyro_parts(ctx: Any, m: float) -> tuple[Any, ...]:
     the rate error's deterministic part ``sum_c a_c |x_c|`` (``a_q = s + 1 - cos(phi_m)``,
     ``a_p = m_q``, ``a_r = m_q + sin(phi_m)``; ``|x_c| <= (|y_c| + m_c |x_perp| + b_c +
     sigma_c sqrt(2/pi) + quantization) / (1 - s_c)``, the white part's mean absolute value
-    with its deviation ``sigma_a`` left to the caller); the gyro_y bias bound, white
+    with its deviation ``sigma_a`` left to the caller; + the Earth and transport rates
+    ``Omega + v_max / R``); the gyro_y bias bound, white
     density, ``sigma_a`` (rad/s per sqrt(sample count)) and the constant terms."""
     imu, noise, E0 = ctx.imu, ctx.noise, ctx.E0
     veh = ctx.vehicle
@@ -195,6 +200,10 @@ def _gyro_parts(ctx: Any, m: float) -> tuple[Any, ...]:
         var += (a * sig_w / (1.0 - cn.scale)) ** 2
     # an unknown span: the rates there are not measured (y = 0 there): + the rate bound
     rho = np.where(unknown, rho + veh.max_rate * (1.0 + sum(coef.values())), rho)
+    # the gyros measure the Earth rate and the transport rate too (the level frame turns)
+    rho = rho + EARTH_RATE + veh.max_speed / EARTH_RADIUS_M
+    # magnitudes from the sample means, as the smoother's links bound int |x| (full.py,
+    # _link_errors: int |y| + E0 D over 1 - s): the sample model of the budget
     qs = imu.sig["gyro_y"]
     C = np.concatenate([[0.0], np.cumsum(qs.y * dl)])
     P = np.concatenate([[0.0], np.cumsum(rho * dl)]) * (1 + 1e-9)
