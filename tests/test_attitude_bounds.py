@@ -260,3 +260,30 @@ def test_comma2k19_pitch_from_gnss_does_not_run(shared_data: Path) -> None:
     imu = ImuSeries.from_drive(drive, o["imu_stamp"], veh)
     assert drive.gnss is not None and drive.gnss.alt_m is not None
     assert not PG.applicable(drive, veh, o, imu.available, noise)
+
+
+def test_receiver_vertical_accuracy_is_read_and_used() -> None:
+    """``gnss.csv`` ``v_acc_m`` (the receiver's altitude 1-sigma) is read by the layout and
+    replaces gnss.vertical_sigma_ratio x the horizontal sigma: a stated 200 m leaves the
+    pitch at the max tilt (not applied), the simulator's own 1.5 x sigma_h gives the same
+    boxes as the ratio."""
+    import pandas as pd
+
+    from imubounds.dynamic.estimator.full import build_context
+    from imubounds.io.drive.layout import gnss_from_table
+
+    df = pd.DataFrame({"time_s": [0.0, 1.0], "lat_deg": [1.0, 1.0], "lon_deg": [2.0, 2.0],
+                       "alt_m": [5.0, 6.0], "v_acc_m": [0.7, np.nan]})
+    g = gnss_from_table(df, "gnss.csv")
+    assert g.v_acc_m is not None and g.v_acc_m[0] == 0.7 and np.isnan(g.v_acc_m[1])
+
+    r = _hills(3)
+    d = r.drive
+    base = build_context(d, None, {}).aiding.pitch
+    ctx = build_context(d, None, {})
+    d.gnss.v_acc_m = 1.5 * ctx.aiding.gnss_sig.copy()
+    same = build_context(d, None, {}).aiding.pitch
+    assert base is not None and same is not None
+    assert np.allclose(same.lo, base.lo) and np.allclose(same.hi, base.hi)
+    d.gnss.v_acc_m = np.full(d.gnss.t.size, 200.0)
+    assert build_context(d, None, {}).aiding.pitch is None

@@ -474,6 +474,7 @@ class Aiding:
     gnss_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     gnss_h: np.ndarray = field(default_factory=lambda: np.zeros(0))  # box half-width, m
     gnss_alt: np.ndarray = field(default_factory=lambda: np.zeros(0))  # m, NaN: none
+    gnss_vacc: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1-sigma m, NaN
     # GNSS velocity (nav, ENU), per-component half-width
     gvel_ok: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     gvel_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -691,6 +692,8 @@ def _gnss_positions(
     ag.gnss_t = _rel(g.t[ok], t0)
     ag.gnss_e, ag.gnss_n = e, n
     ag.gnss_alt = np.asarray(alt, float) if alt is not None else np.full(e.size, np.nan)
+    va = getattr(g, "v_acc_m", None)
+    ag.gnss_vacc = np.asarray(va[ok], float) if va is not None else np.full(e.size, np.nan)
     cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
     dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
@@ -743,7 +746,8 @@ def _gnss_positions(
             for i, miss in zip(np.flatnonzero(out), misses, strict=True)
         ]
         keep = ~out
-        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig", "gnss_alt"):
+        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig", "gnss_alt",
+                     "gnss_vacc"):
             setattr(ag, name, getattr(ag, name)[keep])
         ok_idx = np.flatnonzero(ok)[keep]
         ok = np.zeros_like(ok)

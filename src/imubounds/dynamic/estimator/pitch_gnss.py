@@ -302,7 +302,11 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     tm = ctx.timing.get("gnss")
     dtr = float(tm.remainder_s) if tm is not None and tm.applied else 0.0
     vz = veh.max_speed * math.sin(m) + E
-    h_fix = _up(k_alt * ratio * ag.gnss_sig * (1 + 1e-12) + lev3 + dtr * vz)
+    # the receiver's vertical accuracy where it gives one, else the ratio x horizontal
+    va = ag.gnss_vacc if ag.gnss_vacc.size == ag.gnss_t.size else np.full(ag.gnss_t.size, np.nan)
+    has_va = np.isfinite(va) & (va > 0)
+    sig_v = np.where(has_va, va, ratio * ag.gnss_sig)
+    h_fix = _up(k_alt * sig_v * (1 + 1e-12) + lev3 + dtr * vz)
     b0, b1 = float(imu.bnd[0]), float(imu.bnd[-1])
     t = ag.gnss_t
     ok = np.isfinite(ag.gnss_alt) & ag.gvel_ok & (t > b0) & (t < b1)
@@ -393,7 +397,8 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     src_ratio = "default" if defaulted else "drive.yaml"
     out.budget = [
         Term("vertical sigma ratio", ratio, "x horizontal sigma per axis", src_ratio,
-             "each fix's altitude error is Gaussian with 1-sigma = this x the fix's "
+             "each fix's altitude error is Gaussian with 1-sigma = the receiver's v_acc_m "
+             f"(given at {int(has_va.sum())} of {has_va.size} fixes), else this x the fix's "
              "horizontal 1-sigma per axis"),
         Term("altitude bound (median)", float(np.median(hn)), "m", "computed",
              f"k = {k_alt:.3g} (gnss_position family, the altitude of each fix counted) x "

@@ -85,7 +85,9 @@ class GnssStream:
     ``speed_mps``/``course_rad`` (clockwise from north) and
     ``vel_n_mps``/``vel_e_mps`` are ``None`` when absent; ``vel_acc_mps`` is
     the receiver's 1-sigma accuracy of each horizontal velocity component
-    (NaN or ``None`` where not reported).
+    (NaN or ``None`` where not reported); ``v_acc_m`` the 1-sigma accuracy of the
+    altitude (u-blox ``vAcc``, PX4 ``epv``, the square root of a ROS NavSatFix up
+    variance; NaN or ``None`` where not reported).
     """
 
     t: Array
@@ -100,6 +102,7 @@ class GnssStream:
     vel_n_mps: Array | None = None
     vel_e_mps: Array | None = None
     vel_acc_mps: Array | None = None
+    v_acc_m: Array | None = None
 
     @property
     def has_velocity(self) -> bool:
@@ -139,6 +142,7 @@ class GnssStream:
             "vel_n_mps",
             "vel_e_mps",
             "vel_acc_mps",
+            "v_acc_m",
         ):
             _len(f"GNSS {name}", getattr(self, name), n, src)
 
