@@ -287,3 +287,22 @@ def test_receiver_vertical_accuracy_is_read_and_used() -> None:
     assert np.allclose(same.lo, base.lo) and np.allclose(same.hi, base.hi)
     d.gnss.v_acc_m = np.full(d.gnss.t.size, 200.0)
     assert build_context(d, None, {}).aiding.pitch is None
+
+
+def test_an_altitude_step_beyond_the_model_withdraws_the_guarantee() -> None:
+    """A 40 m altitude step from mid-trip (multipath, a datum change: beyond the stated
+    vertical error): the chords across it have no feasible pitch, which is a violation
+    near the step, and the run is not guaranteed; the clean trip raises none."""
+    from imubounds.dynamic.estimator import dynamic_margins
+    from imubounds.dynamic.estimator import pitch_gnss as PG
+
+    r = _hills(3)
+    d = r.drive
+    assert not dynamic_margins(d).to_dict()["violations"]
+    n = d.gnss.t.size
+    t_step = float(d.gnss.t[n // 2])
+    d.gnss.alt_m = d.gnss.alt_m + np.where(np.arange(n) >= n // 2, 40.0, 0.0)
+    out = dynamic_margins(d).to_dict()
+    v = [x for x in out["violations"] if x["test"] == PG.TEST_PITCH]
+    assert v and out["guaranteed"] is False
+    assert all(abs(x["t_start_s"] - t_step) < 128.0 for x in v), (t_step, v)

@@ -319,7 +319,8 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     s_lo, s_hi = _speed_hull(tn, tc, span, sp - ag.gvel_hi[nd], sp + ag.gvel_hi[nd],
                              veh.max_accel, veh.max_speed)
     c = np.sqrt(np.maximum(s_lo**2 - vh**2, 0.0)) - E * math.sin(m)
-    ulo = _dn(np.where(c >= 0, c, c / math.cos(m)) * (1 - 1e-12))
+    c = np.where(c >= 0, c, c / math.cos(m))
+    ulo = _dn(c - np.abs(c) * 1e-12)
     uhi = _up((s_hi + E * math.sin(m)) / math.cos(m) * (1 + 1e-12))
     irregular = ulo < 0  # near standstill: the cell's u sin(theta) taken as a slack
     dcell = np.diff(tc)
