@@ -63,6 +63,29 @@ def test_within_1p5_of_the_limit(name: str) -> None:
         assert all(r.ratio >= 0.9 for r in rows), f"{name} {ch}: below the limit: {table}"
 
 
+def test_within_1p5_of_the_limit_with_the_pitch_from_gnss() -> None:
+    """A hilly trip (+-19 m, industrial IMU, GNSS position + velocity, compass): accel_x's
+    gravity term follows the pitch from GNSS altitude in the estimator and in the
+    reference alike (the same boxes, ``ctx.aiding.pitch``); the ratio stays within 1.5
+    at every tau, and the reference's gravity term is below g sin(max tilt)."""
+    res = make_trip("hills", seed=2, duration_s=792.0, distance_m=9400.0,
+                    hill_amplitude_m=19.0, imu_preset="industrial",
+                    aiding=("gnss", "gnss-vel", "compass"))
+    with nearest():
+        ctx = build_context(res.drive, None, {})
+        assert ctx.aiding.pitch is not None
+        mb = MarginBuilder(ctx)
+        gz = mb.evaluate(ctx.plans["gyro_z"])
+        mb.fine_r = gz.raw_verdict != "exceeds"
+        m = mb.evaluate(ctx.plans["accel_x"])
+    rows = accel_x_ratios(ctx, m)
+    assert rows
+    table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
+    assert all(0.9 <= r.ratio <= TARGET for r in rows), table
+    full_tilt = 9.84 * np.sin(ctx.vehicle.max_tilt)
+    assert all(r.terms["gravity"] < 0.7 * full_tilt for r in rows), table
+
+
 @pytest.mark.parametrize(
     "aiding,seed,kw",
     [

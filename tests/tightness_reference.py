@@ -21,7 +21,11 @@ half-width of the true kernel mean ``[x_W]`` (gyro_z: :func:`gyro_z_limits`):
   record). This is a choice, not a proof of minimality: a world where the gyro noise
   deviates from its mean by its whole high-probability bound is also consistent with
   the gyro's bounds, but not with the heading at every epoch in between;
-* **gravity**: ``g_max sin(max tilt)`` (any tilt within the bound is consistent);
+* **gravity**: ``g_max sin(max tilt)`` (any tilt within the bound is consistent); where
+  the pitch is bounded from GNSS altitude (``ctx.aiding.pitch``: the same boxes the
+  estimator's input has, docs/dynamic-method.md 3a) half the kernel mean of
+  ``g_max (sin(hi) - sin(lo))`` over the window (any pitch within its boxes is
+  consistent), integrated here on a grid of the support;
 * **Earth rate**: ``2 Omega S + S^2/R_E`` with ``S`` the largest measured speed
   (GNSS velocity, chord speed of the fixes or the body-velocity sensor) in the window;
 
@@ -119,7 +123,7 @@ def accel_x_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
     trans = np.zeros(n)
     earth = np.zeros(n)
     vl = veh.lateral_speed_bound_mps
-    grav = G_MAX * math.sin(veh.max_tilt)
+    gravity = np.full(n, G_MAX * math.sin(veh.max_tilt))
     if plan.trapezoid:
         ex, ny = _gap_units(ag)
         chord = np.hypot(np.diff(ag.gnss_e), np.diff(ag.gnss_n)) / np.diff(ag.gnss_t)
@@ -162,7 +166,18 @@ def accel_x_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
         c = _support_centre(sig, ag, a1, b2)
         trans[w] = vmax * _gyro_abs_dev(sig, a1, b2, kern, c)
         earth[w] = 2 * OMEGA * speed + speed * speed / R_E
-    return {"ends": ends, "transport": trans, "gravity": np.full(n, grav), "earth": earth}
+        if ag.pitch is not None:
+            gravity[w] = _pitch_gravity(ag.pitch, a1, b2, kern)
+    return {"ends": ends, "transport": trans, "gravity": gravity, "earth": earth}
+
+
+def _pitch_gravity(pb: Any, a: float, b: float, kern: Any) -> float:
+    """Half the kernel mean of ``g_max (sin(hi) - sin(lo))`` over ``[a, b]``, the pitch
+    boxes ``pb`` (piecewise constant on ``pb.bnd``) on a grid of 2000 points."""
+    s = np.linspace(a, b, 2000)
+    k = np.clip(np.searchsorted(pb.bnd, s, side="right") - 1, 0, pb.lo.size - 1)
+    f = kern(s) * (np.sin(pb.hi[k]) - np.sin(pb.lo[k]))
+    return float(0.5 * G_MAX * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
 
 
 def accel_x_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:

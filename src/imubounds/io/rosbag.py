@@ -383,7 +383,8 @@ def _navsat(bag: _Bag, path: Path, topic: str, warnings: list[str]) -> GnssStrea
         cov = msg.position_covariance
         known = int(msg.position_covariance_type) > 0
         return (msg.latitude, msg.longitude, msg.altitude, float(msg.status.status),
-                cov[0] if known else math.nan, cov[4] if known else math.nan)
+                cov[0] if known else math.nan, cov[4] if known else math.nan,
+                cov[8] if known else math.nan)
 
     t, rows = _collect(bag, topic, row, path, warnings)
     if not rows:
@@ -394,8 +395,9 @@ def _navsat(bag: _Bag, path: Path, topic: str, warnings: list[str]) -> GnssStrea
     if np.all(np.isnan(h_acc)):
         warnings.append(f"{path}: {topic!r} carries no position covariance; the default HDOP "
                         "and CEP are used")
+    v_acc = np.where(np.isfinite(g[:, 6]) & (g[:, 6] > 0), np.sqrt(np.abs(g[:, 6])), np.nan)
     return GnssStream(t=t, lat_deg=g[:, 0], lon_deg=g[:, 1], alt_m=g[:, 2],
-                      fix=g[:, 3] >= 0, h_acc_m=h_acc)
+                      fix=g[:, 3] >= 0, h_acc_m=h_acc, v_acc_m=v_acc)
 
 
 def _imu_orientation(bag: _Bag, path: Path, topic: str, drive: Drive) -> None:

@@ -310,6 +310,7 @@ def _gnss(p: Path, g: Any) -> tuple[GnssStream, HeadingStream | None]:
         t=t, lat_deg=lat, lon_deg=lon, alt_m=alt, hdop=opt("hdop"), h_acc_m=opt("eph"), fix=fix,
         vel_n_mps=vn if ve is not None else None, vel_e_mps=ve if vn is not None else None,
         vel_acc_mps=opt("s_variance_m_s") if vn is not None and ve is not None else None,
+        v_acc_m=opt("epv"),
     )
     head = opt("heading")
     hs = None

@@ -14,6 +14,7 @@ import numpy as np
 
 from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator import clock as CK
+from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
@@ -92,6 +93,7 @@ FULL_DEFAULTS: dict[str, Any] = {
     "use_gnss_velocity": True,
     "use_velocity": True,
     "use_attitude": True,
+    "use_gnss_altitude": True,
     "reverses": False,
     "tol": 1e-3,
     "max_sweeps": 200,
@@ -224,17 +226,26 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     any_k = any(noise_terms[c].K > 0 or noise_terms[c].R > 0 for c in CHANNELS)
     # a stated drift bound: + each sample's flicker deviation from its window mean
     any_d = any(drift_rule(noise_terms[c]) != "model" for c in CHANNELS)
+    # the pitch from GNSS altitude (pitch_gnss.py): each fix's altitude joins the GNSS
+    # position family, the gyro_y noise over its chords the IMU intervals, and (unless a
+    # stated drift bound gives it) gyro_y's per-sample flicker the IMU samples
+    use_pitch = PG.applicable(drive, vehicle, o, imu.available, noise_terms)
+    n_pitch = PG.interval_events(n_fix, imu.duration) if use_pitch else 0
+    n_alt = n_fix if use_pitch else 0
+    n_fl = imu.n * sum(drift_rule(noise_terms[c]) != "stated"
+                       for c in ("gyro_x", "gyro_y", "gyro_z")) if use_pitch else 0
     alpha = AlphaPlan(
         float(o["alpha"]),
         {
-            "imu_samples": imu.n * 6 * (2 if any_d else 1),
+            "imu_samples": imu.n * 6 * (2 if any_d else 1) + n_fl,
             "imu_windows": 1,
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
-            "imu_intervals": 7 * (te.size - 1) + CK.clock_bound_events(heading, timing),
+            "imu_intervals": 7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
+            + n_pitch,
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
-            "gnss_position": n_fix,
+            "gnss_position": n_fix + n_alt,
             "gnss_velocity": n_vel,
             # + the compass error model's coefficients (course_check.estimate_heading_model)
             "heading": n_head + CK.model_events(heading),
@@ -248,10 +259,14 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "change test; split equally over the tau levels)",
             "imu_intervals": "the noise integrated over each link of the smoother (flat and "
             "ramp weights, per channel) and, under the default heading clock bound, the gyro "
-            "z noise over that bound at each heading epoch",
+            "z noise over that bound at each heading epoch"
+            + (" and, for the pitch from GNSS altitude, the gyro noise over each altitude "
+               "chord's halves (reflection principle) and its rate-error magnitudes"
+               if n_pitch else ""),
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
-            "gnss_position": "each fix's position error (Rayleigh radius)",
+            "gnss_position": "each fix's position error (Rayleigh radius)"
+            + (" and its altitude error (pitch from GNSS altitude)" if n_alt else ""),
             "gnss_velocity": "each fix's velocity error (Rayleigh radius)",
             "heading": "each heading epoch's noise (and the coefficients of the compass "
             "error model estimated against the GNSS course)",
@@ -286,7 +301,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
         te = _epochs(drive, heading, imu.t0, o)[0]
         te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
         alpha.counts["imu_intervals"] = (7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
-                                         + joined.get("imu_intervals", 0))
+                                         + joined.get("imu_intervals", 0) + n_pitch)
         alpha.counts["heading"] += CK.model_events(heading) - n_model
     k_ps = alpha.k("imu_samples")
     T = imu.duration
@@ -355,9 +370,52 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
                 "; ".join(n for n in heading.notes if n.startswith("check failed")) or str(cc),
             )
         )
+    if use_pitch:
+        _pitch_from_gnss(ctx)
     ctx.tilt = build_tilt(ctx)
     _plan_windows(ctx)
     return ctx
+
+
+def _pitch_from_gnss(ctx: Context) -> None:
+    """Pitch intervals from GNSS altitude (pitch_gnss.py), used where they narrow the
+    max tilt; a chord with no feasible pitch is a violation."""
+    pb = PG.pitch_boxes(ctx)
+    if pb is None:
+        return
+    t0 = float(ctx.imu.t0)
+    for a, b in pb.infeasible:
+        ctx.violations.append(V.Violation(
+            "gnss", a + t0, b + t0, PG.TEST_PITCH,
+            "no pitch within the max tilt makes these GNSS altitude changes reachable with "
+            "the gyro_y propagation and the vehicle's off-axis velocity bound: the altitude "
+            "error (gnss.vertical_sigma_ratio), the gyro budget or the vehicle bounds fail; "
+            "those spans keep +-max tilt",
+        ))
+    ag = ctx.aiding
+    ag.budget["pitch_from_gnss"] = pb.budget
+    st = ctx.drive.settings
+    dflt = "gnss.vertical_sigma_ratio" in getattr(st, "defaulted", [])
+    ctx.assumptions.append(
+        "GNSS altitude (pitch from GNSS altitude): each fix's vertical error Gaussian with "
+        f"1-sigma = {st.gnss.vertical_sigma_ratio:g} x its horizontal 1-sigma per axis ("
+        + ("default: state gnss.vertical_sigma_ratio in drive.yaml" if dflt
+           else "drive.yaml gnss.vertical_sigma_ratio")
+        + "); no altitude step beyond that model (multipath)"
+    )
+    m = ctx.vehicle.max_tilt
+    if not pb.narrows(m):
+        ctx.notes.append(
+            "pitch from GNSS altitude: nothing narrower than the max tilt "
+            f"({m / DEG:g} deg; median half-width {pb.median_halfwidth / DEG:.3g} deg)"
+        )
+        return
+    ag.pitch = pb
+    ctx.notes.append(
+        f"pitch from GNSS altitude, the gyros and the non-holonomic bounds: median "
+        f"half-width {pb.median_halfwidth / DEG:.3g} deg (max tilt {m / DEG:g} deg); roll "
+        "stays +-max tilt (docs/dynamic-method.md section 3a)"
+    )
 
 
 def _plan_windows(ctx: Context) -> None:

@@ -473,6 +473,8 @@ class Aiding:
     gnss_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
     gnss_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     gnss_h: np.ndarray = field(default_factory=lambda: np.zeros(0))  # box half-width, m
+    gnss_alt: np.ndarray = field(default_factory=lambda: np.zeros(0))  # m, NaN: none
+    gnss_vacc: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1-sigma m, NaN
     # GNSS velocity (nav, ENU), per-component half-width
     gvel_ok: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     gvel_e: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -499,6 +501,8 @@ class Aiding:
     att_pitch: np.ndarray | None = None
     att_bound: float = 0.0
     att_source: str = ""
+    #: pitch intervals from GNSS altitude without an attitude stream (pitch_gnss.py)
+    pitch: Any = None
     budget: dict[str, list[Term]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     gnss_rejected: list[tuple[float, float]] = field(default_factory=list)
@@ -545,7 +549,16 @@ class Aiding:
         if not self.has_attitude:
             m = vehicle.max_tilt
             z = np.full(s0.shape, m)
-            return -z, z, -z, z
+            if self.pitch is None:
+                return -z, z, -z, z
+            pb = self.pitch  # hull of the pieces [s0, s1] touches
+            if not hasattr(self, "_pitch_ext"):
+                self._pitch_ext = RangeExt(pb.lo, pb.hi)
+            k = pb.lo.size - 1
+            i = np.clip(np.searchsorted(pb.bnd, s0, side="right") - 1, 0, k)
+            j = np.clip(np.searchsorted(pb.bnd, s1, side="left") - 1, i, k)
+            pl, ph = self._pitch_ext.query(i, j)
+            return -z, z, np.maximum(pl, -m), np.minimum(ph, m)
         assert self.att_t is not None and self.att_roll is not None
         assert self.att_pitch is not None
         at = self.att_t
@@ -678,6 +691,9 @@ def _gnss_positions(
     ag.origin = origin
     ag.gnss_t = _rel(g.t[ok], t0)
     ag.gnss_e, ag.gnss_n = e, n
+    ag.gnss_alt = np.asarray(alt, float) if alt is not None else np.full(e.size, np.nan)
+    va = getattr(g, "v_acc_m", None)
+    ag.gnss_vacc = np.asarray(va[ok], float) if va is not None else np.full(e.size, np.nan)
     cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
     dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
@@ -730,7 +746,8 @@ def _gnss_positions(
             for i, miss in zip(np.flatnonzero(out), misses, strict=True)
         ]
         keep = ~out
-        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig"):
+        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig", "gnss_alt",
+                     "gnss_vacc"):
             setattr(ag, name, getattr(ag, name)[keep])
         ok_idx = np.flatnonzero(ok)[keep]
         ok = np.zeros_like(ok)

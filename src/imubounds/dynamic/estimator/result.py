@@ -279,6 +279,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         "lateral_speed_bound_mps": ctx.vehicle.lateral_speed_bound_mps,
         "vertical_speed_bound_mps": ctx.vehicle.vertical_bound,
         "sources": ctx.vehicle.sources,
+        "pitch": _pitch_source(ctx),
     }
     out["margins"] = {}
     out["verdict"] = {}
@@ -364,6 +365,22 @@ def _count_by(dropped: list[Any]) -> dict[str, int]:
     for d in dropped:
         c[d.sensor] = c.get(d.sensor, 0) + 1
     return c
+
+
+def _pitch_source(ctx: Any) -> dict[str, Any]:
+    """Where the pitch intervals of the gravity terms come from."""
+    ag = ctx.aiding
+    m = ctx.vehicle.max_tilt * 180 / math.pi
+    if ag.has_attitude:
+        return {"source": f"attitude stream ({ag.att_source})"}
+    if ag.pitch is not None:
+        return {
+            "source": "GNSS altitude, gyros and non-holonomic bounds (pitch_gnss.py)",
+            "median_halfwidth_deg": ag.pitch.median_halfwidth * 180 / math.pi,
+            "max_tilt_deg": m,
+        }
+    return {"source": f"max tilt ({ctx.vehicle.sources.get('max_tilt', 'default')})",
+            "median_halfwidth_deg": m}
 
 
 def _assumptions(ctx: Any) -> list[str]:

@@ -189,16 +189,32 @@ def refine_vehicle(
     return imu, aiding, notes
 
 
-def dominant_default(ch: str, veh: Vehicle, halfwidth: float | None, tau_s: float) -> str | None:
+def dominant_default(
+    ch: str, veh: Vehicle, halfwidth: float | None, tau_s: float,
+    pitch_halfwidth: float | None = None,
+) -> str | None:
     """A note when an assumed default dominates an accelerometer's aided interval at its
-    longest averaging time: the gravity through the default maximum tilt."""
+    longest averaging time: the gravity through the default maximum tilt. accel_x's
+    gravity term follows the pitch: where the data bounded it (``pitch_halfwidth``, the
+    median half-width of the pitch from GNSS altitude, rad) the default does not
+    dominate it unless g sin of that half-width still does."""
     if halfwidth is None or not ch.startswith("accel_") or ch == "accel_z":
         return None
     if not veh.sources.get("max_tilt", "default").startswith("default"):
         return None
-    grav = 9.84 * math.sin(veh.max_tilt)
+    tilt = veh.max_tilt
+    if ch == "accel_x" and pitch_halfwidth is not None:
+        tilt = min(tilt, pitch_halfwidth)
+    grav = 9.84 * math.sin(tilt)
     if grav < 0.5 * halfwidth:
         return None
+    if tilt < veh.max_tilt:
+        return (
+            f"the pitch from GNSS altitude (median +-{tilt / DEG:.3g} deg, within the "
+            f"assumed default maximum tilt {veh.max_tilt / DEG:g} deg) dominates: gravity "
+            f"through it is +-{grav:.3g} m/s^2 of the +-{halfwidth:.3g} m/s^2 at tau "
+            f"{tau_s:.3g} s (docs/dynamic-method.md section 3a)"
+        )
     return (
         f"the assumed default maximum tilt ({veh.max_tilt / DEG:g} deg; nothing in the data "
         f"bounds roll and pitch) dominates: gravity through it is +-{grav:.3g} m/s^2 of the "

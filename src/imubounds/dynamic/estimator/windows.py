@@ -159,7 +159,9 @@ class MarginBuilder(WindowContext):
         aided = [lv for lv in levels if lv.kind == "aided"]
         if aided:
             last = aided[-1].summary()
-            note = dominant_default(ch, self.veh, last["halfwidth_median"], last["tau_s"])
+            pb = self.ctx.aiding.pitch
+            note = dominant_default(ch, self.veh, last["halfwidth_median"], last["tau_s"],
+                                    None if pb is None else pb.median_halfwidth)
             if note:
                 out.notes.append(note)
             gz = self.ctx.imu.sig["gyro_z"]

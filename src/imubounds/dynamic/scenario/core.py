@@ -186,7 +186,8 @@ def _settings(
         imu_axes=("x", "y", "z"),
         imu=imu,
         gnss=GnssSettings(
-            cep_m=cfg.gps_cep_m, default_hdop=DEFAULT_HDOP, vel_sigma_mps=cfg.gps_vel_sigma_mps
+            cep_m=cfg.gps_cep_m, default_hdop=DEFAULT_HDOP, vel_sigma_mps=cfg.gps_vel_sigma_mps,
+            vertical_sigma_ratio=1.5,  # the altitude error model (aiding.py)
         ),
         velocity=(
             VelocitySettings(bound_mps=vel["bound_mps"], scale=vel["scale"])

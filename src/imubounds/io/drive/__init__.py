@@ -85,7 +85,9 @@ class GnssStream:
     ``speed_mps``/``course_rad`` (clockwise from north) and
     ``vel_n_mps``/``vel_e_mps`` are ``None`` when absent; ``vel_acc_mps`` is
     the receiver's 1-sigma accuracy of each horizontal velocity component
-    (NaN or ``None`` where not reported).
+    (NaN or ``None`` where not reported); ``v_acc_m`` the 1-sigma accuracy of the
+    altitude (u-blox ``vAcc``, PX4 ``epv``, the square root of a ROS NavSatFix up
+    variance; NaN or ``None`` where not reported).
     """
 
     t: Array
@@ -100,6 +102,7 @@ class GnssStream:
     vel_n_mps: Array | None = None
     vel_e_mps: Array | None = None
     vel_acc_mps: Array | None = None
+    v_acc_m: Array | None = None
 
     @property
     def has_velocity(self) -> bool:
@@ -139,6 +142,7 @@ class GnssStream:
             "vel_n_mps",
             "vel_e_mps",
             "vel_acc_mps",
+            "v_acc_m",
         ):
             _len(f"GNSS {name}", getattr(self, name), n, src)
 
@@ -249,6 +253,9 @@ class GnssSettings:
     cep_m: float = DEFAULT_CEP_M
     default_hdop: float = DEFAULT_HDOP
     vel_sigma_mps: float = 0.1
+    #: 1-sigma of each fix's altitude error as a multiple of its horizontal 1-sigma per
+    #: axis (the pitch from GNSS altitude, docs/dynamic-method.md section 3a)
+    vertical_sigma_ratio: float = 1.5
     #: clock offset of the GNSS stamps against the IMU (true time = stamp - offset, s)
     #: and a bound on what remains of it (s); the dynamic estimator applies and budgets
     #: them (docs/dynamic-method.md, timing)

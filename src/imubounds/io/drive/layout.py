@@ -13,8 +13,9 @@ with a complete example in ``docs/drive-layout.md``.
     z up).
 ``gnss.csv``
     ``time_s, lat_deg, lon_deg``; optional ``alt_m, hdop, h_acc_m`` (1-sigma
-    per horizontal axis, m), ``fix`` (0 = no fix), ``speed_mps, course_deg``
-    (clockwise from true north), ``vel_n_mps, vel_e_mps, vel_acc_mps``.
+    per horizontal axis, m), ``v_acc_m`` (1-sigma of the altitude, m), ``fix``
+    (0 = no fix), ``speed_mps, course_deg`` (clockwise from true north),
+    ``vel_n_mps, vel_e_mps, vel_acc_mps``.
 ``velocity.csv``
     body-frame velocity of a DVL or wheel/CAN speed: ``time_s, u_mps``,
     optional ``v_mps, w_mps`` and a text column ``kind`` (dvl, wheel, can,
@@ -121,6 +122,7 @@ TABLE_COLUMNS: dict[str, tuple[str, ...]] = {
         "vel_n_mps",
         "vel_e_mps",
         "vel_acc_mps",
+        "v_acc_m",
     ),
     "velocity": ("u_mps", "v_mps", "w_mps", "kind"),
     "heading": ("heading_deg", "mag_x_*", "mag_y_*", "mag_z_*"),
@@ -441,6 +443,7 @@ def gnss_from_table(df: pd.DataFrame, where: str) -> GnssStream:
         vel_n_mps=_col(df, "vel_n_mps", where),
         vel_e_mps=_col(df, "vel_e_mps", where),
         vel_acc_mps=_col(df, "vel_acc_mps", where),
+        v_acc_m=_col(df, "v_acc_m", where),
     )
 
 
@@ -742,6 +745,7 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
                 "vel_n_mps": g.vel_n_mps,
                 "vel_e_mps": g.vel_e_mps,
                 "vel_acc_mps": g.vel_acc_mps,
+                "v_acc_m": g.v_acc_m,
             },
         )
     v = drive.velocity

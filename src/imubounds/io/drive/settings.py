@@ -35,6 +35,7 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "gnss.cep_m": (0.0, False, None),
     "gnss.default_hdop": (0.0, False, None),
     "gnss.vel_sigma_mps": (0.0, False, None),
+    "gnss.vertical_sigma_ratio": (0.0, False, None),
     "gnss.time_offset_s": (-60.0, True, 60.0),
     "gnss.time_offset_bound_s": (0.0, True, 60.0),
     "heading.time_offset_s": (-60.0, True, 60.0),

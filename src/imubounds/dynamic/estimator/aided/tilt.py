@@ -66,6 +66,10 @@ def build_tilt(ctx: Any) -> TiltSignals:
         inner = at[(at > b0) & (at < b1)]
         bnd = np.concatenate([[b0], inner, [b1]])
         rl, rh, pl, ph = ag.tilt_range(bnd[:-1], bnd[1:], veh)
+    elif ag.pitch is not None:
+        # pitch from GNSS altitude (pitch_gnss.py): its pieces; roll +-max tilt
+        bnd = ag.pitch.bnd
+        rl, rh, pl, ph = ag.tilt_range(bnd[:-1], bnd[1:], veh)
     else:
         bnd = np.array([b0, b1])
         m = veh.max_tilt
