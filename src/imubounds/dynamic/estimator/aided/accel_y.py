@@ -1,9 +1,12 @@
 """accel_y (docs/dynamic-method.md, section 3, **accel_y**): ``(v(b) - v(a))/tau +
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
-``max|u - u0| mean|r|``."""
+``max|u - u0| mean|r|``; with velocity epochs also per heading gap
+(:func:`transport_by_gaps`), the narrower of the two."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -12,8 +15,11 @@ from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
+
+_EPS = 2.3e-16
 
 
 def mean_r_from_heading(
@@ -30,6 +36,74 @@ def mean_r_from_heading(
     return r_from_psidot(w, dpsi, lp, tau, own_q=True)
 
 
+def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per boxcar window [a, b]: its ends and the heading epochs strictly inside, all
+    windows concatenated: the knots, their window's index, their position in it, and
+    each window's first knot and knot count."""
+    k0 = np.searchsorted(ht, a, side="right")
+    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    nk = (k1 - k0) + 2
+    start = np.concatenate([[0], np.cumsum(nk)[:-1]])
+    win = np.repeat(np.arange(a.size), nk)
+    pos = np.arange(int(np.sum(nk))) - start[win]
+    last = pos == nk[win] - 1
+    inner = np.clip(k0[win] + pos - 1, 0, max(ht.size - 1, 0))
+    t = np.where(pos == 0, a[win], np.where(last, b[win], ht[inner] if ht.size else 0.0))
+    return t, win, pos, start, nk
+
+
+def transport_by_gaps(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, bv: Any, r_mag: np.ndarray
+) -> IA:
+    """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
+    ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
+    (:func:`~imubounds.dynamic.estimator.aided.velocity.vel_range`), so
+    ``tau mean(r u) = sum_k u0_k int_k r + sum_k int_k (u - u0_k) r``. With
+    ``r = psi' c - q tan(phi)`` (c within ``c0 +- cdev``): the first sum is
+    ``c0 sum_k u0_k (psi_k+1 - psi_k)`` (by parts: ``sum_j psi_j w_j`` with ``w_j =
+    u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
+    twice by u0) plus ``max|u0| tau (rate cdev + mean|q| tan + Earth)`` (the radius of
+    :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` at a zero heading
+    change); the second is within ``max_k half-range(u) x tau mean|r|``."""
+    a, b = lp.a1, lp.b2
+    t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
+    psi = heading_at(w, t)
+    ok_k = np.isfinite(psi.lo) & np.isfinite(psi.hi)
+    m = np.where(ok_k, psi.mid(), 0.0)
+    rho = np.where(ok_k, up(np.maximum(psi.hi - m, m - psi.lo)), np.inf)
+    ref = m[start]
+    ms = m - ref[win]  # the heading relative to the window's first knot
+    # u over each gap (knot j to j + 1 of the same window)
+    gap = pos < nk[win] - 1
+    ga, gb = t[gap], t[1:][gap[:-1]] if t.size > 1 else t[:0]
+    rng = vel_range(w, bv, ga, gb)
+    ulo, uhi = rng["u_lo"], rng["u_hi"]
+    u0 = 0.5 * (ulo + uhi)
+    du = up(np.maximum(uhi - u0, u0 - ulo))
+    # weight of knot j: u0 of the gap before it minus u0 of the gap after it
+    u_after = np.zeros(t.size)
+    u_after[gap] = u0
+    u_before = np.zeros(t.size)
+    u_before[1:][gap[:-1]] = u0
+    wj = u_before - u_after
+    cen = np.add.reduceat(wj * ms, start)
+    rad = np.add.reduceat(np.abs(wj) * rho, start)
+    mag = np.add.reduceat(np.abs(wj) * (np.abs(ms) + rho + np.abs(m) + np.abs(ref[win])), start)
+    rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
+    ok = np.logical_and.reduceat(ok_k, start)
+    gwin = win[gap]
+    umax = np.zeros(a.size)
+    np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
+    dmax = np.zeros(a.size)
+    np.maximum.at(dmax, gwin, du)
+    c0 = w.tilt.hull("cosp_over_cosr", a, b).mid()
+    extra = r_from_psidot(w, IA(np.zeros(a.size)), lp, tau, own_q=True)
+    ext = up(np.maximum(extra.hi, -extra.lo))
+    head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
+    x = head + pm(up(umax * ext)) + pm(up(dmax * r_mag))
+    return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
+
+
 def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
     """``[x_W]`` of accel_y."""
     h = horizontal_terms(w, plan, lp, tau)
@@ -39,6 +113,12 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
     ru = IA(u0) * mean_r + pm(du * r_mag)
+    bv = body_velocity(w)
+    if not plan.trapezoid and bv is not None and w.ag.has_heading:
+        # the narrower of the two enclosures of mean(r u), per window
+        rg = transport_by_gaps(w, lp, tau, bv, r_mag)
+        use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
+        ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
     if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound
