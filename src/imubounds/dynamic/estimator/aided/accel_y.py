@@ -52,6 +52,36 @@ def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ..
     return t, win, pos, start, nk
 
 
+def _speed_part(
+    w: WindowContext,
+    gwin: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    du: np.ndarray,
+    n: int,
+    tau: np.ndarray,
+    r_mag: np.ndarray,
+) -> np.ndarray:
+    """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
+    half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
+    ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
+    (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
+    magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
+    its maximum included, which gives ``max du x r_mag``)."""
+    dmax = np.zeros(n)
+    np.maximum.at(dmax, gwin, du)
+    best = up(dmax * r_mag)
+    if du.size == 0:
+        return best
+    coarse = up(w.gyro_abs_mean("gyro_z", ga, gb) * (gb - ga))
+    for d0 in np.quantile(du, [0.5, 0.75, 0.9, 0.97]):
+        ex = np.zeros(n)
+        np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
+        cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
+        best = np.minimum(best, cand)
+    return best
+
+
 def transport_by_gaps(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, bv: Any, r_mag: np.ndarray
 ) -> IA:
@@ -64,7 +94,7 @@ def transport_by_gaps(
     u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
     twice by u0) plus ``max|u0| tau (rate cdev + mean|q| tan + Earth)`` (the radius of
     :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` at a zero heading
-    change); the second is within ``max_k half-range(u) x tau mean|r|``."""
+    change); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
     a, b = lp.a1, lp.b2
     t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
     psi = heading_at(w, t)
@@ -94,13 +124,12 @@ def transport_by_gaps(
     gwin = win[gap]
     umax = np.zeros(a.size)
     np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
-    dmax = np.zeros(a.size)
-    np.maximum.at(dmax, gwin, du)
+    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag)
     c0 = w.tilt.hull("cosp_over_cosr", a, b).mid()
     extra = r_from_psidot(w, IA(np.zeros(a.size)), lp, tau, own_q=True)
     ext = up(np.maximum(extra.hi, -extra.lo))
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
-    x = head + pm(up(umax * ext)) + pm(up(dmax * r_mag))
+    x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
 
 
