@@ -33,23 +33,23 @@ AIDING_SETS = {
 TARGET = 1.5
 
 #: accel_y's median half-width / reference limit (paper trip, seed 30, tau >= 1.28 s,
-#: the heading's period): the ceilings it is held to where it misses the 1.5 target
-#: (issue 24 item 4; docs/dynamic-method.md section 6). Why it misses: the speed part of
-#: the transport term, ``sum_k half-range_k(u) int_k |r|``: the bound of mean|r|
-#: (``aided.transport.r_abs``, 0.053 rad/s at 164 s where the gyro's record centred by the
-#: heading gives 0.03: the gyro's flicker at the blocks' time scale, in the concentration
-#: term, and the blocks' heading radii) times u's half-range over a heading gap (the
-#: velocity radius plus the growth between epochs, 0.70 m/s median against the
-#: reference's radius 0.53 with GNSS velocity, 0.42 against 0.34 with wheel speed);
+#: the heading's period): 1.5 with a DVL or wheel speed (wheel at 82 s: 1.49), and the
+#: ceilings the GNSS sets are held to while they miss it (issue 24 item 4;
+#: docs/dynamic-method.md section 6). Why they miss: the speed part of the transport term,
+#: ``sum_k half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``,
+#: 0.053 rad/s at 164 s where the gyro's record centred by the heading gives 0.03: the
+#: gyro's flicker at the blocks' time scale, in the concentration term, and the blocks'
+#: heading radii) times u's half-range over a heading gap (the GNSS velocity radius plus
+#: the growth between epochs, 0.70 m/s median against the reference's radius 0.53);
 #: positions only: u is bounded only by the chord speed (u0 = 0, du = S_max), so
 #: ``S_max x mean|r|`` (12 m/s x 0.05-0.15 rad/s) is nearly the whole margin.
 ACCEL_Y_CEILING = {
     "positions+compass": 10.0,
-    "gnss-pos+vel+compass": 2.05,
-    "course-heading": 1.95,
+    "gnss-pos+vel+compass": 1.9,
+    "course-heading": 1.8,
     "dvl+compass": TARGET,
-    "wheel+gnss+compass": 1.75,
-    "wheel+compass": 1.75,
+    "wheel+gnss+compass": TARGET,
+    "wheel+compass": TARGET,
 }
 
 
@@ -125,8 +125,8 @@ def test_accel_y_against_the_limit(name: str) -> None:
 )
 def test_accel_y_within_1p5_of_the_limit(name: str) -> None:
     """The issue's target for accel_y: <= 1.5 x the reference limit at every tau >= the
-    heading's period. Holds with DVL + compass; a strict xfail for the other sets (it
-    reports when one starts to hold)."""
+    heading's period. Holds with a DVL or wheel speed and a compass; a strict xfail for
+    the GNSS sets (it reports when one starts to hold)."""
     rows = _accel_y_rows(name)
     table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
     assert all(r.ratio >= 0.9 for r in rows), f"{name} accel_y: below the limit: {table}"

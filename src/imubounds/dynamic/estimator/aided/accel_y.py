@@ -6,26 +6,36 @@ u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import pm, up
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
+from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 _EPS = 2.3e-16
+#: the share of the window's gyro-deviation probability given to the bound of mean|q|
+#: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
+Q_SHARE = 0.1
 
 
 def mean_r_from_heading(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray, trapezoid: bool
+    w: WindowContext,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    trapezoid: bool,
+    q_mean: np.ndarray | None = None,
 ) -> IA:
-    """Kernel mean of the yaw rate r from the heading (for accel_y's transport term)."""
+    """Kernel mean of the yaw rate r from the heading (for accel_y's transport term);
+    ``q_mean`` a bound of the kernel mean of |q| (else gyro_y's magnitude)."""
     if trapezoid:
         p1 = heading_mean(w, lp.a1, lp.b1)
         p2 = heading_mean(w, lp.a2, lp.b2)
@@ -33,7 +43,31 @@ def mean_r_from_heading(
         p1 = heading_at(w, lp.a1)
         p2 = heading_at(w, lp.a2)
     dpsi = (p2 - p1) / IA(tau)
-    return r_from_psidot(w, dpsi, lp, tau, own_q=True)
+    return r_from_psidot(w, dpsi, lp, tau, own_q=True, q_mean=q_mean)
+
+
+def _rate_terms(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, q_mean: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """``c0``, the radius of ``r - c0 psi'`` and the Earth's share of the gyro's rate.
+
+    In ``f_y = v' + r u + ...`` r is the body's rate relative to the navigation frame,
+    ``psi' c - q_nb tan(phi)`` (c = cos(theta)/cos(phi) within ``c0 +- cdev``); the
+    Earth's rotation and the transport rate enter through the Coriolis term of
+    :func:`~imubounds.dynamic.estimator.aided.horizontal.horizontal_terms`, so unlike
+    gyro_z's :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` no Earth
+    rate is added to r here. The gyros measure the inertial rates: ``|q_nb| <= |q| +
+    earth`` and ``|r_nb| <= |r| + earth``, ``earth = Omega + max_speed/R_E``."""
+    veh = w.veh
+    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
+    c0 = c.mid()
+    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
+    rate = veh.max_rate / math.cos(veh.max_tilt)
+    q = w.kernel_mag("gyro_y", lp, tau) if q_mean is None else q_mean
+    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
+    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
+    ext = up(up(rate * cdev) + up(up(q + earth) * tr))
+    return c0, ext, earth
 
 
 def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -61,20 +95,23 @@ def _speed_part(
     n: int,
     tau: np.ndarray,
     r_mag: np.ndarray,
+    earth: float,
 ) -> np.ndarray:
     """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
     half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
     ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
     (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
     magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
-    its maximum included, which gives ``max du x r_mag``)."""
+    its maximum included, which gives ``max du x r_mag``). r is relative to the
+    navigation frame: the gyro's bounds plus ``earth`` (:func:`_rate_terms`)."""
+    r_mag = up(r_mag + earth)
     dmax = np.zeros(n)
     np.maximum.at(dmax, gwin, du)
     best = up(dmax * r_mag)
     if du.size == 0:
         return best
-    coarse = up(w.gyro_abs_mean("gyro_z", ga, gb) * (gb - ga))
-    for d0 in np.quantile(du, [0.5, 0.75, 0.9, 0.97]):
+    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
+    for d0 in np.quantile(du, [0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99]):
         ex = np.zeros(n)
         np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
         cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
@@ -83,7 +120,12 @@ def _speed_part(
 
 
 def transport_by_gaps(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray, bv: Any, r_mag: np.ndarray
+    w: WindowContext,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    bv: Any,
+    r_mag: np.ndarray,
+    q_mean: np.ndarray | None = None,
 ) -> IA:
     """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
     ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
@@ -92,9 +134,9 @@ def transport_by_gaps(
     ``r = psi' c - q tan(phi)`` (c within ``c0 +- cdev``): the first sum is
     ``c0 sum_k u0_k (psi_k+1 - psi_k)`` (by parts: ``sum_j psi_j w_j`` with ``w_j =
     u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
-    twice by u0) plus ``max|u0| tau (rate cdev + mean|q| tan + Earth)`` (the radius of
-    :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` at a zero heading
-    change); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
+    twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
+    (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
+    Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
     a, b = lp.a1, lp.b2
     t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
     psi = heading_at(w, t)
@@ -124,28 +166,43 @@ def transport_by_gaps(
     gwin = win[gap]
     umax = np.zeros(a.size)
     np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
-    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag)
-    c0 = w.tilt.hull("cosp_over_cosr", a, b).mid()
-    extra = r_from_psidot(w, IA(np.zeros(a.size)), lp, tau, own_q=True)
-    ext = up(np.maximum(extra.hi, -extra.lo))
+    c0, ext, earth = _rate_terms(w, lp, tau, q_mean)
+    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag, earth)
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
+
+
+def gyro_deviation_bounds(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The transport term's two gyro bounds, sharing the window's second bounded event
+    (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
+    (``Q_SHARE`` of its probability to the second, the rest to the first): the kernel
+    mean of |r| (``aided.transport.r_abs``) and
+    of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
+    p = w.p_window
+    try:
+        w.p_window = (1.0 - Q_SHARE) * p
+        r_mag = r_abs(w, lp, tau)
+    finally:
+        w.p_window = p
+    return r_mag, q_window_mean(w, lp, tau, Q_SHARE * p)
 
 
 def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
     """``[x_W]`` of accel_y."""
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
-    r_mag = r_abs(w, lp, tau)
-    mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid)
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau)
+    mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
     ru = IA(u0) * mean_r + pm(du * r_mag)
     bv = body_velocity(w)
     if not plan.trapezoid and bv is not None and w.ag.has_heading:
         # the narrower of the two enclosures of mean(r u), per window
-        rg = transport_by_gaps(w, lp, tau, bv, r_mag)
+        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
         use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
