@@ -105,3 +105,24 @@ def test_fault_detected_with_the_papers_sensors(fault: tuple[str, float] | None)
         # gyro_z: the tilt coupling from gyro_y's window means (0.0009 rad/s at 164 s
         # with the per-sample bound)
         assert margin_at(d, "gyro_z", 164.0) <= 0.0006
+
+
+@pytest.mark.parametrize(
+    "aiding",
+    [("dvl", "compass"), ("gnss", "gnss-vel", "compass"), ("wheel", "compass")],
+    ids=["dvl", "gnss-vel", "wheel"],
+)
+@pytest.mark.parametrize("bias", [None, 0.3], ids=["clean", "accel_y+0.3"])
+def test_accel_y_fault_detected_on_its_channel_only(aiding: tuple, bias: float | None) -> None:
+    """accel_y (issue 24 item 4: the transport term per heading gap, the windows on the
+    compass epochs): a 0.3 m/s^2 accel_y bias from mid-trip gives ``exceeds`` on accel_y
+    only, in a window that reaches past the fault; the clean trip none."""
+    faults = () if bias is None else (Fault("accel_y", "bias", bias, 396.0),)
+    res = make_trip("paper", seed=30, faults=faults, aiding=aiding)
+    d = dynamic_margins(res.drive).to_dict()
+    exceeding = {ch for ch, v in d["verdict"].items() if v == "exceeds"}
+    assert exceeding == (set() if bias is None else {"accel_y"}), d["verdict"]
+    if bias is not None:
+        first = d["verdict_detail"]["accel_y"]["exceeding_windows"][0]
+        end = first.get("t_change_s", first["t_start_s"]) + first["tau_s"]
+        assert end > 396.0 - 1.0

@@ -10,14 +10,16 @@ from typing import Any
 import numpy as np
 import pytest
 
+from imubounds.dynamic.estimator.aided.accel_y import transport_by_gaps
 from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
 from imubounds.dynamic.estimator.windows import MarginBuilder
 from imubounds.dynamic.scenario import make_trip
 from imubounds.interval.rounding import nearest
-from tests.tightness_reference import accel_x_ratios, gyro_z_ratios
+from tests.tightness_reference import accel_x_ratios, accel_y_ratios, gyro_z_ratios
 
 #: the simulator's aiding sets (issue 24 item 4)
 AIDING_SETS = {
@@ -29,6 +31,26 @@ AIDING_SETS = {
     "wheel+compass": ("wheel", "compass"),
 }
 TARGET = 1.5
+
+#: accel_y's median half-width / reference limit (paper trip, seed 30, tau >= 1.28 s,
+#: the heading's period): 1.5 with a DVL or wheel speed (wheel at 82 s: 1.49), and the
+#: ceilings the GNSS sets are held to while they miss it (issue 24 item 4;
+#: docs/dynamic-method.md section 6). Why they miss: the speed part of the transport term,
+#: ``sum_k half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``,
+#: 0.053 rad/s at 164 s where the gyro's record centred by the heading gives 0.03: the
+#: gyro's flicker at the blocks' time scale, in the concentration term, and the blocks'
+#: heading radii) times u's half-range over a heading gap (the GNSS velocity radius plus
+#: the growth between epochs, 0.70 m/s median against the reference's radius 0.53);
+#: positions only: u is bounded only by the chord speed (u0 = 0, du = S_max), so
+#: ``S_max x mean|r|`` (12 m/s x 0.05-0.15 rad/s) is nearly the whole margin.
+ACCEL_Y_CEILING = {
+    "positions+compass": 10.0,
+    "gnss-pos+vel+compass": 1.9,
+    "course-heading": 1.8,
+    "dvl+compass": TARGET,
+    "wheel+gnss+compass": TARGET,
+    "wheel+compass": TARGET,
+}
 
 
 def _context(aiding: tuple[str, ...], seed: int, **kw: Any) -> tuple[Any, Any, MarginBuilder]:
@@ -84,6 +106,68 @@ def test_within_1p5_of_the_limit_with_the_pitch_from_gnss() -> None:
     assert all(0.9 <= r.ratio <= TARGET for r in rows), table
     full_tilt = 9.84 * np.sin(ctx.vehicle.max_tilt)
     assert all(r.terms["gravity"] < 0.7 * full_tilt for r in rows), table
+
+
+def _accel_y_rows(name: str) -> list[Any]:
+    with nearest():
+        _, ctx, mb = _context(AIDING_SETS[name], 30)
+        gz = mb.evaluate(ctx.plans["gyro_z"])
+        mb.fine_r = gz.raw_verdict != "exceeds"
+        m = mb.evaluate(ctx.plans["accel_y"])
+    period = float(np.median(np.diff(ctx.aiding.head_t)))
+    return accel_y_ratios(ctx, m, min_tau_s=period)
+
+
+@pytest.mark.parametrize("name", sorted(AIDING_SETS))
+def test_accel_y_against_the_limit(name: str) -> None:
+    """accel_y: never below the reference limit by more than its approximations (>= 0.9),
+    and within :data:`ACCEL_Y_CEILING` at every tau >= the heading's period: the issue's
+    1.5 target with a DVL or wheel speed and a compass; the GNSS sets miss it (held to
+    their measured ceilings, the reasons beside them)."""
+    rows = _accel_y_rows(name)
+    assert rows, f"{name} accel_y: no aided level"
+    table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
+    assert all(r.ratio >= 0.9 for r in rows), f"{name} accel_y: below the limit: {table}"
+    assert all(r.ratio <= ACCEL_Y_CEILING[name] for r in rows), f"{name} accel_y: {table}"
+
+
+@pytest.mark.parametrize(
+    "aiding,seed,kw",
+    [
+        (("gnss", "gnss-vel", "compass"), 46, {}),
+        (("dvl", "compass"), 47, {"turn_on_scale": 3.0}),
+        (("gnss", "gnss-vel"), 48, {"corner_length_m": 20.0, "laps": 3}),
+    ],
+    ids=["posvel", "dvl-turn-on", "course-corners"],
+)
+def test_accel_y_transport_by_gaps_encloses_the_true_mean(
+    aiding: tuple, seed: int, kw: dict
+) -> None:
+    """accel_y's transport term cut at the heading epochs
+    (``aided.accel_y.transport_by_gaps``) contains the true kernel mean of r u (the
+    simulator's yaw rate and forward velocity on the IMU's stamps) at every window of
+    every aided boxcar level."""
+    with nearest():
+        res, ctx, mb = _context(aiding, seed, truth_rate_hz=100.0, **kw)
+        tr = res.drive.truth
+        r = np.asarray(tr.extra["gyro_z"], dtype=float)
+        u = np.asarray(tr.u_mps, dtype=float)
+        assert r.size == ctx.imu.n and u.size == ctx.imu.n
+        sig = PiecewiseSignal(ctx.imu.bnd, r * u)
+        plan = ctx.plans["accel_y"]
+        bv = body_velocity(mb)
+        n = 0
+        for li, lp in enumerate(plan.levels):
+            if lp.kind != "aided" or lp.n == 0:
+                continue
+            gi = ctx.level_index[("accel_y", li)]
+            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+            box = transport_by_gaps(mb, lp, lp.tau, bv, r_abs(mb, lp, lp.tau))
+            true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            bad = (true.lo > box.hi) | (true.hi < box.lo)
+            assert not bad.any(), (lp.tau_s, int(bad.sum()))
+            n += lp.n
+        assert n > 100
 
 
 @pytest.mark.parametrize(

@@ -239,3 +239,194 @@ def gyro_z_ratios(ctx: Any, margins: Any) -> list[LevelRatio]:
             continue
         out.append(_ratio(lp, lv, gyro_z_limits(ctx, lp), ctx.vehicle.max_rate))
     return out
+
+
+# ---------------------------------------------------------------------------- accel_y
+#
+# ``f_y = v' + r u - p w + g sin(phi) cos(theta)`` (+ Earth rate). Per window, the
+# half-widths of what the same input bounds leave of each term's kernel mean:
+#
+# * **ends** (lateral velocity): boxcar: at each end the lateral projection of the
+#   velocity box, ``[S_m sin(d0 - h_psi) - R, S_m sin(d0 + h_psi) + R]`` (``d0`` the
+#   course minus the heading centre, ``h_psi`` the heading half-width, ``R`` the GNSS
+#   velocity radius), or the body-velocity sensor's ``v_m +- h``, intersected with the
+#   lateral bound; positions only: ``sum_k h_k |c_k|_1`` through the lateral unit vectors
+#   of the gap headings, at most ``2 v_l`` (each interval mean of v is within the lateral
+#   bound); over tau;
+# * **heading** (``mean(r u)`` through the heading boxes): summation by parts of
+#   ``sum_k K_k u_k (psi_k+1 - psi_k)``: ``(|u_a| h_a + |u_b| h_b + sum_k h_k |K_k u_k -
+#   K_k-1 u_k-1|/K)`` for a boxcar (``u_k`` the speed data's centres at the heading gaps),
+#   ``h sum_k |K_k - K_k-1| u_bar`` for a trapezoid (``u_bar`` the mean chord speed over the
+#   support: the chords' own noise would only add);
+# * **speed** (``mean(r u)`` through the speed boxes): boxcar: ``rho x`` the kernel mean of
+#   ``|y_r - c|`` (the gyro's record centred by the heading, noise counted once, as in
+#   accel_x's transport term), ``rho`` the smallest speed radius of the window's epochs;
+#   positions only: with ``r`` the gyro's centred gap means ``r_k`` and the heading
+#   piecewise constant, ``sum_k K_k r_k (P_k+1 - P_k).e_k`` leaves ``sum_k h_k |w_k|_1``,
+#   ``w_k`` the fix weights of ``K r e`` (summation by parts, as the ends);
+# * **heave** ``W x`` gyro_x's window mean of ``|y_p - mean y_p|`` (0 when W = 0);
+# * **gravity** :func:`accel_y_gravity`; **Earth rate** as accel_x's;
+#
+# the limit the smaller of their sum and ``max_accel + gravity``. Left out (they would
+# only add): the tilt conversions, u's growth between velocity epochs, the heading's
+# excursion inside a gap.
+
+
+def accel_y_gravity(veh: Any) -> float:
+    """Gravity's share of accel_y: any tilt within the bound is consistent with the
+    inputs (kept in one function: the tilt model may change)."""
+    return G_MAX * math.sin(veh.max_tilt)
+
+
+def _head_half(ag: Any, t: np.ndarray) -> np.ndarray:
+    """The heading's half-width at ``t``: the smaller of its neighbouring epochs' (the
+    gyro's noise inside a gap counted as zero: on the low side)."""
+    ht, hh = ag.head_t, ag.head_h
+    j = np.clip(np.searchsorted(ht, t), 0, ht.size - 1)
+    i = np.clip(j - 1, 0, ht.size - 1)
+    exact = np.abs(ht[j] - t) <= 1e-9
+    return np.where(exact, hh[j], np.minimum(hh[i], hh[j]))
+
+
+def _lateral_half(lo: np.ndarray, hi: np.ndarray, vl: float | None) -> np.ndarray:
+    """Half-width of ``[lo, hi]`` intersected with the lateral bound."""
+    if vl is not None:
+        lo, hi = np.maximum(lo, -vl), np.minimum(hi, vl)
+    return 0.5 * np.maximum(hi - lo, 0.0)
+
+
+def _boxcar_speed_data(ag: Any, vl: float | None) -> tuple[np.ndarray, ...]:
+    """Per velocity epoch: time, u centre, u radius, lateral half-width (intersected
+    with the lateral bound)."""
+    if ag.has_bvel:
+        t, u, h = ag.bvel_t, ag.bvel_u, ag.bvel_h
+        if ag.bvel_v is not None:
+            lat = _lateral_half(ag.bvel_v - h, ag.bvel_v + h, vl)
+        else:
+            lat = np.full(t.size, vl if vl is not None else math.inf)
+        return t, u, h, lat
+    ok = ag.gvel_ok
+    t = ag.gnss_t[ok]
+    ve, vn, R = ag.gvel_e[ok], ag.gvel_n[ok], ag.gvel_hi[ok]
+    sm = np.hypot(ve, vn)
+    psi = _heading_centres(ag, t)
+    hp = _head_half(ag, t)
+    d0 = np.arctan2(vn, ve) - psi
+    d0 = (d0 + math.pi) % (2 * math.pi) - math.pi
+    lo = sm * np.sin(np.clip(d0 - hp, -0.5 * math.pi, 0.5 * math.pi)) - R
+    hi = sm * np.sin(np.clip(d0 + hp, -0.5 * math.pi, 0.5 * math.pi)) + R
+    return t, sm * np.cos(d0), R, _lateral_half(lo, hi, vl)
+
+
+def _fix_weights_abs(h: np.ndarray, we: np.ndarray, wn: np.ndarray) -> float:
+    """``sum_k h_k |c_k|_1`` for ``sum_k (P_k+1 - P_k).(we_k, wn_k)`` over fixes 0..n."""
+    ce = np.zeros(we.size + 1)
+    cn = np.zeros(we.size + 1)
+    ce[1:] += we
+    ce[:-1] -= we
+    cn[1:] += wn
+    cn[:-1] -= wn
+    return float(np.sum(h * (np.abs(ce) + np.abs(cn))))
+
+
+def _accel_y_trapezoid(ctx: Any, lp: Any, w: int) -> tuple[float, float, float, float]:
+    """ends, heading, speed half-widths and the speed bound S of trapezoid window w."""
+    ag, veh = ctx.aiding, ctx.vehicle
+    sig = ctx.imu.sig["gyro_z"]
+    t, h = ag.gnss_t, ag.gnss_h
+    p = int(np.searchsorted(t, lp.a1[w]))
+    m = int(np.searchsorted(t, lp.b1[w]))
+    q = int(np.searchsorted(t, lp.b2[w]))
+    L1, L2 = t[m] - t[p], t[q] - t[m]
+    tau = 0.5 * (t[q] + t[m]) - 0.5 * (t[m] + t[p])
+    mid = 0.5 * (t[p:q] + t[p + 1 : q + 1])
+    psi = _heading_centres(ag, mid)
+    ce, sn = np.cos(psi), np.sin(psi)
+    # lateral ends: (mean_I2 v - mean_I1 v)/tau, mean_I v = (1/L) sum (P_k+1 - P_k).n_k
+    wl = np.where(mid < t[m], -1.0 / L1, 1.0 / L2) / tau
+    ends = _fix_weights_abs(h[p : q + 1], -sn * wl, ce * wl)
+    vl = veh.lateral_speed_bound_mps
+    if vl is not None:
+        ends = min(ends, 2 * vl / tau)
+    # kernel weight of the gap means (the kernel of the acceleration)
+    K = np.where(mid < t[m], (mid - t[p]) / (L1 * tau), (t[q] - mid) / (L2 * tau))
+    g = np.diff(t[p : q + 1])
+    chord = np.hypot(np.diff(ag.gnss_e[p : q + 1]), np.diff(ag.gnss_n[p : q + 1]))
+    ubar = float(np.sum(chord) / (t[q] - t[p]))
+    hk = _head_half(ag, t[p : q + 1])
+    Kx = np.concatenate([[0.0], K, [0.0]])
+    head = ubar * float(np.sum(hk * np.abs(np.diff(Kx))))
+    # the gyro's gap means centred by the heading over the support
+    c = _support_centre(sig, ag, float(t[p]), float(t[q]))
+    lo, hi = sig.integral(t[p:q], t[p + 1 : q + 1])
+    rk = 0.5 * (np.asarray(lo) + np.asarray(hi)) / g - c
+    # sum_k K_k r_k g_k (P_k+1 - P_k).e_k / g_k: fix weights of K r e
+    speed = _fix_weights_abs(h[p : q + 1], K * rk * ce, K * rk * sn)
+    return ends, head, speed, float(np.max(chord / g))
+
+
+def _accel_y_boxcar(
+    ctx: Any, lp: Any, w: int, data: tuple[np.ndarray, ...]
+) -> tuple[float, float, float, float]:
+    """ends, heading, speed half-widths and the speed bound S of boxcar window w."""
+    ag = ctx.aiding
+    sig = ctx.imu.sig["gyro_z"]
+    tv, uc, rho, lat = data
+    a, b = float(lp.a1[w]), float(lp.b2[w])
+    tau = b - a
+    ia, ib = int(np.searchsorted(tv, a - 1e-9)), int(np.searchsorted(tv, b - 1e-9))
+    ib = min(ib, tv.size - 1)
+    ends = (lat[ia] + lat[ib]) / tau
+    # heading: epochs strictly inside, the ends' own half-widths
+    ht = ag.head_t
+    k0, k1 = int(np.searchsorted(ht, a + 1e-9)), int(np.searchsorted(ht, b - 1e-9))
+    knots = np.concatenate([[a], ht[k0:k1], [b]])
+    hk = np.concatenate([_head_half(ag, np.array([a])), ag.head_h[k0:k1],
+                         _head_half(ag, np.array([b]))])
+    um = np.interp(0.5 * (knots[:-1] + knots[1:]), tv, uc)
+    ux = np.concatenate([[0.0], um, [0.0]])
+    head = float(np.sum(hk * np.abs(np.diff(ux)))) / tau
+    c = _support_centre(sig, ag, a, b)
+    dev = _gyro_abs_dev(sig, a, b, lambda s, tau=tau: np.full(s.shape, 1.0 / tau), c)
+    speed = float(np.min(rho[ia : ib + 1])) * dev
+    return ends, head, speed, float(np.max(np.abs(uc[ia : ib + 1])))
+
+
+def accel_y_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
+    """Per window of level ``lp`` of accel_y: the reference limit's terms (m/s^2)."""
+    ag, veh = ctx.aiding, ctx.vehicle
+    n = lp.a1.size
+    out = {k: np.zeros(n) for k in ("ends", "heading", "speed", "heave", "earth")}
+    data = None if plan.trapezoid else _boxcar_speed_data(ag, veh.lateral_speed_bound_mps)
+    sx = ctx.imu.sig["gyro_x"]
+    for w in range(n):
+        if plan.trapezoid:
+            e, hd, sp, S = _accel_y_trapezoid(ctx, lp, w)
+        else:
+            assert data is not None
+            e, hd, sp, S = _accel_y_boxcar(ctx, lp, w, data)
+        out["ends"][w], out["heading"][w], out["speed"][w] = e, hd, sp
+        out["earth"][w] = 2 * OMEGA * S + S * S / R_E
+        if veh.vertical_bound > 0:
+            a, b = float(lp.a1[w]), float(lp.b2[w])
+            lo, hi = sx.integral(np.array([a]), np.array([b]))
+            cx = 0.5 * (float(lo[0]) + float(hi[0])) / (b - a)
+            out["heave"][w] = veh.vertical_bound * _gyro_abs_dev(
+                sx, a, b, lambda s, L=b - a: np.full(s.shape, 1.0 / L), cx
+            )
+    out["gravity"] = np.full(n, accel_y_gravity(veh))
+    return out
+
+
+def accel_y_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
+    """Per aided level of accel_y at or above ``min_tau_s``: the estimator's median
+    half-width against the median reference limit over the same windows."""
+    plan = ctx.plans["accel_y"]
+    out: list[LevelRatio] = []
+    levels = [lp for lp in plan.levels if lp.n > 0]
+    for lp, lv in zip(levels, margins.levels, strict=True):
+        if lp.kind != "aided" or lp.tau_s < min_tau_s:
+            continue
+        terms = accel_y_limits(ctx, plan, lp)
+        out.append(_ratio(lp, lv, terms, ctx.vehicle.max_accel + terms["gravity"]))
+    return out

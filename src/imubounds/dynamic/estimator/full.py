@@ -44,6 +44,7 @@ from imubounds.dynamic.estimator.inputs import (
     vehicle_from,
 )
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
+from imubounds.dynamic.estimator.window_plan import epochs_near, plan_on_subset
 from imubounds.dynamic.estimator.windows import (
     EARTH_RATE,
     G_HI,
@@ -431,7 +432,11 @@ def _plan_windows(ctx: Context) -> None:
             plans[ch] = ChannelPlan(ch, "none", np.zeros(0), False, reason="no samples")
             continue
         if ch in ("accel_x", "accel_y"):
-            if bv is not None:
+            sel = epochs_near(bv["t"], ag.head_t) if bv is not None else None
+            if bv is not None and ch == "accel_y" and sel is not None:
+                src = f"{bv['src']} at the heading epochs"
+                plans[ch] = plan_on_subset(ch, src, bv["t"], sel, imu.bnd, imu.dt, cap)
+            elif bv is not None:
                 plans[ch] = plan_channel(ch, bv["src"], bv["t"], False, imu.bnd, imu.dt, cap)
             elif ag.has_gnss and ag.gnss_t.size >= 3:
                 plans[ch] = plan_channel(

@@ -136,3 +136,40 @@ def _subsample_pairs(idx: np.ndarray, m: int, last: int, cap: int) -> np.ndarray
     first = idx[idx + m <= last]
     pick = _subsample(first, max(1, cap // 2))
     return np.unique(np.concatenate([pick, pick + m]))
+
+
+def epochs_near(t: np.ndarray, t_head: np.ndarray) -> np.ndarray | None:
+    """Indices of the epochs ``t`` nearest each epoch of a sparser heading ``t_head``
+    (within half of ``t``'s median gap), when the heading's median gap exceeds 1.5 x
+    ``t``'s; else None. accel_y's windows end there: its transport term takes the
+    heading at the window ends, which between heading epochs is widened by the gyro's
+    magnitude x the distance (docs/dynamic-method.md, section 3, **accel_y**)."""
+    if t.size < 2 or t_head.size < 2:
+        return None
+    gap = float(np.median(np.diff(t)))
+    if float(np.median(np.diff(t_head))) <= 1.5 * gap:
+        return None
+    j = np.clip(np.searchsorted(t, t_head), 1, t.size - 1)
+    near = np.where(np.abs(t[j - 1] - t_head) <= np.abs(t[j] - t_head), j - 1, j)
+    near = near[np.abs(t[near] - t_head) <= 0.5 * gap]
+    sel = np.unique(near)
+    return sel if sel.size >= 2 else None
+
+
+def plan_on_subset(
+    channel: str,
+    source: str,
+    epochs: np.ndarray,
+    sel: np.ndarray,
+    bnd: np.ndarray,
+    dt: float,
+    cap: int,
+) -> ChannelPlan:
+    """:func:`plan_channel` (boxcar) on the epochs ``epochs[sel]``, with the windows'
+    epoch indices ``i``, ``j`` pointing into ``epochs``."""
+    plan = plan_channel(channel, source, epochs[sel], False, bnd, dt, cap)
+    for lp in plan.levels:
+        if lp.kind == "aided":
+            lp.i = sel[lp.i]
+            lp.j = sel[lp.j]
+    return plan

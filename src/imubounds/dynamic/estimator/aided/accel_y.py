@@ -1,25 +1,41 @@
 """accel_y (docs/dynamic-method.md, section 3, **accel_y**): ``(v(b) - v(a))/tau +
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
-``max|u - u0| mean|r|``."""
+``max|u - u0| mean|r|``; with velocity epochs also per heading gap
+(:func:`transport_by_gaps`), the narrower of the two."""
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import pm, up
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
+from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
 
+_EPS = 2.3e-16
+#: the share of the window's gyro-deviation probability given to the bound of mean|q|
+#: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
+Q_SHARE = 0.1
+
 
 def mean_r_from_heading(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray, trapezoid: bool
+    w: WindowContext,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    trapezoid: bool,
+    q_mean: np.ndarray | None = None,
 ) -> IA:
-    """Kernel mean of the yaw rate r from the heading (for accel_y's transport term)."""
+    """Kernel mean of the yaw rate r from the heading (for accel_y's transport term);
+    ``q_mean`` a bound of the kernel mean of |q| (else gyro_y's magnitude)."""
     if trapezoid:
         p1 = heading_mean(w, lp.a1, lp.b1)
         p2 = heading_mean(w, lp.a2, lp.b2)
@@ -27,18 +43,168 @@ def mean_r_from_heading(
         p1 = heading_at(w, lp.a1)
         p2 = heading_at(w, lp.a2)
     dpsi = (p2 - p1) / IA(tau)
-    return r_from_psidot(w, dpsi, lp, tau, own_q=True)
+    return r_from_psidot(w, dpsi, lp, tau, own_q=True, q_mean=q_mean)
+
+
+def _rate_terms(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, q_mean: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """``c0``, the radius of ``r - c0 psi'`` and the Earth's share of the gyro's rate.
+
+    In ``f_y = v' + r u + ...`` r is the body's rate relative to the navigation frame,
+    ``psi' c - q_nb tan(phi)`` (c = cos(theta)/cos(phi) within ``c0 +- cdev``); the
+    Earth's rotation and the transport rate enter through the Coriolis term of
+    :func:`~imubounds.dynamic.estimator.aided.horizontal.horizontal_terms`, so unlike
+    gyro_z's :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` no Earth
+    rate is added to r here. The gyros measure the inertial rates: ``|q_nb| <= |q| +
+    earth`` and ``|r_nb| <= |r| + earth``, ``earth = Omega + max_speed/R_E``."""
+    veh = w.veh
+    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
+    c0 = c.mid()
+    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
+    rate = veh.max_rate / math.cos(veh.max_tilt)
+    q = w.kernel_mag("gyro_y", lp, tau) if q_mean is None else q_mean
+    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
+    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
+    ext = up(up(rate * cdev) + up(up(q + earth) * tr))
+    return c0, ext, earth
+
+
+def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per boxcar window [a, b]: its ends and the heading epochs strictly inside, all
+    windows concatenated: the knots, their window's index, their position in it, and
+    each window's first knot and knot count."""
+    k0 = np.searchsorted(ht, a, side="right")
+    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    nk = (k1 - k0) + 2
+    start = np.concatenate([[0], np.cumsum(nk)[:-1]])
+    win = np.repeat(np.arange(a.size), nk)
+    pos = np.arange(int(np.sum(nk))) - start[win]
+    last = pos == nk[win] - 1
+    inner = np.clip(k0[win] + pos - 1, 0, max(ht.size - 1, 0))
+    t = np.where(pos == 0, a[win], np.where(last, b[win], ht[inner] if ht.size else 0.0))
+    return t, win, pos, start, nk
+
+
+def _speed_part(
+    w: WindowContext,
+    gwin: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    du: np.ndarray,
+    n: int,
+    tau: np.ndarray,
+    r_mag: np.ndarray,
+    earth: float,
+) -> np.ndarray:
+    """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
+    half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
+    ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
+    (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
+    magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
+    its maximum included, which gives ``max du x r_mag``). r is relative to the
+    navigation frame: the gyro's bounds plus ``earth`` (:func:`_rate_terms`)."""
+    r_mag = up(r_mag + earth)
+    dmax = np.zeros(n)
+    np.maximum.at(dmax, gwin, du)
+    best = up(dmax * r_mag)
+    if du.size == 0:
+        return best
+    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
+    for d0 in np.quantile(du, [0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99]):
+        ex = np.zeros(n)
+        np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
+        cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
+        best = np.minimum(best, cand)
+    return best
+
+
+def transport_by_gaps(
+    w: WindowContext,
+    lp: LevelPlan,
+    tau: np.ndarray,
+    bv: Any,
+    r_mag: np.ndarray,
+    q_mean: np.ndarray | None = None,
+) -> IA:
+    """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
+    ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
+    (:func:`~imubounds.dynamic.estimator.aided.velocity.vel_range`), so
+    ``tau mean(r u) = sum_k u0_k int_k r + sum_k int_k (u - u0_k) r``. With
+    ``r = psi' c - q tan(phi)`` (c within ``c0 +- cdev``): the first sum is
+    ``c0 sum_k u0_k (psi_k+1 - psi_k)`` (by parts: ``sum_j psi_j w_j`` with ``w_j =
+    u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
+    twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
+    (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
+    Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
+    a, b = lp.a1, lp.b2
+    t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
+    psi = heading_at(w, t)
+    ok_k = np.isfinite(psi.lo) & np.isfinite(psi.hi)
+    m = np.where(ok_k, psi.mid(), 0.0)
+    rho = np.where(ok_k, up(np.maximum(psi.hi - m, m - psi.lo)), np.inf)
+    ref = m[start]
+    ms = m - ref[win]  # the heading relative to the window's first knot
+    # u over each gap (knot j to j + 1 of the same window)
+    gap = pos < nk[win] - 1
+    ga, gb = t[gap], t[1:][gap[:-1]] if t.size > 1 else t[:0]
+    rng = vel_range(w, bv, ga, gb)
+    ulo, uhi = rng["u_lo"], rng["u_hi"]
+    u0 = 0.5 * (ulo + uhi)
+    du = up(np.maximum(uhi - u0, u0 - ulo))
+    # weight of knot j: u0 of the gap before it minus u0 of the gap after it
+    u_after = np.zeros(t.size)
+    u_after[gap] = u0
+    u_before = np.zeros(t.size)
+    u_before[1:][gap[:-1]] = u0
+    wj = u_before - u_after
+    cen = np.add.reduceat(wj * ms, start)
+    rad = np.add.reduceat(np.abs(wj) * rho, start)
+    mag = np.add.reduceat(np.abs(wj) * (np.abs(ms) + rho + np.abs(m) + np.abs(ref[win])), start)
+    rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
+    ok = np.logical_and.reduceat(ok_k, start)
+    gwin = win[gap]
+    umax = np.zeros(a.size)
+    np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
+    c0, ext, earth = _rate_terms(w, lp, tau, q_mean)
+    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag, earth)
+    head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
+    x = head + pm(up(umax * ext)) + pm(speed)
+    return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
+
+
+def gyro_deviation_bounds(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The transport term's two gyro bounds, sharing the window's second bounded event
+    (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
+    (``Q_SHARE`` of its probability to the second, the rest to the first): the kernel
+    mean of |r| (``aided.transport.r_abs``) and
+    of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
+    p = w.p_window
+    try:
+        w.p_window = (1.0 - Q_SHARE) * p
+        r_mag = r_abs(w, lp, tau)
+    finally:
+        w.p_window = p
+    return r_mag, q_window_mean(w, lp, tau, Q_SHARE * p)
 
 
 def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
     """``[x_W]`` of accel_y."""
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
-    r_mag = r_abs(w, lp, tau)
-    mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid)
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau)
+    mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
     ru = IA(u0) * mean_r + pm(du * r_mag)
+    bv = body_velocity(w)
+    if not plan.trapezoid and bv is not None and w.ag.has_heading:
+        # the narrower of the two enclosures of mean(r u), per window
+        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
+        use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
+        ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
     if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound

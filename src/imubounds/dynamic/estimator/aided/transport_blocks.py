@@ -13,7 +13,9 @@ deviation from its block mean) and ``z = r + d``:
   standard normal vector behind ``n`` with constant ``sqrt(sum w_k^2) sqrt(Lambda)``,
   ``Lambda >= ||P C P||`` (``P`` the block centring, ``C`` the noise covariance), so
   ``E F <= F(n) + sqrt(sum w^2 Lambda 2 ln(1/p))`` with probability ``>= 1 - p``;
-* ``F(n) = sum w_k |y_k - e_g| <= sum w_k |y_k - c_g| + sum w_k rad_g``.
+* ``F(n) = sum w_k |y_k - e_g|`` with ``e_g`` in ``c_g +- rad_g``: a convex function of
+  ``e_g``, so at most its larger value at ``c_g - rad_g`` and ``c_g + rad_g``
+  (:func:`_dev_over_box`; at most ``sum w_k |y_k - c_g| + sum w_k rad_g``).
 
 So the noise enters once (in the gyro's record) plus a concentration term: the slow
 flicker components, nearly constant over a heading gap, drop out of ``P C P``.
@@ -154,8 +156,25 @@ def _centres(w: WindowContext, ch: str, ts: np.ndarray, te: np.ndarray) -> IA:
     return IA(ylo, yhi) / IA(L) + IA(-qb, qb)
 
 
+def _dev_over_box(
+    sig: Any, a: np.ndarray, b: np.ndarray, c: np.ndarray, rad: np.ndarray
+) -> np.ndarray:
+    """Upper bound of ``int_a^b |y - e|`` over every ``e`` in ``[c - rad, c + rad]``: a
+    convex function of ``e``, so its larger value at the two ends (at most ``int |y - c|
+    + (b - a) rad``, the triangle inequality's bound, and smaller where the gyro's record
+    straddles ``c``); the ends rounded outward."""
+    fin = np.isfinite(rad)
+    r = np.where(fin, rad, 0.0)
+    lo = np.ascontiguousarray(np.nextafter(c - r, -np.inf))
+    hi = np.ascontiguousarray(np.nextafter(c + r, np.inf))
+    g_lo = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, a, b, lo)
+    g_hi = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, a, b, hi)
+    return np.where(fin, up(np.maximum(g_lo, g_hi)), np.inf)
+
+
 def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
-    """Per block: start, end, ``G' = int |y - c_g| + len rad_g`` and its prefix sums (also
+    """Per block: start, end, ``G' = max over e in c_g +- rad_g of int |y - e|``
+    (:func:`_dev_over_box`) and its prefix sums (also
     weighted by the block's end and start times); computed once per channel and ``k``."""
     key = f"blocks_{ch}_{k}"
     if key in w.cache:
@@ -166,13 +185,11 @@ def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
         return None
     sig = w.imu.sig[ch]
     ts, te = sig.bnd[ks[:-1]], sig.bnd[ks[1:]]
-    L = te - ts
     e = _centres(w, ch, ts, te)
     fin = np.isfinite(e.lo) & np.isfinite(e.hi)
     c = np.where(fin, e.mid(), 0.0)
     rad = np.where(fin, up(e.radius()), np.inf)
-    g = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, ts, te, np.ascontiguousarray(c))
-    gp = up(g + L * rad)
+    gp = _dev_over_box(sig, ts, te, c, rad)
 
     def cum(x: np.ndarray) -> np.ndarray:
         return np.concatenate([[0.0], np.cumsum(x)])
@@ -196,14 +213,15 @@ def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
 
 def _piece(w: WindowContext, tab: dict[str, Any], a: np.ndarray, b: np.ndarray,
            g: np.ndarray) -> np.ndarray:
-    """``int_a^b |y - c_g| + (b - a) rad_g`` over partial pieces inside block ``g``."""
+    """``max over e in c_g +- rad_g of int_a^b |y - e|`` over partial pieces inside block
+    ``g``."""
     sig = w.imu.sig[tab["ch"]]
     gg = np.clip(g, 0, tab["c"].size - 1)
     c = np.ascontiguousarray(tab["c"][gg])
     ok = b > a
     aa, bb = np.where(ok, a, 0.0), np.where(ok, b, 0.0)
-    v = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, aa, bb, c)
-    return np.where(ok, up(v + (bb - aa) * tab["rad"][gg]), 0.0)
+    v = _dev_over_box(sig, aa, bb, c, tab["rad"][gg])
+    return np.where(ok, v, 0.0)
 
 
 def _sum_blocks(tab: dict[str, Any], i: np.ndarray, j: np.ndarray, key: str) -> np.ndarray:
