@@ -70,53 +70,67 @@ def _rate_terms(
     return c0, ext, earth
 
 
-def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per boxcar window [a, b]: its ends and the heading epochs strictly inside, all
-    windows concatenated: the knots, their window's index, their position in it, and
-    each window's first knot and knot count."""
-    k0 = np.searchsorted(ht, a, side="right")
-    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
-    nk = (k1 - k0) + 2
-    start = np.concatenate([[0], np.cumsum(nk)[:-1]])
-    win = np.repeat(np.arange(a.size), nk)
-    pos = np.arange(int(np.sum(nk))) - start[win]
-    last = pos == nk[win] - 1
-    inner = np.clip(k0[win] + pos - 1, 0, max(ht.size - 1, 0))
-    t = np.where(pos == 0, a[win], np.where(last, b[win], ht[inner] if ht.size else 0.0))
-    return t, win, pos, start, nk
+#: the levels d0 of :func:`_speed_part`: quantiles of the gaps' half-ranges of u
+SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
+
+
+def _knot_rows(w: WindowContext, t: np.ndarray) -> np.ndarray:
+    """Rows ``(m, rho, ok)`` of the heading at ``t``: centre (0 where unbounded), radius
+    rounded up (inf there) and 1.0 where finite."""
+    psi = heading_at(w, t)
+    ok = np.isfinite(psi.lo) & np.isfinite(psi.hi)
+    m = np.where(ok, psi.mid(), 0.0)
+    rho = np.where(ok, up(np.maximum(psi.hi - m, m - psi.lo)), np.inf)
+    return np.column_stack([m, rho, ok.astype(float)])
+
+
+def _gap_rows(w: WindowContext, bv: Any, ga: np.ndarray, gb: np.ndarray) -> np.ndarray:
+    """Rows ``(u0, max|u|, du)`` of u over the gaps ``[ga, gb]``: centre, magnitude and
+    half-range rounded up (:func:`~imubounds.dynamic.estimator.aided.velocity.vel_range`)."""
+    rng = vel_range(w, bv, ga, gb)
+    ulo, uhi = rng["u_lo"], rng["u_hi"]
+    u0 = 0.5 * (ulo + uhi)
+    du = up(np.maximum(uhi - u0, u0 - ulo))
+    return np.column_stack([u0, np.maximum(np.abs(ulo), np.abs(uhi)), du])
+
+
+def _gap_terms(
+    w: WindowContext, ga: np.ndarray, gb: np.ndarray, du: np.ndarray, d0: np.ndarray,
+    earth: float,
+) -> np.ndarray:
+    """Per gap and level d0: ``(du - d0)+ int |r|``, ``int |r|`` by the gyro's magnitude on
+    the gap (+ the Earth's rates), each rounded up."""
+    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
+    return up(np.maximum(du[:, None] - d0[None, :], 0.0) * coarse[:, None])
 
 
 def _speed_part(
-    w: WindowContext,
-    gwin: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    du: np.ndarray,
-    n: int,
-    tau: np.ndarray,
-    r_mag: np.ndarray,
+    dmax: np.ndarray, ex: np.ndarray, d0: np.ndarray, tau: np.ndarray, r_mag: np.ndarray,
     earth: float,
 ) -> np.ndarray:
     """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
-    half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
-    ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
-    (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
-    magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
-    its maximum included, which gives ``max du x r_mag``). r is relative to the
-    navigation frame: the gyro's bounds plus ``earth`` (:func:`_rate_terms`)."""
+    half-range of u on gap k): for a level ``d0``, ``du_k <= d0 + (du_k - d0)+``, so the
+    sum is at most ``d0 mean|r| + (1/tau) sum_k (du_k - d0)+ int_k |r|`` (``ex``, per
+    level), ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's magnitude on the gap; the
+    smallest over the levels ``d0`` (quantiles of every window's gaps' ``du``) and
+    ``max du x r_mag`` (``dmax``). r is relative to the navigation frame: the gyro's
+    bounds plus ``earth`` (:func:`_rate_terms`)."""
     r_mag = up(r_mag + earth)
-    dmax = np.zeros(n)
-    np.maximum.at(dmax, gwin, du)
     best = up(dmax * r_mag)
-    if du.size == 0:
-        return best
-    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
-    for d0 in np.quantile(du, [0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99]):
-        ex = np.zeros(n)
-        np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
-        cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
+    for d in range(d0.size):
+        cand = up((d0[d] * r_mag + up(ex[:, d] * (1 + 1e-12)) / tau) * (1 + 1e-12))
         best = np.minimum(best, cand)
     return best
+
+
+def _trip_gaps(w: WindowContext, bv: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The heading epochs' knot rows and the rows of the gaps between consecutive heading
+    epochs (the same for every window: computed once per run)."""
+    key = "accel_y_trip_gaps"
+    if key not in w.cache:
+        ht = w.ag.head_t
+        w.cache[key] = (_knot_rows(w, ht), _gap_rows(w, bv, ht[:-1], ht[1:]))
+    return w.cache[key]
 
 
 def transport_by_gaps(
@@ -136,38 +150,48 @@ def transport_by_gaps(
     u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
     twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
     (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
-    Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
+    Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|``
+    (:func:`_speed_part`). The per-window sums: :func:`.gap_sums.gap_sums` (compiled;
+    the gaps between heading epochs computed once per run)."""
+    from imubounds.dynamic.estimator.aided.gap_sums import gap_sums
+
     a, b = lp.a1, lp.b2
-    t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
-    psi = heading_at(w, t)
-    ok_k = np.isfinite(psi.lo) & np.isfinite(psi.hi)
-    m = np.where(ok_k, psi.mid(), 0.0)
-    rho = np.where(ok_k, up(np.maximum(psi.hi - m, m - psi.lo)), np.inf)
-    ref = m[start]
-    ms = m - ref[win]  # the heading relative to the window's first knot
-    # u over each gap (knot j to j + 1 of the same window)
-    gap = pos < nk[win] - 1
-    ga, gb = t[gap], t[1:][gap[:-1]] if t.size > 1 else t[:0]
-    rng = vel_range(w, bv, ga, gb)
-    ulo, uhi = rng["u_lo"], rng["u_hi"]
-    u0 = 0.5 * (ulo + uhi)
-    du = up(np.maximum(uhi - u0, u0 - ulo))
-    # weight of knot j: u0 of the gap before it minus u0 of the gap after it
-    u_after = np.zeros(t.size)
-    u_after[gap] = u0
-    u_before = np.zeros(t.size)
-    u_before[1:][gap[:-1]] = u0
-    wj = u_before - u_after
-    cen = np.add.reduceat(wj * ms, start)
-    rad = np.add.reduceat(np.abs(wj) * rho, start)
-    mag = np.add.reduceat(np.abs(wj) * (np.abs(ms) + rho + np.abs(m) + np.abs(ref[win])), start)
-    rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
-    ok = np.logical_and.reduceat(ok_k, start)
-    gwin = win[gap]
-    umax = np.zeros(a.size)
-    np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
+    ht = w.ag.head_t
+    n = a.size
+    k0 = np.searchsorted(ht, a, side="right")
+    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    ni = k1 - k0
+    knot_h, gap_g = _trip_gaps(w, bv)
+    has = ni >= 1
+    last = ht.size - 1
+    # each window's first gap [a, ht[k0]] ([a, b] without an epoch inside) and last gap
+    # [ht[k1 - 1], b] (only used where there is an epoch inside)
+    fb = np.where(has, ht[np.minimum(k0, last)], b)
+    la = np.where(has, ht[np.clip(k1 - 1, 0, last)], a)
+    gap_f = _gap_rows(w, bv, a, fb)
+    gap_l = _gap_rows(w, bv, la, b)
+    # the levels d0: quantiles of the half-ranges of every window's gaps (as a multiset:
+    # the inner gap g counts once per window holding it)
+    inner = ni >= 2
+    cnt = np.zeros(ht.size, dtype=np.int64)
+    np.add.at(cnt, k0[inner], 1)
+    np.add.at(cnt, k1[inner] - 1, -1)
+    cnt = np.cumsum(cnt)[: max(ht.size - 1, 0)]
     c0, ext, earth = _rate_terms(w, lp, tau, q_mean)
-    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag, earth)
+    if n == 0:
+        return IA(np.zeros(0), np.zeros(0))
+    dus = np.concatenate([np.repeat(gap_g[:, 2], cnt), gap_f[:, 2], gap_l[has, 2]])
+    d0 = np.quantile(dus, SPEED_LEVELS)
+    del dus
+    ex_g = _gap_terms(w, ht[:-1], ht[1:], gap_g[:, 2], d0, earth)
+    ex_f = _gap_terms(w, a, fb, gap_f[:, 2], d0, earth)
+    ex_l = _gap_terms(w, la, b, gap_l[:, 2], d0, earth)
+    cen, rad, mag, ok, umax, dmax, ex = gap_sums(
+        k0.astype(np.int64), k1.astype(np.int64), _knot_rows(w, a), _knot_rows(w, b),
+        knot_h, gap_f, gap_l, gap_g, ex_f, ex_l, ex_g)
+    nk = ni + 2
+    rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
+    speed = _speed_part(dmax, ex, d0, tau, r_mag, earth)
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
