@@ -153,6 +153,29 @@ def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
     return (IA(nu) + pm(wu)) / dT, (IA(nv) + pm(wv)) / dT
 
 
+def _body_u(w: WindowContext, uh: IA, a: np.ndarray, b: np.ndarray, smax: np.ndarray) -> IA:
+    """The mean body forward velocity over [a, b] from that of ``u_h`` (the tilt
+    conversion: ``+- (S_max (sec(pitch) - 1) + v_max |tan(roll) tan(pitch)| + W |tan(pitch)|)``)."""
+    veh = w.veh
+    sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
+    trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
+    vl = veh.lateral_speed_bound_mps
+    vmax = np.minimum(smax, vl) if vl is not None else smax
+    u = uh + pm(smax * sec_p + vmax * trp)
+    if veh.vertical_bound > 0:
+        u = u + pm(veh.vertical_bound * w.tilt.hull("abs_tanp", a, b).hi)
+    return u
+
+
+def body_u_mean(w: WindowContext, p: np.ndarray, q: np.ndarray) -> IA:
+    """Mean body forward velocity over the fix interval ``[t_p, t_q]`` (fix indices,
+    ``q > p``), as in :func:`position_means`."""
+    t = w.ag.gnss_t
+    a, b = t[p], t[q]
+    uh, _ = _mean_over(w, p, q)
+    return _body_u(w, uh, a, b, speed_max(w, a, b))
+
+
 def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str, IA]:
     """Mean body velocities ``u1, v1`` over I1 and ``u2, v2`` over I2 from the GNSS
     positions (trapezoid kernel)."""
@@ -166,17 +189,11 @@ def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str
         a, b = t[p], t[q]
         uh, vh = _mean_over(w, p, q)
         smax = speed_max(w, a, b)
-        sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
         sec_r = w.tilt.hull("sec_r_minus_1", a, b).hi
-        trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
-        vl = veh.lateral_speed_bound_mps
-        vmax = np.minimum(smax, vl) if vl is not None else smax
-        u = uh + pm(smax * sec_p + vmax * trp)
+        u = _body_u(w, uh, a, b, smax)
         v = vh + pm(smax * sec_r)
         if veh.vertical_bound > 0:
-            wv = veh.vertical_bound
-            u = u + pm(wv * w.tilt.hull("abs_tanp", a, b).hi)
-            v = v + pm(wv * w.tilt.hull("abs_tanr", a, b).hi)
+            v = v + pm(veh.vertical_bound * w.tilt.hull("abs_tanr", a, b).hi)
         out["u" + key] = u
         out["v" + key] = v
     return out
