@@ -10,14 +10,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from imubounds.dynamic.estimator.aided.accel_y import (
+from imubounds.dynamic.estimator.aided.accel_y import gyro_deviation_bounds, transport_by_gaps
+from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.transport_fixes import (
     FIX_BLOCKS,
     _transport_fix_blocks,
-    gyro_deviation_bounds,
     transport_by_fixes,
-    transport_by_gaps,
 )
-from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, speed_max
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
