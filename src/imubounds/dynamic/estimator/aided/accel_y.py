@@ -29,6 +29,9 @@ from imubounds.interval import IntervalArray as IA
 #: the share of the window's gyro-deviation probability given to the bound of mean|q|
 #: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
 Q_SHARE = 0.1
+#: positions only: the share of that probability for the support's mean |r| in
+#: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
+SUP_SHARE = 0.45
 
 
 def mean_r_from_heading(
@@ -121,16 +124,17 @@ def transport_by_gaps(
 
 
 def gyro_deviation_bounds(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, sup_share: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """The transport term's two gyro bounds, sharing the window's second bounded event
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
-    (``Q_SHARE`` of its probability to the second, the rest to the first): the kernel
-    mean of |r| (``aided.transport.r_abs``) and
+    (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
+    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`,
+    the rest to the first): the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
-        w.p_window = (1.0 - Q_SHARE) * p
+        w.p_window = (1.0 - Q_SHARE - sup_share) * p
         r_mag = r_abs(w, lp, tau)
     finally:
         w.p_window = p
@@ -141,7 +145,8 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     """``[x_W]`` of accel_y."""
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
-    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau)
+    fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE if fixes else 0.0)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
@@ -152,8 +157,8 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
         rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
         use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
-    if plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2:
-        rf = transport_by_fixes(w, lp, tau, r_mag, q_mean)
+    if fixes:
+        rf = transport_by_fixes(w, lp, tau, r_mag, q_mean, SUP_SHARE * w.p_window)
         use = (rf.hi - rf.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rf.lo, ru.lo), np.where(use, rf.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)

@@ -223,6 +223,11 @@ def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str
         v = vh + pm(smax * sec_r)
         if veh.vertical_bound > 0:
             v = v + pm(veh.vertical_bound * w.tilt.hull("abs_tanr", a, b).hi)
+        vl = veh.lateral_speed_bound_mps
+        if vl is not None:  # |v| <= the lateral bound at every time, so its means too
+            vc = v & pm(np.full(v.lo.shape, vl))
+            keep = vc.is_empty()  # inconsistent with the bound: left as the fixes give it
+            v = IA(np.where(keep, v.lo, vc.lo), np.where(keep, v.hi, vc.hi))
         out["u" + key] = u
         out["v" + key] = v
     return out

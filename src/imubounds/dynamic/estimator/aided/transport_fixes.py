@@ -11,15 +11,16 @@ import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean
+from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.positions import body_u_mean_parts, gap_units
+from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 _EPS = 2.3e-16
 #: block lengths (in fix gaps) of the positions-only transport bound (:func:`transport_by_fixes`)
-FIX_BLOCKS = (4, 6, 8, 12, 16, 24)
+FIX_BLOCKS = (4, 6, 8, 10, 12, 16, 24, 32)
 
 
 def _rate_terms(
@@ -98,19 +99,6 @@ def _fix_blocks(t: np.ndarray, lp: LevelPlan, mb: int) -> tuple[np.ndarray, ...]
     return s, e, win, e <= m[win]
 
 
-def _gap_heading_sums(w: WindowContext) -> tuple[np.ndarray, np.ndarray]:
-    """Prefix sums over the fix gaps of ``g x`` the heading hull's ends (computed once)."""
-    if "fix_psi_sums" not in w.cache:
-        t = w.ag.gnss_t
-        hm = heading_mean(w, t[:-1], t[1:])
-        g = np.diff(t)
-        w.cache["fix_psi_sums"] = (
-            np.concatenate([[0.0], np.cumsum(hm.lo * g)]),
-            np.concatenate([[0.0], np.cumsum(hm.hi * g)]),
-        )
-    return w.cache["fix_psi_sums"]
-
-
 def _u_deviation(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Bound of ``max_t |u(t) - mean_[a,b] u|`` over [a, b] (u the body forward velocity):
     ``u' = f_x - q w + r v - g sin(theta)`` (+ the Earth's Coriolis and transport terms),
@@ -145,40 +133,26 @@ def _u_deviation(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return up(np.minimum(dev, veh.max_accel * ln * 0.5) * (1 + 1e-12))
 
 
-def _block_rate_means(
-    w: WindowContext, lp: LevelPlan, win: np.ndarray, ta: np.ndarray, tb: np.ndarray,
-    kd: np.ndarray, k_a: np.ndarray, k_b: np.ndarray, ref: np.ndarray,
-) -> tuple[IA, IA, IA]:
-    """Per block B = [ta, tb] (window ``win``, kernel slope ``kd``, kernel ``k_a``, ``k_b``
-    at its ends): ``int_B psi``, psi(ta) (both relative to the window's ``ref``) and
-    ``rho_B = (1/len) int_B K r`` with ``r = psi' c - q tan(phi)``: ``int_B K psi' =
-    K(tb) psi(tb) - K(ta) psi(ta) - K'_B int_B psi`` (``int_B psi`` from the heading hull
-    of each fix gap), times ``c0``, ``+- (rate cdev + (mean_B|q| + earth) tan) max_B K
-    len`` (gyro_y's magnitude on the block)."""
-    veh = w.veh
-    t = w.ag.gnss_t
-    s = np.searchsorted(t, ta)
-    e = np.searchsorted(t, tb)
-    ell = tb - ta
-    plo, phi = _gap_heading_sums(w)
-    ib = IA(plo[e] - plo[s], phi[e] - phi[s]) + pm(1e-12 * (np.abs(plo[e]) + np.abs(phi[e]) + 1))
-    ib = ib - IA(ell) * IA(ref[win])
-    pa = heading_at(w, ta) - IA(ref[win])
-    pb = heading_at(w, tb) - IA(ref[win])
-    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
-    c0 = c.mid()
-    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
-    rate = veh.max_rate / math.cos(veh.max_tilt)
-    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
-    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
-    kmax = np.maximum(k_a, k_b)
-    ext = up(
-        up(up(rate * cdev[win]) + up(up(w.gyro_abs_mean("gyro_y", ta, tb) + earth) * tr[win]))
-        * kmax * ell * (1 + 1e-12)
-    )
-    intk = IA(k_b) * pb - IA(k_a) * pa - IA(kd) * ib
-    rho = (intk * IA(c0[win]) + pm(ext)) / IA(ell)
-    return ib, pa, rho
+def _by_parts(
+    coef: np.ndarray, gw: np.ndarray, gk: np.ndarray, psi_start: IA, psi_end: IA,
+    group: np.ndarray,
+) -> IA:
+    """``sum_k coef_k (psi_k+1 - psi_k)`` per group of consecutive gaps (``group`` the
+    gap's group, ascending), each heading box once: ``sum_j psi_j (coef_j-1 - coef_j)``
+    plus the group's last fix with ``coef_last``. ``psi_start`` the heading at each gap's
+    first fix, ``psi_end`` at each gap's last."""
+    same = np.r_[False, group[1:] == group[:-1]]
+    prev = np.where(same, np.r_[0.0, coef[:-1]], 0.0)
+    term = IA(prev - coef) * psi_start
+    last = np.r_[group[1:] != group[:-1], True]
+    term = term + IA(np.where(last, coef, 0.0)) * psi_end
+    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    lo = np.add.reduceat(term.lo, start)
+    hi = np.add.reduceat(term.hi, start)
+    mag = np.add.reduceat(np.maximum(np.abs(term.lo), np.abs(term.hi)), start)
+    cnt = np.add.reduceat(np.ones(group.size), start)
+    guard = up((cnt + 4) * _EPS * 4 * mag + 1e-300)
+    return IA(lo - guard, hi + guard)
 
 
 def _position_error_share(
@@ -199,68 +173,119 @@ def _position_error_share(
     r = IA(rho.lo[blk], rho.hi[blk])
     ax, ay = r * IA(ce[gk]), r * IA(sn[gk])
     same = np.r_[False, gw[1:] == gw[:-1]]
-    zero = np.zeros(gk.size)
-    px = IA(np.where(same, np.r_[0.0, ax.lo[:-1]], zero), np.where(same, np.r_[0.0, ax.hi[:-1]], zero))
-    py = IA(np.where(same, np.r_[0.0, ay.lo[:-1]], zero), np.where(same, np.r_[0.0, ay.hi[:-1]], zero))
-    xx, xy = px - ax, py - ay
-    mag = up(up(np.maximum(np.abs(xx.lo), np.abs(xx.hi))) + up(np.maximum(np.abs(xy.lo), np.abs(xy.hi))))
+
+    def prev(x: np.ndarray) -> np.ndarray:
+        return np.where(same, np.r_[0.0, x[:-1]], 0.0)
+
+    def absmax(x: IA) -> np.ndarray:
+        return np.maximum(np.abs(x.lo), np.abs(x.hi))
+
+    xx = IA(prev(ax.lo), prev(ax.hi)) - ax
+    xy = IA(prev(ay.lo), prev(ay.hi)) - ay
     out = np.zeros(n)
-    np.add.at(out, gw, up(h[gk] * mag))
+    np.add.at(out, gw, up(h[gk] * up(up(absmax(xx)) + up(absmax(xy)))))
     # each window's last fix: X = rho_last e_last
     last = np.r_[gw[1:] != gw[:-1], True]
-    lm = up(up(np.maximum(np.abs(ax.lo), np.abs(ax.hi))) + up(np.maximum(np.abs(ay.lo), np.abs(ay.hi))))
+    lm = up(absmax(ax) + absmax(ay))
     np.add.at(out, gw[last], up(h[gk[last] + 1] * lm[last]))
     return up(out * (1 + 1e-9) * (1 + 4 * _EPS * (gk.size + 4)) + 1e-300)
 
 
+def _psi_variation(w: WindowContext, lp: LevelPlan, p_sup: float) -> np.ndarray:
+    """Bound of ``int |psi'|`` over each window's support: ``psi' = (r + q sin(phi))/
+    cos(theta)``, with the mean |r| over the support from
+    :func:`~imubounds.dynamic.estimator.aided.transport.r_abs` (a boxcar over the
+    support, at probability ``p_sup``) plus the Earth's rates, gyro_y's magnitude for
+    |q|; at most the rate bound times the support."""
+    veh = w.veh
+    s0, s1 = lp.a1, lp.b2
+    L = s1 - s0
+    sup = LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j)
+    pw = w.p_window
+    try:
+        w.p_window = p_sup
+        r_sup = r_abs(w, sup, L)
+    finally:
+        w.p_window = pw
+    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
+    sr = w.tilt.hull("abs_sinr", s0, s1).hi
+    sec = 1.0 + w.tilt.hull("sec_p_minus_1", s0, s1).hi
+    q = w.gyro_abs_mean("gyro_y", s0, s1)
+    m = np.minimum(up(up(r_sup + earth + up(q * sr)) * sec), veh.max_rate / math.cos(veh.max_tilt))
+    return up(m * L * (1 + 1e-12))
+
+
 def _transport_fix_blocks(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, mb: int, r_mag: np.ndarray,
-    q_mean: np.ndarray | None,
+    q_mean: np.ndarray | None, psi_var: np.ndarray,
 ) -> IA:
-    """:func:`transport_by_fixes` for blocks of ``mb`` fix gaps."""
+    """:func:`transport_by_fixes` for blocks of ``mb`` fix gaps (``psi_var`` from
+    :func:`_psi_variation`)."""
     t = w.ag.gnss_t
+    h = w.ag.gnss_h
     n = lp.a1.size
     s, e, win, in1 = _fix_blocks(t, lp, mb)
     ta, tb = t[s], t[e]
+    ell = tb - ta
     cb, rest = body_u_mean_parts(w, s, e)
     fin = np.isfinite(cb) & np.isfinite(rest)
     cb = np.where(fin, cb, 0.0)
     du = np.where(fin, up(rest + _u_deviation(w, ta, tb)), np.inf)
     L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
-    # the kernel's slope on each block, its values at the block's ends
-    kd = np.where(in1, 1.0 / (L1[win] * tau[win]), -1.0 / (L2[win] * tau[win]))
-    k_a = np.where(in1, (ta - lp.a1[win]) / (L1[win] * tau[win]),
-                   (lp.b2[win] - ta) / (L2[win] * tau[win]))
-    k_b = np.where(in1, (tb - lp.a1[win]) / (L1[win] * tau[win]),
-                   (lp.b2[win] - tb) / (L2[win] * tau[win]))
-    first = np.r_[True, win[1:] != win[:-1]]
-    start = np.flatnonzero(first)
+    # per fix gap: its block, window, first fix, the kernel at its midpoint and slope
+    cnt = e - s
+    gb = np.repeat(np.arange(s.size), cnt)
+    bstart = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    gk = s[gb] + (np.arange(int(np.sum(cnt))) - bstart[gb])
+    gw = win[gb]
+    mid = 0.5 * (t[gk] + t[gk + 1])
+    kbar = np.where(in1[gb], (mid - lp.a1[gw]) / (L1[gw] * tau[gw]),
+                    (lp.b2[gw] - mid) / (L2[gw] * tau[gw]))
     ref = heading_at(w, lp.a1).mid()
     ref = np.where(np.isfinite(ref), ref, 0.0)
-    ib, psi, rho = _block_rate_means(w, lp, win, ta, tb, kd, k_a, k_b, ref)
-    term = IA(-cb * kd) * ib
-    # the jumps of C K at the inner block starts: -K(t_j) (c_j - c_j-1) psi(t_j)
-    dc = np.where(first, 0.0, cb - np.r_[0.0, cb[:-1]])
-    term = term + IA(-k_a * dc) * psi
-    ok_t = np.isfinite(term.lo) & np.isfinite(term.hi) & fin
-    ok_t &= np.isfinite(rho.lo) & np.isfinite(rho.hi)
-    lo = np.where(ok_t, term.lo, 0.0)
-    hi = np.where(ok_t, term.hi, 0.0)
-    mag = np.add.reduceat(np.maximum(np.abs(lo), np.abs(hi)), start)
-    cnt = np.add.reduceat(np.ones(win.size), start)
-    guard = up((cnt + 4) * _EPS * 4 * mag + 1e-300)
-    head = IA(np.add.reduceat(lo, start) - guard, np.add.reduceat(hi, start) + guard)
-    ok = np.logical_and.reduceat(ok_t, start)
-    c0, ext, earth = _rate_terms(w, lp, tau, q_mean)
+    ps = heading_at(w, t[gk]) - IA(ref[gw])
+    pe = heading_at(w, t[gk + 1]) - IA(ref[gw])
+    c0, ext, _ = _rate_terms(w, lp, tau, q_mean)
+    # the first sum: c0 sum_g c_B Kbar_g dpsi_g by parts over the window's fixes
+    head = _by_parts(cb[gb] * kbar, gw, gk, ps, pe, gw) * IA(c0)
+    # rho_B's known part: (c0/len_B) sum_{g in B} Kbar_g dpsi_g, by parts in the block
+    rho0 = _by_parts(kbar, gw, gk, ps, pe, gb) * IA(c0[win]) / IA(ell)
+    # what the gaps leave: c0 K' int_g (t - t_mid) psi' and int K |r - c0 psi'|
+    gmax = np.zeros(n)
+    np.maximum.at(gmax, gw, t[gk + 1] - t[gk])
+    kslope = np.maximum(1.0 / (L1 * tau), 1.0 / (L2 * tau))
+    delta = up(up(c0 * kslope * 0.5 * gmax * psi_var) + ext)
+    delta = up(delta * (1 + 1e-9))
+    ok_b = fin & np.isfinite(rho0.lo) & np.isfinite(rho0.hi)
+    ok = np.ones(n, dtype=bool)
+    np.logical_and.at(ok, win, ok_b)
+    ok &= np.isfinite(head.lo) & np.isfinite(head.hi)
     kint = 0.5 * (L1 + L2) / tau  # int K (1 for the trapezoid)
     ok &= np.abs(kint - 1.0) < 1e-9
     umax = np.zeros(n)
     np.maximum.at(umax, win, np.abs(cb))
-    rho = IA(np.where(ok_t, rho.lo, 0.0), np.where(ok_t, rho.hi, 0.0))
-    perr = _position_error_share(w, s, e, win, rho, n)
-    speed = _speed_part(w, win, ta, tb, np.where(fin, du, 0.0), n, tau, r_mag, earth)
-    x = head * IA(c0) + pm(up(umax * ext)) + pm(perr) + pm(speed)
+    rho0 = IA(np.where(ok_b, rho0.lo, 0.0), np.where(ok_b, rho0.hi, 0.0))
+    perr = _position_error_share(w, s, e, win, rho0, n)
+    # the unknown part of rho: sum_B len_B |delta_B| <= delta; it meets the boxes at the
+    # blocks' ends (|e|_1 <= sqrt 2 each side) and at the turns inside a block
+    ce, sn = gap_units(w)
+    first_g = np.r_[True, gb[1:] != gb[:-1]]
+    de = np.where(first_g, 0.0, np.abs(ce[gk] - ce[np.maximum(gk - 1, 0)])
+                  + np.abs(sn[gk] - sn[np.maximum(gk - 1, 0)]))
+    turn = np.zeros(s.size)
+    np.add.at(turn, gb, de)
+    fac = np.zeros(n)
+    np.maximum.at(fac, win, up((2 * math.sqrt(2) + turn) / ell))
+    hmax = np.zeros(n)
+    np.maximum.at(hmax, gw, np.maximum(h[gk], h[gk + 1]))
+    perr = up(perr + up(hmax * fac * delta) * (1 + 1e-9))
+    speed = _speed_part(w, win, ta, tb, np.where(fin, du, 0.0), n, tau, r_mag, _earth(w))
+    x = head + pm(up(umax * delta)) + pm(perr) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
+
+
+def _earth(w: WindowContext) -> float:
+    return float(up(np.asarray(EARTH_RATE + w.veh.max_speed / R_EARTH)))
 
 
 def transport_by_fixes(
@@ -268,7 +293,8 @@ def transport_by_fixes(
     lp: LevelPlan,
     tau: np.ndarray,
     r_mag: np.ndarray,
-    q_mean: np.ndarray | None = None,
+    q_mean: np.ndarray | None,
+    p_sup: float,
 ) -> IA:
     """``mean(r u)`` over trapezoid (positions-only) windows, the window cut into blocks
     B of a few fix gaps (I1's and I2's separately; the narrowest over
@@ -288,9 +314,10 @@ def transport_by_fixes(
     t_j, with ``int_B psi`` from the heading hull of each fix gap and psi(t_j) from the
     heading boxes (:func:`~imubounds.dynamic.estimator.aided.heading.heading_at`; all
     relative to the heading at a1, as the weights sum to zero)."""
+    psi_var = _psi_variation(w, lp, p_sup)
     best: IA | None = None
     for mb in FIX_BLOCKS:
-        x = _transport_fix_blocks(w, lp, tau, mb, r_mag, q_mean)
+        x = _transport_fix_blocks(w, lp, tau, mb, r_mag, q_mean, psi_var)
         if best is None:
             best = x
         else:
