@@ -51,10 +51,14 @@ TARGET = 1.5
 #: gyro's flicker at the blocks' time scale, in the concentration term, and the blocks'
 #: heading radii) times u's half-range over a heading gap (the GNSS velocity radius plus
 #: the growth between epochs, 0.70 m/s median against the reference's radius 0.53);
-#: positions only: u is bounded only by the chord speed (u0 = 0, du = S_max), so
-#: ``S_max x mean|r|`` (12 m/s x 0.05-0.15 rad/s) is nearly the whole margin.
+#: positions only (3.99 4.23 3.41 2.95 2.56 2.31 1.98 1.84; before the fix blocks 3.99 7.27
+#: 9.60 9.12 7.10 5.65 4.82 4.28): at 1.28 s the vehicle bounds alone (the transport
+#: term over one fix gap is wider); above, ``aided.transport_fixes.transport_by_fixes``:
+#: the position boxes (+-10.6 m) where the block means of K r change between blocks,
+#: and u's deviation from its block mean (the accelerometer's per-sample bound E0 =
+#: 0.4 m/s^2 x half the block) times the bound of mean|r|.
 ACCEL_Y_CEILING = {
-    "positions+compass": 10.0,
+    "positions+compass": 4.5,
     "gnss-pos+vel+compass": 1.9,
     "course-heading": 1.8,
     "dvl+compass": TARGET,

@@ -2,7 +2,9 @@
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
-(:func:`transport_by_gaps`), the narrower of the two."""
+(:func:`transport_by_gaps`), positions only also over blocks of fix gaps
+(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`), the
+narrower of the two."""
 
 from __future__ import annotations
 
