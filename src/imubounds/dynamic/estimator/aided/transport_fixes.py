@@ -211,7 +211,8 @@ def _psi_variation(w: WindowContext, lp: LevelPlan, p_sup: float) -> np.ndarray:
     sr = w.tilt.hull("abs_sinr", s0, s1).hi
     sec = 1.0 + w.tilt.hull("sec_p_minus_1", s0, s1).hi
     q = w.gyro_abs_mean("gyro_y", s0, s1)
-    m = np.minimum(up(up(r_sup + earth + up(q * sr)) * sec), veh.max_rate / math.cos(veh.max_tilt))
+    m = up(up(r_sup + earth + up(up(q + earth) * sr)) * sec)
+    m = np.minimum(m, veh.max_rate / math.cos(veh.max_tilt))
     return up(m * L * (1 + 1e-12))
 
 
@@ -262,6 +263,9 @@ def _transport_fix_blocks(
     ok &= np.isfinite(head.lo) & np.isfinite(head.hi)
     kint = 0.5 * (L1 + L2) / tau  # int K (1 for the trapezoid)
     ok &= np.abs(kint - 1.0) < 1e-9
+    for x_t in (lp.a1, lp.b1, lp.b2):  # the kernel's corners on fix epochs
+        k = np.clip(np.searchsorted(t, x_t), 0, t.size - 1)
+        ok &= np.abs(t[k] - x_t) <= 1e-9
     umax = np.zeros(n)
     np.maximum.at(umax, win, np.abs(cb))
     rho0 = IA(np.where(ok_b, rho0.lo, 0.0), np.where(ok_b, rho0.hi, 0.0))
