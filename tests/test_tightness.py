@@ -10,9 +10,19 @@ from typing import Any
 import numpy as np
 import pytest
 
-from imubounds.dynamic.estimator.aided.accel_y import transport_by_gaps
+from imubounds.dynamic.estimator.aided.accel_y import (
+    SUP_SHARE,
+    gyro_deviation_bounds,
+    transport_by_gaps,
+)
 from imubounds.dynamic.estimator.aided.transport import r_abs
-from imubounds.dynamic.estimator.aided.velocity import body_velocity
+from imubounds.dynamic.estimator.aided.transport_fixes import (
+    FIX_BLOCKS,
+    _psi_variation,
+    _transport_fix_blocks,
+    transport_by_fixes,
+)
+from imubounds.dynamic.estimator.aided.velocity import body_velocity, speed_max
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
@@ -41,10 +51,14 @@ TARGET = 1.5
 #: gyro's flicker at the blocks' time scale, in the concentration term, and the blocks'
 #: heading radii) times u's half-range over a heading gap (the GNSS velocity radius plus
 #: the growth between epochs, 0.70 m/s median against the reference's radius 0.53);
-#: positions only: u is bounded only by the chord speed (u0 = 0, du = S_max), so
-#: ``S_max x mean|r|`` (12 m/s x 0.05-0.15 rad/s) is nearly the whole margin.
+#: positions only (3.99 4.23 3.41 2.95 2.56 2.31 1.98 1.84; before the fix blocks 3.99 7.27
+#: 9.60 9.12 7.10 5.65 4.82 4.28): at 1.28 s the vehicle bounds alone (the transport
+#: term over one fix gap is wider); above, ``aided.transport_fixes.transport_by_fixes``:
+#: the position boxes (+-10.6 m) where the block means of K r change between blocks,
+#: and u's deviation from its block mean (the accelerometer's per-sample bound E0 =
+#: 0.4 m/s^2 x half the block) times the bound of mean|r|.
 ACCEL_Y_CEILING = {
-    "positions+compass": 10.0,
+    "positions+compass": 4.5,
     "gnss-pos+vel+compass": 1.9,
     "course-heading": 1.8,
     "dvl+compass": TARGET,
@@ -168,6 +182,58 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
             assert not bad.any(), (lp.tau_s, int(bad.sum()))
             n += lp.n
         assert n > 100
+
+
+@pytest.mark.parametrize(
+    "seed,kw",
+    [
+        (50, {}),
+        (51, {"corner_length_m": 20.0, "laps": 3}),
+        (52, {"turn_on_scale": 3.0}),
+        (53, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+    ],
+    ids=["paper", "corners", "turn-on", "corners-turn-on"],
+)
+def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) -> None:
+    """Positions + compass: accel_y's transport term over blocks of fix gaps
+    (``aided.transport_fixes.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
+    own) contains the true trapezoid kernel mean of r u (the simulator's yaw rate and
+    forward velocity on the IMU's stamps) at every window of every aided level, on the
+    sharp-corners trip (the vehicle slows in the corners) and with a turn-on gyro bias
+    at 3 sigma; and it is narrower than the chord-speed form ``S_max x mean|r|`` at some
+    tau (by half at the longest on the paper trip; in the corners, where the vehicle
+    slows, at the middle ones)."""
+    with nearest():
+        res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
+        tr = res.drive.truth
+        r = np.asarray(tr.extra["gyro_z"], dtype=float)
+        u = np.asarray(tr.u_mps, dtype=float)
+        assert r.size == ctx.imu.n and u.size == ctx.imu.n
+        sig = PiecewiseSignal(ctx.imu.bnd, r * u)
+        plan = ctx.plans["accel_y"]
+        assert plan.trapezoid
+        n = 0
+        gain = []
+        for li, lp in enumerate(plan.levels):
+            if lp.kind != "aided" or lp.n == 0:
+                continue
+            gi = ctx.level_index[("accel_y", li)]
+            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+            r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
+            p_sup = SUP_SHARE * mb.p_window
+            true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            psi_var = _psi_variation(mb, lp, p_sup)
+            for blk in FIX_BLOCKS:
+                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var)
+                bad = (true.lo > box.hi) | (true.hi < box.lo)
+                assert not bad.any(), (lp.tau_s, blk, int(bad.sum()))
+            box = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, p_sup)
+            assert np.all(np.isfinite(box.lo) & np.isfinite(box.hi))
+            old = speed_max(mb, lp.a1, lp.b2) * r_mag  # the chord-speed form's radius
+            gain.append(float(np.median(0.5 * (box.hi - box.lo)) / np.median(old)))
+            n += lp.n
+        assert n > 100
+        assert min(gain) < 0.7, gain
 
 
 @pytest.mark.parametrize(

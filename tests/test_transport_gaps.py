@@ -1,9 +1,10 @@
 """accel_y's transport term cut at the heading epochs: the compiled per-window sums
 (aided/gap_sums.py, the gaps between heading epochs computed once per run) against the
 plain vectorised reference that materialises every window's knots
-(tests/transport_gaps_reference.py): equal, bit but for the order of the additions (numpy sums pairwise), on every aided level of the aiding sets
-that use it (a velocity sensor and a heading: GNSS velocity, DVL, wheel speed, the
-heading sparser than the velocity or not, sharp corners)."""
+(tests/transport_gaps_reference.py): equal but for the order of the additions (numpy
+sums pairwise), on every aided level of the aiding sets that use it (a velocity sensor
+and a heading: GNSS velocity, DVL, wheel speed, the heading sparser than the velocity or
+not, sharp corners)."""
 
 from __future__ import annotations
 

@@ -2,29 +2,37 @@
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
-(:func:`transport_by_gaps`), the narrower of the two."""
+(:func:`transport_by_gaps`), positions only also over blocks of fix gaps
+(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`), the
+narrower of the two."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.transport_fixes import (
+    _EPS,
+    _rate_terms,
+    transport_by_fixes,
+)
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
 
-_EPS = 2.3e-16
 #: the share of the window's gyro-deviation probability given to the bound of mean|q|
 #: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
 Q_SHARE = 0.1
+#: positions only: the share of that probability for the support's mean |r| in
+#: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
+SUP_SHARE = 0.45
 
 
 def mean_r_from_heading(
@@ -46,31 +54,7 @@ def mean_r_from_heading(
     return r_from_psidot(w, dpsi, lp, tau, own_q=True, q_mean=q_mean)
 
 
-def _rate_terms(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray, q_mean: np.ndarray | None
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """``c0``, the radius of ``r - c0 psi'`` and the Earth's share of the gyro's rate.
-
-    In ``f_y = v' + r u + ...`` r is the body's rate relative to the navigation frame,
-    ``psi' c - q_nb tan(phi)`` (c = cos(theta)/cos(phi) within ``c0 +- cdev``); the
-    Earth's rotation and the transport rate enter through the Coriolis term of
-    :func:`~imubounds.dynamic.estimator.aided.horizontal.horizontal_terms`, so unlike
-    gyro_z's :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` no Earth
-    rate is added to r here. The gyros measure the inertial rates: ``|q_nb| <= |q| +
-    earth`` and ``|r_nb| <= |r| + earth``, ``earth = Omega + max_speed/R_E``."""
-    veh = w.veh
-    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
-    c0 = c.mid()
-    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
-    rate = veh.max_rate / math.cos(veh.max_tilt)
-    q = w.kernel_mag("gyro_y", lp, tau) if q_mean is None else q_mean
-    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
-    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
-    ext = up(up(rate * cdev) + up(up(q + earth) * tr))
-    return c0, ext, earth
-
-
-#: the levels d0 of :func:`_speed_part`: quantiles of the gaps' half-ranges of u
+#: the levels d0 of :func:`_speed_levels`: quantiles of the gaps' half-ranges of u
 SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
 
 
@@ -104,7 +88,7 @@ def _gap_terms(
     return up(np.maximum(du[:, None] - d0[None, :], 0.0) * coarse[:, None])
 
 
-def _speed_part(
+def _speed_levels(
     dmax: np.ndarray, ex: np.ndarray, d0: np.ndarray, tau: np.ndarray, r_mag: np.ndarray,
     earth: float,
 ) -> np.ndarray:
@@ -151,7 +135,7 @@ def transport_by_gaps(
     twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
     (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
     Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|``
-    (:func:`_speed_part`). The per-window sums: :func:`.gap_sums.gap_sums` (compiled;
+    (:func:`_speed_levels`). The per-window sums: :func:`.gap_sums.gap_sums` (compiled;
     the gaps between heading epochs computed once per run)."""
     from imubounds.dynamic.estimator.aided.gap_sums import gap_sums
 
@@ -191,23 +175,24 @@ def transport_by_gaps(
         knot_h, gap_f, gap_l, gap_g, ex_f, ex_l, ex_g)
     nk = ni + 2
     rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
-    speed = _speed_part(dmax, ex, d0, tau, r_mag, earth)
+    speed = _speed_levels(dmax, ex, d0, tau, r_mag, earth)
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
 
 
 def gyro_deviation_bounds(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, sup_share: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """The transport term's two gyro bounds, sharing the window's second bounded event
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
-    (``Q_SHARE`` of its probability to the second, the rest to the first): the kernel
-    mean of |r| (``aided.transport.r_abs``) and
+    (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
+    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`,
+    the rest to the first): the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
-        w.p_window = (1.0 - Q_SHARE) * p
+        w.p_window = (1.0 - Q_SHARE - sup_share) * p
         r_mag = r_abs(w, lp, tau)
     finally:
         w.p_window = p
@@ -218,7 +203,8 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     """``[x_W]`` of accel_y."""
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
-    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau)
+    fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE if fixes else 0.0)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
@@ -229,6 +215,10 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
         rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
         use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
+    if fixes:
+        rf = transport_by_fixes(w, lp, tau, r_mag, q_mean, SUP_SHARE * w.p_window)
+        use = (rf.hi - rf.lo) < (ru.hi - ru.lo)
+        ru = IA(np.where(use, rf.lo, ru.lo), np.where(use, rf.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
     if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound

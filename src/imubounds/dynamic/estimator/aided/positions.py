@@ -125,19 +125,22 @@ def _gap_tables(w: WindowContext) -> dict[str, np.ndarray]:
         "perr": cum(h[1:-1] * de) if t.size > 2 else np.zeros(1),
         "end": np.abs(c) + np.abs(sn),
         "smax": smax,
+        "ce": c,
+        "sn": sn,
     }
     w.cache["pos_tables"] = tab
     return tab
 
 
-def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
-    """Mean horizontal heading-frame velocities (u_h, v_h) over [t_p, t_q] (fix indices,
-    q > p): the projected chords of every gap inside, their position errors by summation
-    by parts, their second-order remainders, and a bound of the prefix sums' rounding."""
+def _mean_over_parts(
+    w: WindowContext, p: np.ndarray, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_mean_over`'s parts (before the division by ``L = t_q - t_p``): the sums of
+    the projected chords ``nu``, ``nv``, the position errors' share ``perr`` (by parts),
+    and the rest of the radii of u_h and v_h (the second-order remainders and rounding)."""
     ag = w.ag
     tab = _gap_tables(w)
     t, h = ag.gnss_t, ag.gnss_h
-    L = t[q] - t[p]
     nu = tab["du"][q] - tab["du"][p]
     nv = tab["dv"][q] - tab["dv"][p]
     inner = tab["perr"][np.maximum(q - 1, p)] - tab["perr"][p]  # interior fixes p+1..q-1
@@ -147,10 +150,59 @@ def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
     ru = tab["ru"][q] - tab["ru"][p]
     rv = tab["rv"][q] - tab["rv"][p]
     gr = (n + 4) * 2.3e-16 * (tab["ru"][q] + tab["rv"][q] + tab["perr"][-1] + 1.0)
-    wu = up((perr + ru + guard + gr) * (1 + 1e-12))
-    wv = up((perr + rv + guard + gr) * (1 + 1e-12))
-    dT = IA(L)
+    return nu, nv, perr, up(ru + guard + gr), up(rv + guard + gr)
+
+
+def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
+    """Mean horizontal heading-frame velocities (u_h, v_h) over [t_p, t_q] (fix indices,
+    q > p): the projected chords of every gap inside, their position errors by summation
+    by parts, their second-order remainders, and a bound of the prefix sums' rounding."""
+    t = w.ag.gnss_t
+    nu, nv, perr, rest_u, rest_v = _mean_over_parts(w, p, q)
+    wu = up((perr + rest_u) * (1 + 1e-12))
+    wv = up((perr + rest_v) * (1 + 1e-12))
+    dT = IA(t[q] - t[p])
     return (IA(nu) + pm(wu)) / dT, (IA(nv) + pm(wv)) / dT
+
+
+def gap_units(w: WindowContext) -> tuple[np.ndarray, np.ndarray]:
+    """Per fix gap, the unit vector (east, north) of its mid-heading ``e_k`` (the
+    chords' projection of :func:`_mean_over`)."""
+    tab = _gap_tables(w)
+    return tab["ce"], tab["sn"]
+
+
+def _body_u(w: WindowContext, uh: IA, a: np.ndarray, b: np.ndarray, smax: np.ndarray) -> IA:
+    """The mean body forward velocity over [a, b] from that of ``u_h`` (the tilt
+    conversion: ``+- (S_max (sec(pitch) - 1) + v_max |tan(roll) tan(pitch)| + W |tan(pitch)|)``)."""
+    veh = w.veh
+    sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
+    trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
+    vl = veh.lateral_speed_bound_mps
+    vmax = np.minimum(smax, vl) if vl is not None else smax
+    u = uh + pm(smax * sec_p + vmax * trp)
+    if veh.vertical_bound > 0:
+        u = u + pm(veh.vertical_bound * w.tilt.hull("abs_tanp", a, b).hi)
+    return u
+
+
+def body_u_mean_parts(
+    w: WindowContext, p: np.ndarray, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The mean body forward velocity over the fix interval ``[t_p, t_q]`` (fix indices,
+    ``q > p``; as in :func:`position_means`) apart from its position errors: ``mean u =
+    nu/L + sum_k (eps_k+1 - eps_k).e_k / L +- rest`` (eps the fixes' errors, e_k the gap
+    units of :func:`gap_units`); returns ``nu/L`` and ``rest`` (the projection's
+    second-order remainders, the tilt conversion and rounding)."""
+    t = w.ag.gnss_t
+    a, b = t[p], t[q]
+    L = b - a
+    nu, _, _, rest_u, _ = _mean_over_parts(w, p, q)
+    c = nu / L
+    u = _body_u(w, IA(c) + pm(up(up(rest_u * (1 + 1e-12)) / L * (1 + 1e-12))), a, b,
+                speed_max(w, a, b))
+    rest = up(np.maximum(u.hi - c, c - u.lo) * (1 + 1e-12) + 1e-300)
+    return c, rest
 
 
 def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str, IA]:
@@ -166,17 +218,16 @@ def position_means(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> dict[str
         a, b = t[p], t[q]
         uh, vh = _mean_over(w, p, q)
         smax = speed_max(w, a, b)
-        sec_p = w.tilt.hull("sec_p_minus_1", a, b).hi
         sec_r = w.tilt.hull("sec_r_minus_1", a, b).hi
-        trp = w.tilt.hull("abs_tanr_tanp", a, b).hi
-        vl = veh.lateral_speed_bound_mps
-        vmax = np.minimum(smax, vl) if vl is not None else smax
-        u = uh + pm(smax * sec_p + vmax * trp)
+        u = _body_u(w, uh, a, b, smax)
         v = vh + pm(smax * sec_r)
         if veh.vertical_bound > 0:
-            wv = veh.vertical_bound
-            u = u + pm(wv * w.tilt.hull("abs_tanp", a, b).hi)
-            v = v + pm(wv * w.tilt.hull("abs_tanr", a, b).hi)
+            v = v + pm(veh.vertical_bound * w.tilt.hull("abs_tanr", a, b).hi)
+        vl = veh.lateral_speed_bound_mps
+        if vl is not None:  # |v| <= the lateral bound at every time, so its means too
+            vc = v & pm(np.full(v.lo.shape, vl))
+            keep = vc.is_empty()  # inconsistent with the bound: left as the fixes give it
+            v = IA(np.where(keep, v.lo, vc.lo), np.where(keep, v.hi, vc.hi))
         out["u" + key] = u
         out["v" + key] = v
     return out
