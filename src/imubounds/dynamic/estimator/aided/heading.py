@@ -83,13 +83,47 @@ def heading_mean(w: WindowContext, a: np.ndarray, b: np.ndarray) -> IA:
         mn, mx = ext.query(ii, jj)
         out_lo = np.where(has, np.minimum(out_lo, mn), out_lo)
         out_hi = np.where(has, np.maximum(out_hi, mx), out_hi)
-        # between heading epochs the heading moves by at most the rate bound x gap
-        gaps = np.diff(ht) if ht.size > 1 else np.zeros(1)
-        gext = RangeExt(gaps)
-        _, gm = gext.query(np.clip(ii, 0, gaps.size - 1), np.clip(jj, 0, gaps.size - 1))
-        g = up(psi_dot_abs(w, a, b) * gm / 2)
+        # between two knots (a, the heading epochs inside, b) the heading leaves the
+        # hull of its two ends by at most (int |psi'| - |psi(t2) - psi(t1)|)/2 there:
+        # psi_dot_abs bounds the MEAN |psi'| over its own span, so each gap's integral
+        # is taken over that gap (the gaps between heading epochs once per run)
+        t_in = np.where(has, ht[ii], b)
+        t_out = np.where(has, ht[jj], b)
+        g = np.maximum(_half_integral(w, a, t_in), _half_integral(w, t_out, b))
+        if ht.size > 1:
+            ge = _gap_excursions(w)
+            inner = has & (j > i)
+            lo_k = np.clip(ii, 0, ge.size - 1)
+            hi_k = np.clip(np.maximum(jj - 1, ii), 0, ge.size - 1)
+            _, gm = w.cache["gap_exc_ext"].query(lo_k, hi_k)
+            g = np.where(inner, np.maximum(g, gm), g)
+        g = up(g)
         out_lo, out_hi = out_lo - g, out_hi + g
     return IA(np.nextafter(out_lo, -np.inf), up(out_hi))
+
+
+def _half_integral(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``int_a^b |psi'| / 2`` bounded (``psi_dot_abs`` x the span), 0 on empty spans."""
+    span = np.maximum(b - a, 0.0)
+    return np.where(span > 0, up(psi_dot_abs(w, a, np.maximum(a, b)) * span / 2), 0.0)
+
+
+def _gap_excursions(w: WindowContext) -> np.ndarray:
+    """Per gap between consecutive heading epochs: how far the heading can leave the hull
+    of its two ends inside it, ``(int |psi'| - max(0, |c2 - c1| - h1 - h2))/2`` (the
+    integral bounded over the gap; the true change at least the centres' minus the two
+    boxes); computed once per run, with its range-maximum table."""
+    if "gap_exc" not in w.cache:
+        ag = w.ag
+        ht, hc, hh = ag.head_t, ag.head_c, ag.head_h
+        a, b = ht[:-1], ht[1:]
+        integral = up(psi_dot_abs(w, a, b) * (b - a))
+        change = np.maximum(np.nextafter(np.abs(hc[1:] - hc[:-1]) - hh[1:] - hh[:-1],
+                                         -np.inf), 0.0)
+        ge = up(np.maximum(integral - change, 0.0) * (0.5 * (1 + 1e-12)) + 1e-300)
+        w.cache["gap_exc"] = ge
+        w.cache["gap_exc_ext"] = RangeExt(ge)
+    return w.cache["gap_exc"]
 
 
 def r_from_psidot(

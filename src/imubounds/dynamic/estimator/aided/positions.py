@@ -46,9 +46,14 @@ def _envelope_integrals(
     w: WindowContext, a: np.ndarray, b: np.ndarray, psi0: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of ``int_a^b |psi - psi0|`` and ``int_a^b (psi - psi0)^2`` over each fix gap
-    from the heading at its ends and the rate bound R: ``psi(t)`` lies under
-    ``U = min(psi_hi(a) + R (t - a), psi_hi(b) + R (b - t))`` and over the like ``L``, so
-    ``|psi - psi0| <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k + y^k``."""
+    from the heading at its ends, the bound I = R (b - a) of ``int_a^b |psi'|`` (R =
+    ``psi_dot_abs``, a bound of the MEAN |psi'| over the gap, not of the rate at each
+    time) and the rate cap Rm (the vehicle's, through the tilt): with ``x = int_a^t
+    |psi'|``, ``psi(t) <= psi_hi(a) + x`` and ``psi(t) <= psi_hi(b) + I - x``, so ``psi``
+    lies under ``U = min(psi_hi(a) + Rm (t - a), psi_hi(b) + Rm (b - t), (psi_hi(a) +
+    psi_hi(b) + I)/2)`` (concave, linear between its breakpoints) and over the like
+    ``L``; ``|psi - psi0| <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k +
+    y^k``."""
     pa, pb = heading_at(w, a), heading_at(w, b)
     ok = np.isfinite(pa.lo) & np.isfinite(pa.hi) & np.isfinite(pb.lo) & np.isfinite(pb.hi)
     ok &= np.isfinite(psi0)
@@ -57,17 +62,23 @@ def _envelope_integrals(
     pa = IA(np.where(ok, pa.lo, 0.0), np.where(ok, pa.hi, 0.0))
     pb = IA(np.where(ok, pb.lo, 0.0), np.where(ok, pb.hi, 0.0))
     psi0 = np.where(ok, psi0, 0.0)
-    R = np.maximum(psi_dot_abs(w, a, b), 1e-12)
     g = b - a
+    integral = up(psi_dot_abs(w, a, b) * g)
+    rm = max(w.veh.max_rate / math.cos(w.veh.max_tilt), 1e-12)
     out1 = np.zeros(a.shape)
     out2 = np.zeros(a.shape)
     for sgn, ya, yb in ((1.0, pa.hi, pb.hi), (-1.0, -pa.lo, -pb.lo)):
         # sgn = 1: U - psi0; sgn = -1: psi0 - L (mirrored: -L is a min of lines too)
-        tk = np.clip((yb - ya + R * (a + b)) / (2 * R), a, b)
-        va = np.minimum(ya, yb + R * g) - sgn * psi0
-        vk = ya + R * (tk - a) - sgn * psi0
-        vb = np.minimum(ya + R * g, yb) - sgn * psi0
-        for v0, v1, ell in ((va, vk, tk - a), (vk, vb, b - tk)):
+        cap = up((ya + yb + integral) / 2)
+        t1 = np.clip(a + (cap - ya) / rm, a, b)
+        t2 = np.maximum(np.clip(b - (cap - yb) / rm, a, b), t1)
+
+        def env(t: np.ndarray, ya: np.ndarray = ya, yb: np.ndarray = yb,
+                cap: np.ndarray = cap) -> np.ndarray:
+            return np.minimum(np.minimum(ya + rm * (t - a), yb + rm * (b - t)), cap)
+
+        v = [env(x) - sgn * psi0 for x in (a, t1, t2, b)]
+        for v0, v1, ell in ((v[0], v[1], t1 - a), (v[1], v[2], t2 - t1), (v[2], v[3], b - t2)):
             i1, i2 = _pos_part(v0, v1, ell)
             out1 = out1 + i1
             out2 = out2 + i2
