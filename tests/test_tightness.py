@@ -145,6 +145,15 @@ def test_accel_y_against_the_limit(name: str) -> None:
     assert all(r.ratio <= ACCEL_Y_CEILING[name] for r in rows), f"{name} accel_y: {table}"
 
 
+def _true_ru(res: Any, ctx: Any) -> PiecewiseSignal:
+    """The simulator's true r u (yaw rate x forward velocity) on the IMU's stamps."""
+    tr = res.drive.truth
+    r = np.asarray(tr.extra["gyro_z"], dtype=float)
+    u = np.asarray(tr.u_mps, dtype=float)
+    assert r.size == ctx.imu.n and u.size == ctx.imu.n
+    return PiecewiseSignal(ctx.imu.bnd, r * u)
+
+
 @pytest.mark.parametrize(
     "aiding,seed,kw",
     [
@@ -163,11 +172,7 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
     every aided boxcar level."""
     with nearest():
         res, ctx, mb = _context(aiding, seed, truth_rate_hz=100.0, **kw)
-        tr = res.drive.truth
-        r = np.asarray(tr.extra["gyro_z"], dtype=float)
-        u = np.asarray(tr.u_mps, dtype=float)
-        assert r.size == ctx.imu.n and u.size == ctx.imu.n
-        sig = PiecewiseSignal(ctx.imu.bnd, r * u)
+        sig = _true_ru(res, ctx)
         plan = ctx.plans["accel_y"]
         bv = body_velocity(mb)
         n = 0
@@ -205,11 +210,7 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
     slows, at the middle ones)."""
     with nearest():
         res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
-        tr = res.drive.truth
-        r = np.asarray(tr.extra["gyro_z"], dtype=float)
-        u = np.asarray(tr.u_mps, dtype=float)
-        assert r.size == ctx.imu.n and u.size == ctx.imu.n
-        sig = PiecewiseSignal(ctx.imu.bnd, r * u)
+        sig = _true_ru(res, ctx)
         plan = ctx.plans["accel_y"]
         assert plan.trapezoid
         n = 0

@@ -180,19 +180,25 @@ def _pitch_gravity(pb: Any, a: float, b: float, kern: Any) -> float:
     return float(0.5 * G_MAX * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
 
 
-def accel_x_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
-    """Per aided level of accel_x at or above ``min_tau_s``: the estimator's median
-    half-width against the median reference limit over the same windows."""
-    plan = ctx.plans["accel_x"]
+def _level_ratios(ctx: Any, margins: Any, ch: str, limits: Any,
+                  min_tau_s: float) -> list[LevelRatio]:
+    """Per aided level of an accelerometer at or above ``min_tau_s``: the estimator's
+    median half-width against the median reference limit over the same windows (the
+    vehicle bounds alone enclose the same mean: the limit is the smaller)."""
+    plan = ctx.plans[ch]
     out: list[LevelRatio] = []
     levels = [lp for lp in plan.levels if lp.n > 0]
     for lp, lv in zip(levels, margins.levels, strict=True):
         if lp.kind != "aided" or lp.tau_s < min_tau_s:
             continue
-        terms = accel_x_limits(ctx, plan, lp)
-        # the vehicle bounds alone enclose the same mean: the limit is the smaller
+        terms = limits(ctx, plan, lp)
         out.append(_ratio(lp, lv, terms, ctx.vehicle.max_accel + terms["gravity"]))
     return out
+
+
+def accel_x_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
+    """:func:`_level_ratios` of accel_x."""
+    return _level_ratios(ctx, margins, "accel_x", accel_x_limits, min_tau_s)
 
 
 def _ratio(lp: Any, lv: Any, terms: dict[str, np.ndarray], cap: Any) -> LevelRatio:
@@ -419,14 +425,5 @@ def accel_y_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
 
 
 def accel_y_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
-    """Per aided level of accel_y at or above ``min_tau_s``: the estimator's median
-    half-width against the median reference limit over the same windows."""
-    plan = ctx.plans["accel_y"]
-    out: list[LevelRatio] = []
-    levels = [lp for lp in plan.levels if lp.n > 0]
-    for lp, lv in zip(levels, margins.levels, strict=True):
-        if lp.kind != "aided" or lp.tau_s < min_tau_s:
-            continue
-        terms = accel_y_limits(ctx, plan, lp)
-        out.append(_ratio(lp, lv, terms, ctx.vehicle.max_accel + terms["gravity"]))
-    return out
+    """:func:`_level_ratios` of accel_y."""
+    return _level_ratios(ctx, margins, "accel_y", accel_y_limits, min_tau_s)

@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.accel_y import SPEED_LEVELS, _rate_terms
+from imubounds.dynamic.estimator.aided.accel_y import _rate_terms
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.heading import heading_at
+from imubounds.dynamic.estimator.aided.transport_fixes import _speed_part
 from imubounds.dynamic.estimator.aided.velocity import vel_range
 from imubounds.interval import IntervalArray as IA
 
@@ -35,39 +36,6 @@ def _knots(ht: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ..
     return t, win, pos, start, nk
 
 
-def _speed_part(
-    w: Any,
-    gwin: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    du: np.ndarray,
-    n: int,
-    tau: np.ndarray,
-    r_mag: np.ndarray,
-    earth: float,
-) -> np.ndarray:
-    """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
-    half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
-    ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
-    (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
-    magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
-    its maximum included, which gives ``max du x r_mag``). r is relative to the
-    navigation frame: the gyro's bounds plus ``earth`` (:func:`_rate_terms`)."""
-    r_mag = up(r_mag + earth)
-    dmax = np.zeros(n)
-    np.maximum.at(dmax, gwin, du)
-    best = up(dmax * r_mag)
-    if du.size == 0:
-        return best
-    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
-    for d0 in np.quantile(du, SPEED_LEVELS):
-        ex = np.zeros(n)
-        np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
-        cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
-        best = np.minimum(best, cand)
-    return best
-
-
 def transport_by_gaps(
     w: Any,
     lp: Any,
@@ -76,16 +44,8 @@ def transport_by_gaps(
     r_mag: np.ndarray,
     q_mean: np.ndarray | None = None,
 ) -> IA:
-    """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
-    ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
-    (:func:`~imubounds.dynamic.estimator.aided.velocity.vel_range`), so
-    ``tau mean(r u) = sum_k u0_k int_k r + sum_k int_k (u - u0_k) r``. With
-    ``r = psi' c - q tan(phi)`` (c within ``c0 +- cdev``): the first sum is
-    ``c0 sum_k u0_k (psi_k+1 - psi_k)`` (by parts: ``sum_j psi_j w_j`` with ``w_j =
-    u0_j-1 - u0_j``, so each heading box enters once, weighted by the CHANGE of u0, not
-    twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
-    (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
-    Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|`` (:func:`_speed_part`)."""
+    """The vectorised form of ``accel_y.transport_by_gaps`` (same arguments, same
+    equations): every window's knots materialised."""
     a, b = lp.a1, lp.b2
     t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
     psi = heading_at(w, t)

@@ -19,6 +19,7 @@ from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.transport_fixes import (
     _EPS,
+    SPEED_LEVELS,
     _rate_terms,
     transport_by_fixes,
 )
@@ -54,8 +55,6 @@ def mean_r_from_heading(
     return r_from_psidot(w, dpsi, lp, tau, own_q=True, q_mean=q_mean)
 
 
-#: the levels d0 of :func:`_speed_levels`: quantiles of the gaps' half-ranges of u
-SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
 
 
 def _knot_rows(w: WindowContext, t: np.ndarray) -> np.ndarray:

@@ -19,6 +19,8 @@ from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 _EPS = 2.3e-16
+#: the levels d0 of the speed part: quantiles of the gaps' half-ranges of u
+SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
 #: block lengths (in fix gaps) of the positions-only transport bound (:func:`transport_by_fixes`)
 FIX_BLOCKS = (4, 6, 8, 10, 12, 16, 24, 32)
 
@@ -72,7 +74,7 @@ def _speed_part(
     if du.size == 0:
         return best
     coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
-    for d0 in np.quantile(du, [0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99]):
+    for d0 in np.quantile(du, SPEED_LEVELS):
         ex = np.zeros(n)
         np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
         cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
