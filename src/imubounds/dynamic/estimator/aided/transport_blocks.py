@@ -19,10 +19,11 @@ deviation from its block mean) and ``z = r + d``:
 
 So the noise enters once (in the gyro's record) plus a concentration term: the slow
 flicker components, nearly constant over a heading gap, drop out of ``P C P``.
-``Lambda`` per Gauss-Markov component: the smaller of ``sigma^2 (1+phi)/(1-phi)`` (the
-whole covariance) and a Gershgorin bound of ``C - B`` with ``B`` constant on each block
-pair (``P B P = 0``): the block's own row excess plus ``2 phi/(1-phi) min(1, 2 a m)``
-for the other blocks (``a = beta dt``, ``m`` the largest block). The kernel weights:
+``Lambda`` per Gauss-Markov component (:func:`gm_block_norm`, ``a = beta dt``, ``m`` the
+largest block): the smallest of ``sigma^2 (1+phi)/(1-phi)`` (the whole covariance), a
+Gershgorin bound of ``P C P``, ``a ||P L P||`` with ``L`` the distance matrix ``|i - j|``
+(exact to first order in ``a``: the slow components, ~20x below the other two) and the
+two combined in the frequency domain. The kernel weights:
 ``w_k <= K_max l_k``, ``sum w_k <= 1``, so ``sum w^2 <= K_max dt``.
 
 Used only where the IMU samples are regular (every segment one period, no gap) and the
