@@ -43,24 +43,26 @@ AIDING_SETS = {
 TARGET = 1.5
 
 #: accel_y's median half-width / reference limit (paper trip, seed 30, tau >= 1.28 s,
-#: the heading's period): 1.5 with a DVL or wheel speed (wheel at 82 s: 1.49), and the
-#: ceilings the GNSS sets are held to while they miss it (issue 24 item 4;
-#: docs/dynamic-method.md section 6). Why they miss: the speed part of the transport term,
-#: ``sum_k half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``,
-#: 0.053 rad/s at 164 s where the gyro's record centred by the heading gives 0.03: the
-#: gyro's flicker at the blocks' time scale, in the concentration term, and the blocks'
-#: heading radii) times u's half-range over a heading gap (the GNSS velocity radius plus
-#: the growth between epochs, 0.70 m/s median against the reference's radius 0.53);
-#: positions only (3.99 4.23 3.41 2.95 2.56 2.31 1.98 1.84; before the fix blocks 3.99 7.27
-#: 9.60 9.12 7.10 5.65 4.82 4.28): at 1.28 s the vehicle bounds alone (the transport
-#: term over one fix gap is wider); above, ``aided.transport_fixes.transport_by_fixes``:
-#: the position boxes (+-10.6 m) where the block means of K r change between blocks,
-#: and u's deviation from its block mean (the accelerometer's per-sample bound E0 =
-#: 0.4 m/s^2 x half the block) times the bound of mean|r|.
+#: the heading's period): 1.5 with a DVL or wheel speed (wheel at 82 s: 1.30) and with
+#: GNSS position + velocity and the course (1.44 at 82 s), and the ceilings the other
+#: sets are held to while they miss it (issue 24 item 4; docs/dynamic-method.md section
+#: 6; measured after ``transport_blocks.block_norm``'s distance-matrix bound, Lambda
+#: 0.040 where ||PCP|| is 0.038, was 0.227). Why they miss: GNSS position + velocity +
+#: compass (1.52 at 82 s, was 1.81): the speed part of the transport term, ``sum_k
+#: half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``: the
+#: blocks' heading radii) times u's half-range over a heading gap (the GNSS velocity
+#: radius plus the growth between epochs, 0.70 m/s median against the reference's radius
+#: 0.53); positions only (3.04 3.40 2.83 2.41 2.13 2.02 1.70 1.65 with the fix blocks and
+#: the sharper Lambda together, 4-10x before both): at 1.28 s the vehicle bounds alone
+#: (the transport term over one fix gap is wider); above,
+#: ``aided.transport_fixes.transport_by_fixes``: the position boxes (+-10.6 m) where the
+#: block means of K r change between blocks, and u's deviation from its block mean (the
+#: accelerometer's per-sample bound E0 = 0.4 m/s^2 x half the block) times the bound of
+#: mean|r|.
 ACCEL_Y_CEILING = {
-    "positions+compass": 4.5,
-    "gnss-pos+vel+compass": 1.9,
-    "course-heading": 1.8,
+    "positions+compass": 3.5,
+    "gnss-pos+vel+compass": 1.6,
+    "course-heading": TARGET,
     "dvl+compass": TARGET,
     "wheel+gnss+compass": TARGET,
     "wheel+compass": TARGET,
@@ -136,8 +138,9 @@ def _accel_y_rows(name: str) -> list[Any]:
 def test_accel_y_against_the_limit(name: str) -> None:
     """accel_y: never below the reference limit by more than its approximations (>= 0.9),
     and within :data:`ACCEL_Y_CEILING` at every tau >= the heading's period: the issue's
-    1.5 target with a DVL or wheel speed and a compass; the GNSS sets miss it (held to
-    their measured ceilings, the reasons beside them)."""
+    1.5 target with a DVL or wheel speed and a compass, and with the course heading; GNSS
+    position + velocity + compass and positions only miss it (held to their measured
+    ceilings, the reasons beside them)."""
     rows = _accel_y_rows(name)
     assert rows, f"{name} accel_y: no aided level"
     table = ", ".join(f"{r.tau_s:.3g} s: {r.ratio:.2f}" for r in rows)
@@ -234,7 +237,9 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
             gain.append(float(np.median(0.5 * (box.hi - box.lo)) / np.median(old)))
             n += lp.n
         assert n > 100
-        assert min(gain) < 0.7, gain
+        # the paper trip by a third or more; the corners (slower) less since the sharper
+        # Lambda also narrowed the chord-speed form's mean|r| (0.78-0.82 at the middle tau)
+        assert min(gain) < (0.9 if kw.get("corner_length_m") else 0.7), gain
 
 
 @pytest.mark.parametrize(

@@ -19,10 +19,11 @@ deviation from its block mean) and ``z = r + d``:
 
 So the noise enters once (in the gyro's record) plus a concentration term: the slow
 flicker components, nearly constant over a heading gap, drop out of ``P C P``.
-``Lambda`` per Gauss-Markov component: the smaller of ``sigma^2 (1+phi)/(1-phi)`` (the
-whole covariance) and a Gershgorin bound of ``C - B`` with ``B`` constant on each block
-pair (``P B P = 0``): the block's own row excess plus ``2 phi/(1-phi) min(1, 2 a m)``
-for the other blocks (``a = beta dt``, ``m`` the largest block). The kernel weights:
+``Lambda`` per Gauss-Markov component (:func:`gm_block_norm`, ``a = beta dt``, ``m`` the
+largest block): the smallest of ``sigma^2 (1+phi)/(1-phi)`` (the whole covariance), a
+Gershgorin bound of ``P C P``, ``a ||P L P||`` with ``L`` the distance matrix ``|i - j|``
+(exact to first order in ``a``: the slow components, ~20x below the other two) and the
+two combined in the frequency domain. The kernel weights:
 ``w_k <= K_max l_k``, ``sum w_k <= 1``, so ``sum w^2 <= K_max dt``.
 
 Used only where the IMU samples are regular (every segment one period, no gap) and the
@@ -82,24 +83,103 @@ def abs_dev_integral(
     return out
 
 
+def centred_distance_norm(m: int) -> float:
+    """``||P L P||_F = sqrt((m^2 - 1)(2 m^2 + 7)/45)`` for the ``m x m`` distance matrix
+    ``L_ij = |i - j|`` and ``P = I - 11'/m`` (``tr(PLPL) = tr(L^2) - 2 |L1|^2/m +
+    (1'L1)^2/m^2``, summed in closed form): an upper bound of ``||P L P||``, 4 % above it
+    for large ``m`` (the centred kernel ``-|x - y|`` has eigenvalues ``~ 2 m^2/(k pi)^2``);
+    nondecreasing in ``m``."""
+    if m <= 1:
+        return 0.0
+    mf = float(m)
+    return math.sqrt((mf * mf - 1.0) * (2.0 * mf * mf + 7.0) / 45.0)
+
+
+#: the multipliers ``c / sinh(a)`` tried in :func:`_spectral_bound` (any ``c >= 0`` is
+#: valid; at most 0.99, so the stationary point's denominator ``sqrt(A C) (1 - sqrt(c /
+#: sinh a))`` keeps 0.5 % of its terms: no cancellation)
+_C_GRID = np.concatenate([[0.0], np.geomspace(1e-6, 0.99, 241)])
+
+
+def _spectral_bound(a: float, lam_l: float) -> float:
+    """``min_c [sup_s h_c(s) + c lam_l]`` of :func:`gm_block_norm`, over :data:`_C_GRID`
+    (times ``sinh a``): ``h_c(s) = (1 - phi^2)/((1 - phi)^2 + 4 phi s) - c/(2 s)`` on
+    ``s`` in (0, 1] has one stationary point ``s* = B r/(sqrt(A C) - C r)`` (``r =
+    sqrt(c/2)``, ``A = 1 - phi^2``, ``B = (1 - phi)^2``, ``C = 4 phi``; ``h_c' = 0`` is
+    ``r (B + C s) = s sqrt(A C)``), a maximum (``h_c' > 0`` before it, ``< 0`` after),
+    where the denominator is positive (else ``h_c`` increases up to ``s = 1``; ``C r =
+    sqrt(A C)`` at ``c = sinh a``); the rounding of ``s*`` lowers ``h_c(s*)`` only to
+    second order, and each candidate takes an absolute guard of ``1e-13`` times its
+    terms' magnitude (the cancellation in ``h_c``)."""
+    phi = math.exp(-a)
+    A = -math.expm1(-2.0 * a)
+    B = math.expm1(-a) ** 2
+    C4 = 4.0 * phi
+    if B <= 0.0:
+        return math.inf
+    c = math.sinh(a) * _C_GRID[1:]
+    r = np.sqrt(0.5 * c)
+    den = math.sqrt(A * C4) - C4 * r
+    s = np.where(den > 0.0, B * r / np.where(den > 0.0, den, 1.0), 1.0)
+    s = np.clip(s, 1e-300, 1.0)
+    t1 = A / (B + C4 * s)
+    t2 = c / (2.0 * s)
+    v = t1 - t2 + c * lam_l + 1e-13 * (t1 + t2 + c * lam_l)
+    return float(min(A / B, np.min(v)))
+
+
+def gm_block_norm(a: float, m: int) -> float:
+    """An upper bound of ``||P T P||`` for a unit Gauss-Markov component, ``T_ij =
+    phi^|i-j|`` (``phi = exp(-a)``, ``a = beta dt``) over consecutive blocks of at most
+    ``m`` samples of any lengths, ``P`` centring each block on its own mean: the smallest of
+
+    1. ``||T|| <= (1 + phi)/(1 - phi)`` (the spectral density's peak; ``||P|| = 1``);
+    2. Gershgorin on ``P T P``: an entry inside a block is at most ``2 d`` (``d = 1 -
+       phi^(m-1)``), one across blocks i < j is ``(u_k - mean_i u)(v_l - mean_j v)`` with
+       ``u = phi^-k``, ``v = phi^l``, at most ``d^2 phi^(start_j - end_i)``, so a row sums
+       to at most ``2 m d + 2 d^2 phi^(2-m)/(1-phi)``;
+    3. ``a lam_L``, ``lam_L = ||P L P||`` for the distance matrix ``L_ij = |i - j|`` over
+       the whole record: a vector ``v`` in the range of ``P`` sums to zero over each block,
+       so over the record, and then ``v'Tv = -v'Dv`` (``D = 1 - phi^|i-j|``) and ``v'(aL -
+       D)v <= 0``: ``a|x| - 1 + e^(-a|x|) = int (1 - cos wx) a^3/(pi w^2 (a^2 + w^2)) dw``
+       (from ``|x| = int (1 - cos wx)/(pi w^2) dw`` and ``e^(-a|x|) = int cos(wx) a/(pi
+       (a^2 + w^2)) dw``) and ``sum v_i v_j (1 - cos w(x_i - x_j)) = -|sum v_k e^(i w
+       x_k)|^2 <= 0``. Across blocks g < h, ``L_ij = (e_g - i) + (j - e_g)`` (``e_g`` the
+       last sample of g) is a function of i plus one of j, removed by the centring on both
+       sides, so ``P L P`` is block-diagonal and ``lam_L = max_g ||P_g L_g P_g|| <=``
+       :func:`centred_distance_norm` ``(m)`` (a shorter block's norm is at most the
+       longer's: pad the vector with zeros). Exact to first order in ``a``: 4 % above
+       ``||PTP||`` for ``a m << 1``, where 1 and 2 are ~20x too large;
+    4. the two combined in the frequency domain: with ``V(w) = sum v_k e^(i w k)``,
+       ``v'Tv = int_-pi^pi f |V|^2 dw`` (``f = (1 - phi^2)/(2 pi (1 - 2 phi cos w +
+       phi^2))``, AR(1)'s spectral density), ``|v|^2 = int |V|^2 dw/(2 pi)`` and, as ``v``
+       sums to zero, ``-v'Lv = int g |V|^2 dw`` (``g = 1/(4 pi sin^2(w/2))``, from
+       ``|k| = int (1 - cos kw) g dw``). So for every ``c >= 0``: ``v'Tv = int (f - c g)|V|^2
+       + c int g |V|^2 <= sup_w 2 pi (f - c g) + c lam_L`` for a unit ``v``; with ``s =
+       sin^2(w/2)``, ``2 pi (f - c g) = (1 - phi^2)/((1 - phi)^2 + 4 phi s) - c/(2 s)``
+       (:func:`_spectral_bound`). ``c = 0`` gives 1 and ``c = sinh a`` gives
+       ``sinh(a) lam_L``; between them it bridges ``a m ~ 1-10`` (within 6 % of the largest
+       eigenvalue of ``PTP`` over six equal blocks, tests/test_block_norm.py)."""
+    phi = math.exp(-a)
+    q = -math.expm1(-a)
+    best = (1 + phi) / q
+    if a * (m + 2) < 600.0:
+        d = -math.expm1(-a * max(m - 1, 0))
+        best = min(best, 2 * m * d + 2 * d * d * math.exp(a * (m - 2)) / q)
+    lam_l = centred_distance_norm(m)
+    best = min(best, a * lam_l * (1 + 1e-12), _spectral_bound(a, lam_l))
+    return max(best, 0.0)  # 4 can go negative at m = 1, where P = 0
+
+
 def block_norm(cn: ChannelNoise, m: int, dt: float) -> float:
     """``Lambda``: an upper bound of ``||P C P||`` for the noise of channel ``cn`` cut in
-    consecutive blocks of at most ``m`` samples (``P`` centres each block on its own
-    mean). Per Gauss-Markov component (``phi = exp(-beta dt)``, ``d = 1 - phi^(m-1)``) the
-    smaller of ``||C|| <= (1+phi)/(1-phi)`` and Gershgorin on ``P C P``: an entry inside
-    a block is at most ``2 d``, one across blocks i < j is ``(u_k - mean_i u)(v_l -
-    mean_j v)`` with ``u = phi^-k``, ``v = phi^l``, at most ``d^2 phi^(start_j - end_i)``,
-    so a row sums to at most ``2 m d + 2 d^2 phi^(2-m)/(1-phi)`` (times sigma^2)."""
+    consecutive blocks of at most ``m`` samples of any lengths (``P`` centres each block
+    on its own mean): ``N^2/dt + 4 Q^2/dt^2`` (white and quantization noise: ``||P|| =
+    1``) plus ``sigma^2`` :func:`gm_block_norm` ``(beta dt, m)`` per Gauss-Markov
+    component of the flicker (the norm of a sum at most the sum of the norms)."""
     lam = cn.N * cn.N / dt + 4 * cn.Q * cn.Q / (dt * dt)
     for s, b in cn.gm_terms():
-        a = b * dt
-        phi = math.exp(-a)
-        q = -math.expm1(-a)
-        best = (1 + phi) / q
-        if a * (m + 2) < 600.0:
-            d = -math.expm1(-a * max(m - 1, 0))
-            best = min(best, 2 * m * d + 2 * d * d * math.exp(a * (m - 2)) / q)
-        lam += s * s * best
+        lam += s * s * gm_block_norm(b * dt, m)
     return lam * (1 + 1e-9)
 
 
