@@ -93,14 +93,22 @@ def _gap_units(ag: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(psi), np.sin(psi)
 
 
-def _positions_ends(ag: Any, ex: np.ndarray, ny: np.ndarray, lp: Any, w: int) -> float:
-    """Half-width of the kernel mean of u_h from the fix boxes (trapezoid window w)."""
-    t, h = ag.gnss_t, ag.gnss_h
+def _trapezoid_fixes(ag: Any, lp: Any, w: int) -> tuple[int, int, int, float, float, float]:
+    """Fix indices p, m, q of trapezoid window w (its two intervals' ends on the fixes),
+    the intervals' lengths L1, L2 and tau."""
+    t = ag.gnss_t
     p = int(np.searchsorted(t, lp.a1[w]))
     m = int(np.searchsorted(t, lp.b1[w]))
     q = int(np.searchsorted(t, lp.b2[w]))
     L1, L2 = t[m] - t[p], t[q] - t[m]
     tau = 0.5 * (t[q] + t[m]) - 0.5 * (t[m] + t[p])
+    return p, m, q, L1, L2, tau
+
+
+def _positions_ends(ag: Any, ex: np.ndarray, ny: np.ndarray, lp: Any, w: int) -> float:
+    """Half-width of the kernel mean of u_h from the fix boxes (trapezoid window w)."""
+    h = ag.gnss_h
+    p, m, q, L1, L2, tau = _trapezoid_fixes(ag, lp, w)
     n = q - p + 1
     ce = np.zeros(n)
     cn = np.zeros(n)
@@ -340,11 +348,7 @@ def _accel_y_trapezoid(ctx: Any, lp: Any, w: int) -> tuple[float, float, float, 
     ag, veh = ctx.aiding, ctx.vehicle
     sig = ctx.imu.sig["gyro_z"]
     t, h = ag.gnss_t, ag.gnss_h
-    p = int(np.searchsorted(t, lp.a1[w]))
-    m = int(np.searchsorted(t, lp.b1[w]))
-    q = int(np.searchsorted(t, lp.b2[w]))
-    L1, L2 = t[m] - t[p], t[q] - t[m]
-    tau = 0.5 * (t[q] + t[m]) - 0.5 * (t[m] + t[p])
+    p, m, q, L1, L2, tau = _trapezoid_fixes(ag, lp, w)
     mid = 0.5 * (t[p:q] + t[p + 1 : q + 1])
     psi = _heading_centres(ag, mid)
     ce, sn = np.cos(psi), np.sin(psi)
