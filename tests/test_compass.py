@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from imubounds.dynamic.aiding.compass import (
     UNCALIBRATED_DEVIATION_DEG,
     CompassHeading,
     compass_heading,
-    harmonic_test,
+    harmonic_fit,
     k_sigma,
 )
 from imubounds.dynamic.aiding.magcal import fit_magnetometer
@@ -279,6 +280,19 @@ def _rectangle_headings(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarra
     return psi_a, np.array(rate)
 
 
+def _rectangle_setup(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """The rectangle's headings and yaw rates, the d noise variance (0.6 deg) and the
+    bound (1 deg) of the harmonic tests."""
+    psi, rate = _rectangle_headings(rng)
+    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
+    return psi, rate, sig2, np.full(psi.size, math.radians(1.0))
+
+
+def harmonic_test(*args: Any, **kw: Any) -> list[dict[str, Any]]:
+    """The check's harmonics: :func:`harmonic_fit`'s coefficients of cycle >= 1."""
+    return [c for c in harmonic_fit(*args, **kw) if c["cycle"]]
+
+
 def test_harmonic_test_is_sound_under_its_assumptions() -> None:
     """|e_i| <= bound_i of any sign (here the worst: the sign of each coefficient's weight)
     and Gaussian noise: a coefficient beyond its limit at no more than the Gaussian tail's
@@ -286,9 +300,7 @@ def test_harmonic_test_is_sound_under_its_assumptions() -> None:
     from scipy.stats import norm
 
     rng = np.random.default_rng(3)
-    psi, rate = _rectangle_headings(rng)
-    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
-    bound = np.full(psi.size, math.radians(1.0))
+    psi, rate, sig2, bound = _rectangle_setup(rng)
     k = float(norm.isf(0.01 / 2))
     zero = harmonic_test(psi, np.zeros_like(psi), sig2, bound, k, rate)
     assert [(c["cycle"], c["term"]) for c in zero] == [(1, "cos"), (1, "sin"), (2, "cos"),
@@ -321,9 +333,7 @@ def test_harmonic_test_sees_a_two_cycle_deviation_in_the_corners(amp_deg: float)
     from scipy.stats import norm
 
     rng = np.random.default_rng(5)
-    psi, rate = _rectangle_headings(rng)
-    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
-    bound = np.full(psi.size, math.radians(1.0))
+    psi, rate, sig2, bound = _rectangle_setup(rng)
     k = float(norm.isf(0.0025 / 36))
     d = math.radians(amp_deg) * np.sin(2 * psi) + rng.normal(0.0, np.sqrt(sig2))
     res = {(c["cycle"], c["term"]): c for c in harmonic_test(psi, d, sig2, bound, k, rate)}
@@ -373,12 +383,10 @@ def test_harmonic_fit_holds_the_model_and_its_coefficients_intervals() -> None:
     at the Gaussian tail's rate at most."""
     from scipy.stats import norm
 
-    from imubounds.dynamic.aiding.course_check import harmonic_basis, harmonic_fit
+    from imubounds.dynamic.aiding.course_check import harmonic_basis
 
     rng = np.random.default_rng(11)
-    psi, rate = _rectangle_headings(rng)
-    sig2 = np.full(psi.size, math.radians(0.6) ** 2)
-    bound = np.full(psi.size, math.radians(1.0))
+    psi, rate, sig2, bound = _rectangle_setup(rng)
     k = float(norm.isf(0.01 / 2))
     fit0 = harmonic_fit(psi, np.zeros_like(psi), sig2, bound, k, rate)
     assert [(c["cycle"], c["term"]) for c in fit0][0] == (0, "const")

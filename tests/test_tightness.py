@@ -5,6 +5,7 @@ the transport term's per-heading-gap bound against the simulated truth."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -148,6 +149,16 @@ def test_accel_y_against_the_limit(name: str) -> None:
     assert all(r.ratio <= ACCEL_Y_CEILING[name] for r in rows), f"{name} accel_y: {table}"
 
 
+def _aided_levels(ctx: Any, mb: MarginBuilder, ch: str) -> Iterator[Any]:
+    """The aided levels of channel ``ch`` with windows, ``mb.p_window`` set to each
+    level's per-window probability (as ``MarginBuilder.evaluate`` does)."""
+    for li, lp in enumerate(ctx.plans[ch].levels):
+        if lp.kind != "aided" or lp.n == 0:
+            continue
+        mb.p_window = ctx.alpha.p_level("imu_windows", ctx.level_index[(ch, li)])
+        yield lp
+
+
 def _true_ru(res: Any, ctx: Any) -> PiecewiseSignal:
     """The simulator's true r u (yaw rate x forward velocity) on the IMU's stamps."""
     tr = res.drive.truth
@@ -176,14 +187,9 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
     with nearest():
         res, ctx, mb = _context(aiding, seed, truth_rate_hz=100.0, **kw)
         sig = _true_ru(res, ctx)
-        plan = ctx.plans["accel_y"]
         bv = body_velocity(mb)
         n = 0
-        for li, lp in enumerate(plan.levels):
-            if lp.kind != "aided" or lp.n == 0:
-                continue
-            gi = ctx.level_index[("accel_y", li)]
-            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+        for lp in _aided_levels(ctx, mb, "accel_y"):
             box = transport_by_gaps(mb, lp, lp.tau, bv, r_abs(mb, lp, lp.tau))
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = (true.lo > box.hi) | (true.hi < box.lo)
@@ -218,11 +224,7 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
         assert plan.trapezoid
         n = 0
         gain = []
-        for li, lp in enumerate(plan.levels):
-            if lp.kind != "aided" or lp.n == 0:
-                continue
-            gi = ctx.level_index[("accel_y", li)]
-            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+        for lp in _aided_levels(ctx, mb, "accel_y"):
             r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
             p_sup = SUP_SHARE * mb.p_window
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
@@ -264,13 +266,8 @@ def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: 
         x = np.asarray(res.drive.truth.extra["gyro_z"], dtype=float)
         assert x.size == ctx.imu.n
         sig = PiecewiseSignal(ctx.imu.bnd, np.abs(x))
-        plan = ctx.plans["accel_x"]
         n = 0
-        for li, lp in enumerate(plan.levels):
-            if lp.kind != "aided" or lp.n == 0:
-                continue
-            gi = ctx.level_index[("accel_x", li)]
-            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+        for lp in _aided_levels(ctx, mb, "accel_x"):
             bound = r_abs(mb, lp, lp.tau)
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = true.lo > bound
@@ -280,12 +277,7 @@ def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: 
         # the tilt coupling of gyro_z: gyro_y's window bound of the mean |q|
         xq = np.asarray(res.drive.truth.extra["gyro_y"], dtype=float)
         sq = PiecewiseSignal(ctx.imu.bnd, np.abs(xq))
-        plan = ctx.plans["gyro_z"]
-        for li, lp in enumerate(plan.levels):
-            if lp.kind != "aided" or lp.n == 0:
-                continue
-            gi = ctx.level_index[("gyro_z", li)]
-            mb.p_window = ctx.alpha.p_level("imu_windows", gi)
+        for lp in _aided_levels(ctx, mb, "gyro_z"):
             bound = q_window_mean(mb, lp, lp.tau, 0.5 * mb.p_window)
             true = sq.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             assert not (true.lo > bound).any(), lp.tau_s

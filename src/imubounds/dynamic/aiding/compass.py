@@ -50,7 +50,6 @@ from imubounds.dynamic.aiding.course_check import (  # noqa: F401 (re-exported)
     course_noise,
     estimate_heading_model,
     harmonic_fit,
-    harmonic_test,
 )
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.frames import TWO_PI, compass_to_model, wrap_pi

@@ -259,22 +259,6 @@ def harmonic_basis(j: int, psi: np.ndarray) -> np.ndarray:
     return np.cos(m * psi) if j % 2 else np.sin(m * psi)
 
 
-def harmonic_test(
-    psi: np.ndarray,
-    d: np.ndarray,
-    sig2: np.ndarray,
-    bound: np.ndarray,
-    k: float,
-    rate: np.ndarray | None = None,
-    psi_var: float = 0.0,
-) -> list[dict[str, Any]]:
-    """The deviation's harmonics in ``d = heading - course`` (rad), one test per
-    coefficient: :func:`harmonic_fit` without the constant (the constant is tested by the
-    signed mean). ``bound_i`` is the deviation bound + the sideslip bound; a coefficient
-    beyond its ``limit`` is a deviation the bound does not cover."""
-    return [c for c in harmonic_fit(psi, d, sig2, bound, k, rate, psi_var) if c["cycle"]]
-
-
 @dataclass
 class CourseData:
     """The compass heading against the GNSS course at the course's epochs (rad)."""
@@ -497,9 +481,9 @@ def check_against_course(drive: Any, ch: CompassHeading, alpha: float, min_speed
     sign(yaw rate) over the turns (a clock offset between the streams), lies within the
     deviation bound + the mean sideslip bound + ``b`` x |the mean yaw rate| (signed by
     the turn in the turns) + k sigma_mean; and each cos / sin coefficient of the
-    deviation's harmonics 1 to :data:`COURSE_CHECK_HARMONICS` (:func:`harmonic_test`,
-    with the yaw rate: the clock offset leaves them) lies within ``sum_i |W_ji|
-    (deviation bound - its constant part + sideslip bound_i) + k sd_j`` (a constant
+    deviation's harmonics 1 to :data:`COURSE_CHECK_HARMONICS` (:func:`harmonic_fit`
+    without the constant, with the yaw rate: the clock offset leaves them) lies within
+    ``sum_i |W_ji| (deviation bound - its constant part + sideslip bound_i) + k sd_j`` (a constant
     leaves the harmonics); k two-sided at level ``alpha`` x :data:`COURSE_CHECK_SHARE`
     split over the :data:`COURSE_CHECK_TESTS` tests. A larger signed mean is a constant
     offset (mount, declination), a deviation shape the bound does not cover or a clock
