@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE
 from imubounds.dynamic.estimator.budget import Term, k_two_sided
 from imubounds.interval.rounding import down as _dn
 from imubounds.interval.rounding import up as _up
@@ -50,9 +51,8 @@ HALF_NODES = (2, 4, 8, 16, 32, 64)
 SPLIT = 2
 #: bisection steps over [-max tilt, max tilt] (resolution 2 max_tilt / 2^steps)
 BISECT = 12
-#: Earth rate (rad/s) and a lower bound of the Earth's radius (m): the rate of the
-#: local level frame against inertial space is at most Omega + v / R
-EARTH_RATE = 7.2921159e-5
+#: a lower bound of the Earth's radius (m): the rate of the local level frame against
+#: inertial space is at most Omega + v / R (Omega: ``aided.base.EARTH_RATE``)
 EARTH_RADIUS_M = 6.35e6
 #: name of the failed check (violations)
 TEST_PITCH = "pitch from GNSS altitude (altitude chords against the gyro-propagated pitch)"
