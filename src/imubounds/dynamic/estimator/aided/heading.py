@@ -32,7 +32,9 @@ def psi_dot_abs(
     """Bound of mean |d psi/dt| over [a, b] from the gyro magnitudes (other channels):
     ``|psi'| <= (|r| + |q| |sin(phi)|)/cos(theta)`` with r, q the body's rates relative to
     the level frame, each at most the gyro's (inertial) rate plus ``Omega + S_max/R_E``;
-    at most the vehicle's rate cap ``max_rate/cos(max_tilt)``."""
+    at most the vehicle's rate cap ``max_rate/cos(max_tilt)``, and at most ``Rm + Cm/(b -
+    a)`` (:func:`psi_rate_bound`: ``int_a^b |psi'| <= Rm (b - a) + Cm``; smaller on spans
+    that cut samples, whose magnitudes count whole here)."""
     veh = w.veh
     earth = _earth(w)
     r = w.gyro_abs_mean("gyro_z", a, b)
@@ -40,7 +42,13 @@ def psi_dot_abs(
     sr = w.tilt.hull("abs_sinr", a, b).hi
     sec = 1.0 + w.tilt.hull("sec_p_minus_1", a, b).hi
     m = up(up(r + earth + up(up(q + earth) * sr)) * sec)
-    return np.minimum(m, veh.max_rate / math.cos(veh.max_tilt))
+    m = np.minimum(m, veh.max_rate / math.cos(veh.max_tilt))
+    span = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
+    if np.any(span > 0):
+        rm, cm = psi_rate_bound(w, a, b, own_q=own_q)
+        alt = up(rm + cm / np.maximum(span, 1e-300))
+        m = np.where(span > 0, np.minimum(m, alt), m)
+    return m
 
 
 def _abs_rate(
