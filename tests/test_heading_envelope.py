@@ -4,7 +4,10 @@ rate at each time, so an envelope with that slope misses a heading that turns ea
 comes back late within one gap. Both are checked against headings built here: a
 plateau (rise, hold, return within one fix gap: twice the old envelope's integral) and
 hypothesis-drawn piecewise-linear headings within the rate cap, their integral of |psi'|
-and their end boxes."""
+and their end boxes. The envelope's rate bound from the gyros' samples
+(aided/heading.psi_rate_bound) against a turn at the angular-acceleration bound with the
+gyro errors at their bound, with a check that a rate below the truth's fails, and
+against the simulator's truth at sharp corners."""
 
 from __future__ import annotations
 

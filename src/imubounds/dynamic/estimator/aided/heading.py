@@ -3,8 +3,9 @@
 Boxcar between heading epochs: ``r = psi' cos(theta)/cos(phi) - q tan(phi)``, so the
 kernel mean of the yaw rate is ``c0 (psi(b) - psi(a))/tau +- rate |c - c0| +- mean|q|
 tan(phi)`` with ``c = cos(theta)/cos(phi)`` over the window, plus the Earth rate. Also the
-heading between its epochs (:func:`heading_at`, :func:`heading_mean`), which the
-accelerometer constraints use.
+heading between its epochs (:func:`heading_at`, :func:`heading_mean`) and the bounds of
+its rate (:func:`psi_dot_abs` of the mean, :func:`psi_rate_bound` at each time), which
+the accelerometer constraints use.
 """
 
 from __future__ import annotations
@@ -69,9 +70,9 @@ def _abs_rate(
     mu_k) = -int x' H``, H the running integral of ``1_part - l/L_k`` over the period, zero
     at both ends: ``int |H| = (p^2 + p'^2) l/(2 (L_k - l))``, p and p' the lengths before
     and after the part), else ``D int_part |t - z| <= D l (L_k - l/2) <= l M + D l (L_k -
-    l)/2``: at most ``l M + D L^2/8``; ``[s, t]`` has at most two parts, ``C = D L^2/4``. Spans with
-    an unknown sample or outside the samples: ``(xmax, 0)``, the vehicle's signal bound
-    at each time."""
+    l)/2``: at most ``l M + D L^2/8``; ``[s, t]`` has at most two parts, ``C = D L^2/4``.
+    Spans with an unknown sample or outside the samples: ``(xmax, 0)``, the vehicle's
+    signal bound at each time."""
     sig = w.imu.sig[ch]
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     shape = np.broadcast(a, b).shape
