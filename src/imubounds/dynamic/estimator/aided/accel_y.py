@@ -17,6 +17,7 @@ from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.transport_weighted import gap_weights, weighted_speed
 from imubounds.dynamic.estimator.aided.transport_fixes import (
     _EPS,
     SPEED_LEVELS,
@@ -31,6 +32,9 @@ from imubounds.interval import IntervalArray as IA
 #: the share of the window's gyro-deviation probability given to the bound of mean|q|
 #: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
 Q_SHARE = 0.1
+#: boxcar windows with velocity epochs: the share of that probability for the weighted
+#: speed part of :func:`transport_by_gaps` (:mod:`.transport_weighted`)
+W_SHARE = 0.3
 #: positions only: the share of that probability for the support's mean |r| in
 #: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
 SUP_SHARE = 0.45
@@ -123,6 +127,7 @@ def transport_by_gaps(
     bv: Any,
     r_mag: np.ndarray,
     q_mean: np.ndarray | None = None,
+    p_weighted: float = 0.0,
 ) -> IA:
     """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
     ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
@@ -134,8 +139,12 @@ def transport_by_gaps(
     twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
     (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
     Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|``
-    (:func:`_speed_levels`). The per-window sums: :func:`.gap_sums.gap_sums` (compiled;
-    the gaps between heading epochs computed once per run)."""
+    (:func:`_speed_levels`), or with ``p_weighted > 0`` the smaller of that and the
+    weighted bound of :func:`.transport_weighted.weighted_speed` (holding with
+    probability ``>= 1 - p_weighted`` per window: the gyro centred on blocks of heading
+    gaps, each sample's |r| weighted by its gap's half-range). The per-window sums:
+    :func:`.gap_sums.gap_sums` (compiled; the gaps between heading epochs computed once
+    per run)."""
     from imubounds.dynamic.estimator.aided.gap_sums import gap_sums
 
     a, b = lp.a1, lp.b2
@@ -175,6 +184,11 @@ def transport_by_gaps(
     nk = ni + 2
     rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
     speed = _speed_levels(dmax, ex, d0, tau, r_mag, earth)
+    if p_weighted > 0:
+        wf = gap_weights(w, bv, a, fb)
+        wl = np.where(has, gap_weights(w, bv, la, b), 0.0)
+        floors = (fb, wf, np.where(has, la, np.inf), wl)
+        speed = np.minimum(speed, weighted_speed(w, lp, tau, bv, p_weighted, floors, earth))
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
@@ -187,7 +201,8 @@ def gyro_deviation_bounds(
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
     (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
     mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`,
-    the rest to the first): the kernel mean of |r| (``aided.transport.r_abs``) and
+    the rest to the first, ``sup_share`` also standing for :data:`W_SHARE` of the
+    weighted speed part): the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
@@ -203,15 +218,17 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
     fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
-    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE if fixes else 0.0)
+    bv = body_velocity(w)
+    gaps = not plan.trapezoid and bv is not None and w.ag.has_heading
+    share = SUP_SHARE if fixes else (W_SHARE if gaps else 0.0)
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, share)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
     ru = IA(u0) * mean_r + pm(du * r_mag)
-    bv = body_velocity(w)
-    if not plan.trapezoid and bv is not None and w.ag.has_heading:
+    if gaps:
         # the narrower of the two enclosures of mean(r u), per window
-        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
+        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean, W_SHARE * w.p_window)
         use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     if fixes:
