@@ -17,13 +17,13 @@ from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, r_from_psidot
 from imubounds.dynamic.estimator.aided.horizontal import horizontal_terms
 from imubounds.dynamic.estimator.aided.transport import r_abs
-from imubounds.dynamic.estimator.aided.transport_weighted import gap_weights, weighted_speed
 from imubounds.dynamic.estimator.aided.transport_fixes import (
     _EPS,
     SPEED_LEVELS,
     _rate_terms,
     transport_by_fixes,
 )
+from imubounds.dynamic.estimator.aided.transport_weighted import gap_weights, weighted_speed
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
@@ -120,6 +120,33 @@ def _trip_gaps(w: WindowContext, bv: Any) -> tuple[np.ndarray, np.ndarray]:
     return w.cache[key]
 
 
+def window_gaps(
+    ht: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Windows ``[a, b]`` cut at the heading epochs ``ht``: they hold ``ht[k0 .. k1-1]``;
+    the first gap is ``[a, fb]`` (``fb = ht[k0]``, ``b`` without an epoch inside), the
+    last ``[la, b]`` (``la = ht[k1 - 1]``, only used where there is an epoch inside)."""
+    k0 = np.searchsorted(ht, a, side="right")
+    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    has = k1 > k0
+    last = ht.size - 1
+    fb = np.where(has, ht[np.minimum(k0, last)], b)
+    la = np.where(has, ht[np.clip(k1 - 1, 0, last)], a)
+    return k0, k1, fb, la
+
+
+def weighted_floors(
+    w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray, fb: np.ndarray,
+    la: np.ndarray, has: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The floors ``(fb, wf, la, wl)`` of :func:`.transport_weighted.weighted_speed`: the
+    gyro-free half-ranges of u on each window's first and last gaps (``la = +inf``
+    where the window holds no heading epoch: its one gap is the first)."""
+    wf = gap_weights(w, bv, a, fb)
+    wl = np.where(has, gap_weights(w, bv, la, b), 0.0)
+    return fb, wf, np.where(has, la, np.inf), wl
+
+
 def transport_by_gaps(
     w: WindowContext,
     lp: LevelPlan,
@@ -150,16 +177,10 @@ def transport_by_gaps(
     a, b = lp.a1, lp.b2
     ht = w.ag.head_t
     n = a.size
-    k0 = np.searchsorted(ht, a, side="right")
-    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    k0, k1, fb, la = window_gaps(ht, a, b)
     ni = k1 - k0
     knot_h, gap_g = _trip_gaps(w, bv)
     has = ni >= 1
-    last = ht.size - 1
-    # each window's first gap [a, ht[k0]] ([a, b] without an epoch inside) and last gap
-    # [ht[k1 - 1], b] (only used where there is an epoch inside)
-    fb = np.where(has, ht[np.minimum(k0, last)], b)
-    la = np.where(has, ht[np.clip(k1 - 1, 0, last)], a)
     gap_f = _gap_rows(w, bv, a, fb)
     gap_l = _gap_rows(w, bv, la, b)
     # the levels d0: quantiles of the half-ranges of every window's gaps (as a multiset:
@@ -185,9 +206,7 @@ def transport_by_gaps(
     rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
     speed = _speed_levels(dmax, ex, d0, tau, r_mag, earth)
     if p_weighted > 0:
-        wf = gap_weights(w, bv, a, fb)
-        wl = np.where(has, gap_weights(w, bv, la, b), 0.0)
-        floors = (fb, wf, np.where(has, la, np.inf), wl)
+        floors = weighted_floors(w, bv, a, b, fb, la, has)
         speed = np.minimum(speed, weighted_speed(w, lp, tau, bv, p_weighted, floors, earth))
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)

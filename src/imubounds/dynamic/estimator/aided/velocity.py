@@ -104,7 +104,9 @@ def _from_gnss_velocity(
     """u, v, w at the GNSS velocity epochs: the velocity rotated by the heading, then to
     the body frame with the roll/pitch intervals. ``gyro_free``: the heading only where
     an epoch is a heading epoch (the compass box, not intersected with its neighbours'
-    boxes carried by the gyro's magnitude), unbounded elsewhere (u within +-S)."""
+    boxes carried by the gyro's magnitude), unbounded elsewhere (u within +-S), and
+    without an attitude stream the tilt within +-max tilt (not the pitch from GNSS
+    altitude, which follows the gyros)."""
     ag, veh = w.ag, w.veh
     vl = veh.lateral_speed_bound_mps
     ok = ag.gvel_ok
@@ -126,7 +128,11 @@ def _from_gnss_velocity(
                  np.where(exact, up(hc + hh), np.inf))
     d = _course_minus_heading(w, t, S, psi)
     uh, vh = S * cos(d), S * sin(d)
-    rl, rh, pl, ph = ag.tilt(t, veh)
+    if gyro_free and not ag.has_attitude:  # not the pitch from GNSS altitude (gyros)
+        z = np.full(t.size, veh.max_tilt)
+        rl, rh, pl, ph = -z, z, -z, z
+    else:
+        rl, rh, pl, ph = ag.tilt(t, veh)
     roll, pitch = IA(rl, rh), IA(pl, ph)
     sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
     wz = pm(np.full(t.size, veh.vertical_bound))
@@ -180,7 +186,8 @@ def body_velocity(w: WindowContext) -> Any:
 def gyro_free_u(w: WindowContext, bv: Any) -> Any:
     """``bv`` with u at the epochs from the aiding alone (no gyro magnitude: the GNSS
     velocity rotated by the compass box where the epoch is a heading epoch, else u
-    within +-S; a DVL/wheel's u and the course-heading's as they are), for weights that
+    within +-S, the course heading's bound as it is, the tilt within +-max tilt without
+    an attitude stream; a DVL/wheel's u as it is), for weights that
     must not depend on the gyro's noise (:mod:`.transport_weighted`); each ``u`` of
     ``bv`` lies in its box (the same construction with the box narrowed). None where
     an epoch was dropped (the gaps would differ). Computed once."""
@@ -190,7 +197,7 @@ def gyro_free_u(w: WindowContext, bv: Any) -> Any:
     ag, veh = w.ag, w.veh
     out = None
     if bv is not None and bv["dropped"] == 0:
-        if ag.has_bvel or ag.head_from_course:
+        if ag.has_bvel:
             u = bv["u"]
         else:
             t, u, _, _, _ = _from_gnss_velocity(w, gyro_free=True)
