@@ -73,8 +73,10 @@ ACCEL_Y_CEILING = {
 }
 
 
-def _context(aiding: tuple[str, ...], seed: int, **kw: Any) -> tuple[Any, Any, MarginBuilder]:
-    res = make_trip("paper", seed=seed, aiding=aiding, **kw)
+def _context(
+    aiding: tuple[str, ...], seed: int, trip: str = "paper", **kw: Any
+) -> tuple[Any, Any, MarginBuilder]:
+    res = make_trip(trip, seed=seed, aiding=aiding, **kw)
     ctx = build_context(res.drive, None, {})
     return res, ctx, MarginBuilder(ctx)
 
@@ -228,9 +230,13 @@ def _true_weighted_speed(
                                     "turn_on_scale": 3.0}),
         (("gnss", "gnss-vel"), 64, {"corner_length_m": 20.0, "laps": 3,
                                     "turn_on_scale": 3.0}),
+        # GNSS velocity at 10 Hz, the compass at 1 Hz: most velocity epochs between
+        # heading epochs (the weights' heading carried by the vehicle's rate cap)
+        (("gnss", "gnss-vel", "compass"), 65, {"trip": "gnss10", "duration_s": 300.0,
+                                               "distance_m": 3600.0, "turn_on_scale": 3.0}),
     ],
     ids=["posvel", "posvel-turn-on", "posvel-corners", "wheel-corners-turn-on",
-         "course-corners-turn-on"],
+         "course-corners-turn-on", "gnss10-turn-on"],
 )
 def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw: dict) -> None:
     """The weighted speed part of accel_y's transport term

@@ -98,15 +98,39 @@ def _course_minus_heading(
     return chi - psi
 
 
+def _heading_gyro_free(w: WindowContext, t: np.ndarray) -> IA:
+    """The heading at ``t`` without the gyros: each neighbouring heading epoch's box
+    widened by the vehicle's heading-rate cap (``max_rate / cos(max_tilt)``) times the
+    distance to it, the two intersected (the compass box itself at a heading epoch)."""
+    ag, veh = w.ag, w.veh
+    ht = ag.head_t
+    lo = np.full(t.shape, -np.inf)
+    hi = np.full(t.shape, np.inf)
+    if ht.size == 0:
+        return IA(lo, hi)
+    rate = up(np.asarray(veh.max_rate / math.cos(veh.max_tilt) * (1 + 1e-12)))
+    j = np.searchsorted(ht, t)
+    for e in (j - 1, j):
+        ok = (e >= 0) & (e < ht.size)
+        ee = np.clip(e, 0, ht.size - 1)
+        dist = np.abs(t - ht[ee])
+        g = np.where(dist <= 1e-9, 0.0, up(rate * dist))
+        c_lo = np.nextafter(ag.head_c[ee] - ag.head_h[ee] - g, -np.inf)
+        c_hi = up(ag.head_c[ee] + ag.head_h[ee] + g)
+        lo = np.where(ok, np.maximum(lo, c_lo), lo)
+        hi = np.where(ok, np.minimum(hi, c_hi), hi)
+    bad = lo > hi  # inconsistent neighbours: their hull
+    return IA(np.where(bad, np.minimum(lo, hi), lo), np.where(bad, np.maximum(lo, hi), hi))
+
+
 def _from_gnss_velocity(
     w: WindowContext, gyro_free: bool = False
 ) -> tuple[np.ndarray, IA, IA, IA, str]:
     """u, v, w at the GNSS velocity epochs: the velocity rotated by the heading, then to
-    the body frame with the roll/pitch intervals. ``gyro_free``: the heading only where
-    an epoch is a heading epoch (the compass box, not intersected with its neighbours'
-    boxes carried by the gyro's magnitude), unbounded elsewhere (u within +-S), and
-    without an attitude stream the tilt within +-max tilt (not the pitch from GNSS
-    altitude, which follows the gyros)."""
+    the body frame with the roll/pitch intervals. ``gyro_free``: the heading from the
+    compass boxes carried by the vehicle's rate cap (:func:`_heading_gyro_free`, not by
+    the gyro's magnitude), and without an attitude stream the tilt within +-max tilt
+    (not the pitch from GNSS altitude, which follows the gyros)."""
     ag, veh = w.ag, w.veh
     vl = veh.lateral_speed_bound_mps
     ok = ag.gvel_ok
@@ -116,16 +140,7 @@ def _from_gnss_velocity(
     # the radial bound R: ||V| - |Vm|| <= R and |chi - chi_m| <= asin(R / |Vm|)
     sm = sqrt(sqr(vem) + sqr(vnm))
     S = (sm + pm(R)) & IA(np.zeros(t.size), np.full(t.size, np.inf))
-    psi = None
-    if gyro_free:
-        ht = ag.head_t
-        k = np.clip(np.searchsorted(ht, t), 0, max(ht.size - 1, 0))
-        k = np.where((k > 0) & (np.abs(ht[k - 1] - t) < np.abs(ht[k] - t)), k - 1, k)
-        exact = np.abs(ht[k] - t) <= 1e-9 if ht.size else np.zeros(t.size, dtype=bool)
-        hc = ag.head_c[k] if ht.size else np.zeros(t.size)
-        hh = ag.head_h[k] if ht.size else np.zeros(t.size)
-        psi = IA(np.where(exact, np.nextafter(hc - hh, -np.inf), -np.inf),
-                 np.where(exact, up(hc + hh), np.inf))
+    psi = _heading_gyro_free(w, t) if gyro_free else None
     d = _course_minus_heading(w, t, S, psi)
     uh, vh = S * cos(d), S * sin(d)
     if gyro_free and not ag.has_attitude:  # not the pitch from GNSS altitude (gyros)
@@ -185,12 +200,14 @@ def body_velocity(w: WindowContext) -> Any:
 
 def gyro_free_u(w: WindowContext, bv: Any) -> Any:
     """``bv`` with u at the epochs from the aiding alone (no gyro magnitude: the GNSS
-    velocity rotated by the compass box where the epoch is a heading epoch, else u
-    within +-S, the course heading's bound as it is, the tilt within +-max tilt without
-    an attitude stream; a DVL/wheel's u as it is), for weights that
+    velocity rotated by the compass boxes carried by the vehicle's rate cap, the course
+    heading's bound as it is, the tilt within +-max tilt without an attitude stream; a
+    DVL/wheel's u as it is), for weights that
     must not depend on the gyro's noise (:mod:`.transport_weighted`); each ``u`` of
-    ``bv`` lies in its box (the same construction with the box narrowed). None where
-    an epoch was dropped (the gaps would differ). Computed once."""
+    ``bv`` lies in its box (the same construction with narrower boxes: heading_at's
+    gyro magnitude is capped by the vehicle's rate, the GNSS pitch lies in the max
+    tilt; checked, else None). None where an epoch was dropped (the gaps would
+    differ). Computed once."""
     key = "bodyvel_gyro_free"
     if key in w.cache:
         return w.cache[key]
@@ -204,6 +221,8 @@ def gyro_free_u(w: WindowContext, bv: Any) -> Any:
             u = u & pm(np.full(t.size, veh.max_speed))
             if t.size != bv["t"].size or np.any(u.is_empty()):
                 u = None
+            elif np.any((u.lo > bv["u"].lo) | (u.hi < bv["u"].hi)):
+                u = None  # (rounding of the 2 pi unwrap) not a box around bv's u
         if u is not None:
             out = dict(bv)
             out["u"] = u
