@@ -32,6 +32,7 @@ from imubounds.dynamic.estimator.aided.velocity import body_velocity, speed_max
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
+from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.dynamic.estimator.windows import MarginBuilder
 from imubounds.dynamic.scenario import make_trip
 from imubounds.interval.rounding import nearest
@@ -262,16 +263,26 @@ def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw:
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = (true.lo > box.hi) | (true.hi < box.lo)
             assert not bad.any(), (lp.tau_s, int(bad.sum()))
-            k0, k1, fb, la = window_gaps(ht, lp.a1, lp.b2)
-            floors = weighted_floors(mb, bv, lp.a1, lp.b2, fb, la, k1 > k0)
-            ws = weighted_speed(mb, lp, lp.tau, bv, p_w, floors, 0.0)
-            idx = np.arange(0, lp.n, max(1, lp.n // 400))
-            tw = _true_weighted_speed(mb, bv, r_sig, lp, idx)
-            fin = np.isfinite(ws[idx])
-            assert np.all(tw[fin] <= ws[idx][fin]), (lp.tau_s, int(np.sum(tw[fin] > ws[idx][fin])))
+            # the level's windows (on the heading epochs) and the same shifted by 0.37 of
+            # a sample (the first and last gaps partial, a block reaching into them)
+            for shift in (0.0, 0.37 * ctx.imu.dt):
+                sl = LevelPlan(lp.tau_s, lp.kind, lp.a1 + shift, lp.b1 + shift,
+                               lp.a2 + shift, lp.b2 + shift, lp.i, lp.j)
+                k0, k1, fb, la = window_gaps(ht, sl.a1, sl.b2)
+                floors = weighted_floors(mb, bv, sl.a1, sl.b2, fb, la, k1 > k0)
+                ws = weighted_speed(mb, sl, sl.tau, bv, p_w, floors, 0.0)
+                idx = np.arange(0, sl.n, max(1, sl.n // 400))
+                tw = _true_weighted_speed(mb, bv, r_sig, sl, idx)
+                fin = np.isfinite(ws[idx])
+                assert np.all(tw[fin] <= ws[idx][fin]), (sl.tau_s, shift)
+                # larger floors (the first and last gaps' weights above the blocks'
+                # table weights there) never narrow it
+                up_f = (floors[0], floors[1] + 0.5, floors[2], floors[3] + 0.5)
+                ws2 = weighted_speed(mb, sl, sl.tau, bv, p_w, up_f, 0.0)
+                assert np.all(ws2[np.isfinite(ws)] >= ws[np.isfinite(ws)]), (sl.tau_s, shift)
+                n += int(np.sum(fin))
             old = transport_by_gaps(mb, lp, lp.tau, bv, r_mag, q_mean)
             gain.append(float(np.median(box.hi - box.lo) / np.median(old.hi - old.lo)))
-            n += int(np.sum(fin))
         assert n > 100
         assert min(gain) < 0.97, gain
 

@@ -111,8 +111,8 @@ def gap_weights(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> np.n
 def _sample_weights(w: WindowContext, bv: Any) -> tuple[np.ndarray, Any, np.ndarray] | None:
     """Per gyro_z sample, the largest :func:`gap_weights` of the heading gaps it meets (0
     outside the heading epochs: the floors cover the window's partial gaps there), a
-    range table of the gaps' weights and the prefix sums of ``om^2 l`` (each rounded
-    up); None without finite weights. Computed once."""
+    range table of them and the prefix sums of ``om^2 l`` (each rounded up); None
+    without finite weights. Computed once."""
     key = "accel_y_weights"
     if key in w.cache:
         return w.cache[key]
@@ -137,7 +137,7 @@ def _sample_weights(w: WindowContext, bv: Any) -> tuple[np.ndarray, Any, np.ndar
                 om[span] = np.maximum(om[span], mx)
             ln = np.diff(bnd)
             sq = np.concatenate([[0.0], np.cumsum(up(up(om * om) * ln))])
-            out = (np.ascontiguousarray(om), RangeExt(dg), sq)
+            out = (np.ascontiguousarray(om), RangeExt(om), sq)
     w.cache[key] = out
     return out
 
@@ -181,6 +181,46 @@ def _over_box(
     return np.where(fin, up(np.maximum(g_lo, g_hi)), np.inf)
 
 
+def _floor_excess(
+    w: WindowContext, tab: dict[str, Any], i: np.ndarray, j: np.ndarray,
+    floors: tuple[np.ndarray, ...], rt: Any,
+) -> np.ndarray:
+    """Where a full block (``i .. j-1``, table weights without floors) reaches into the
+    window's first partial gap ``[s0, fb)`` (the block starts at the end of the sample
+    holding ``s0``, before ``fb``) or its last ``(la, s1]``: ``max(om, floor) <= om +
+    (floor - min om)+`` over that stretch (the smallest table weight of its samples,
+    ``rt``), so the excess times ``int |y - e|`` at the ends of the block's box (zero
+    where the window starts and ends on heading epochs: the floor is then the gap's own
+    weight)."""
+    fb, wf, la, wl = floors
+    n = fb.size
+    ts, te = tab["ts"], tab["te"]
+    bnd = w.imu.sig["gyro_z"].bnd
+    has = j > i
+    ii = np.clip(i, 0, ts.size - 1)
+    jj = np.clip(j - 1, 0, ts.size - 1)
+    zero = np.zeros(bnd.size - 1)
+    inf = np.full(n, np.inf)
+    out = np.zeros(n)
+    for a, b, g, fl in (
+        (ts[ii], np.minimum(fb, te[ii]), ii, wf),
+        (np.maximum(np.where(np.isfinite(la), la, te[jj]), ts[jj]), te[jj], jj, wl),
+    ):
+        ok = has & (b > a)
+        if not np.any(ok):
+            continue
+        k0 = np.clip(np.searchsorted(bnd, a, side="right") - 1, 0, zero.size - 1)
+        k1 = np.clip(np.searchsorted(bnd, b, side="left") - 1, k0, zero.size - 1)
+        mn, _ = rt.query(k0, k1)
+        ex = np.where(ok & (fl > mn), up(fl - mn), 0.0)
+        ok &= ex > 0
+        if np.any(ok):
+            v = _over_box(w, zero, np.where(ok, a, 0.0), np.where(ok, b, 0.0),
+                          tab["c"][g], tab["rad"][g], (inf, ex, inf, np.zeros(n)))
+            out = out + np.where(ok, v, 0.0)
+    return out
+
+
 def weighted_speed(
     w: WindowContext,
     lp: LevelPlan,
@@ -202,23 +242,20 @@ def weighted_speed(
     if sw is None or n == 0 or not w.ag.has_heading:
         return out
     om, rt, sq = sw
-    ht = w.ag.head_t
     s0, s1 = lp.a1, lp.b2
     fb, wf, la, wl = floors
-    ng = ht.size - 1
-    # the largest weight a sample of the window can take: the gaps the window meets, one
-    # more at each side (a sample across its ends), and the floors
-    g0 = np.clip(np.searchsorted(ht, s0, side="right") - 2, 0, ng - 1)
-    g1 = np.clip(np.searchsorted(ht, s1, side="left"), 0, ng - 1)
-    _, mx = rt.query(g0, np.maximum(g1, g0))
+    bnd = w.imu.sig["gyro_z"].bnd
+    lmax = max(w.imu.dt, float(np.max(np.diff(bnd)))) if bnd.size > 1 else w.imu.dt
+    # the samples the window touches: i0 .. i1 - 1
+    i0 = np.clip(np.searchsorted(bnd, s0, side="right") - 1, 0, bnd.size - 1)
+    i1 = np.clip(np.searchsorted(bnd, s1, side="left"), i0, bnd.size - 1)
+    # the largest weight a sample of the window can take: theirs and the floors
+    _, mx = rt.query(np.minimum(i0, om.size - 1), np.clip(i1 - 1, i0, om.size - 1))
     om_max = np.maximum(np.maximum(mx, wf), np.where(np.isfinite(la), wl, 0.0))
     det = det_mean(w, s0, s1) * (s1 - s0) / tau
     kmax = 1.0 / tau
-    # sum om^2 l over every sample the window touches, plus the floors over their spans
-    bnd = w.imu.sig["gyro_z"].bnd
-    lmax = max(w.imu.dt, float(np.max(np.diff(bnd)))) if bnd.size > 1 else w.imu.dt
-    i0 = np.clip(np.searchsorted(bnd, s0, side="right") - 1, 0, bnd.size - 1)
-    i1 = np.clip(np.searchsorted(bnd, s1, side="left"), i0, bnd.size - 1)
+    # sum om^2 x overlap <= sum om^2 l over the samples the window touches, plus each
+    # floor^2 over its span (the samples a floor reaches overlap it by at most a sample)
     sum_sq = (sq[i1] - sq[i0]) * (1 + 1e-12)
     sum_sq = sum_sq + wf * wf * (fb - s0 + lmax)
     last = np.isfinite(la)
@@ -244,6 +281,7 @@ def weighted_speed(
             v = _over_box(w, om, np.where(ok, pa, 0.0), np.where(ok, pb, 0.0),
                           tab["c"][gg], tab["rad"][gg], (fb, wf, la, wl))
             parts = parts + np.where(ok, v, 0.0)
+        parts = parts + _floor_excess(w, tab, i, j, floors, rt)
         guard = (ts.size + 4) * 2.3e-16 * tab["total"] * kmax
         conc = np.sqrt(tab["lam"] * sum_w2 * 2.0 * math.log(len(WEIGHTED_BLOCKS) / p))
         val = up((full + parts * kmax + guard + conc + om_max * (det + earth)) * (1 + 1e-12))
