@@ -2,7 +2,8 @@
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
-(:func:`transport_by_gaps`), positions only also over blocks of fix gaps
+(:func:`transport_by_gaps`, its speed part also as one weighted mean:
+:mod:`.transport_weighted`), positions only also over blocks of fix gaps
 (:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`), the
 narrower of the two."""
 

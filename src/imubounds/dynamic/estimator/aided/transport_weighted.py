@@ -10,22 +10,32 @@ at most ``(1/tau) sum_i om_i int_i |r|``, bounded as in
 :func:`~imubounds.dynamic.estimator.aided.transport_blocks.block_r_abs` with the kernel
 weights ``w_i`` multiplied by ``om_i``:
 
+With ``y_i - e_g = z_i + n_i`` on block g (``e_g`` the block's true mean error, ``z =
+r + d``, ``d`` the deterministic deviation from it, ``n`` the noise's deviation from its
+block mean) and ``w_i`` the kernel's weight of sample i (its overlap with the window
+over tau):
+
 * ``sum_i om_i w_i |z_i| <= E F(n)``, ``F(n) = sum_i om_i w_i |z_i + n_i|`` (Jensen,
   ``n`` zero-mean; the weights must not depend on the noise: ``om`` comes from the
   aiding and the vehicle's bounds alone, :func:`~.velocity.gyro_free_u` and the growth
   without the IMU's magnitudes);
-* ``F`` is Lipschitz with constant ``sqrt(sum (om_i w_i)^2) sqrt(Lambda)``, ``sum (om_i
-  w_i)^2 <= (l_max/tau^2) sum om_i^2 l_i`` (``w_i = l_i/tau``, ``l_i <= l_max``; the sum
-  over every sample the window touches, the floors' squares added over their spans
-  plus a sample), so ``E F <= F(n) + sqrt(that Lambda 2 ln(1/p))`` with probability
-  ``>= 1 - p`` (Gaussian concentration);
-* ``F(n) = sum_i om_i w_i |y_i - e_g|`` is convex in each block's mean error ``e_g`` (in
-  ``c_g +- rad_g`` from the heading): at most its larger value at the box's two ends
-  (per block, as the blocks' terms are separate);
-* the deterministic deviation ``d`` adds at most ``om_max`` times the unweighted one.
+* ``F`` is Lipschitz in the standard normal vector behind ``n`` with constant
+  ``sqrt(sum (om_i w_i)^2) sqrt(Lambda)`` (``Lambda >= ||P C P||``,
+  :func:`~.transport_blocks.block_norm`), and ``w_i <= l_max/tau`` gives ``sum (om_i
+  w_i)^2 <= (l_max/tau^2) sum om_i^2 x overlap_i``: at most the sum of ``om_i^2 l_i``
+  over every sample the window touches plus each floor squared over its span and a
+  sample; so ``E F <= F(n) + sqrt(that Lambda 2 ln(1/p))`` with probability ``>= 1 - p``
+  (Gaussian concentration);
+* ``F(n) = sum_i om_i w_i |y_i - e_g|`` is convex in each block's ``e_g`` (in ``c_g +-
+  rad_g`` from the heading): at most the sum over the blocks of its larger value at
+  the two ends of the block's box;
+* ``|r| <= |z| + |d|`` adds ``om_max`` times the bound of the mean |d| (``det_mean``),
+  and ``|r_nb| <= |r| + earth`` ``om_max earth``.
 
-The samples in the window's first and last partial gaps take the larger of their
-table weight and those gaps' half-ranges (the floors ``wf``, ``wl``).
+The samples in the window's first and last partial gaps take the larger of their table
+weight and those gaps' half-ranges (the floors ``wf``, ``wl``): in the pieces at the
+window's ends directly, in a full block reaching into such a gap through the excess
+``(floor - min om)+`` (:func:`_floor_excess`).
 """
 
 from __future__ import annotations
