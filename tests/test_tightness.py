@@ -405,3 +405,19 @@ def test_heading_envelope_encloses_the_true_heading() -> None:
         assert np.sum(d * d * dt) <= i2[k] * 1.05 + 1e-9, k
         checked += 1
     assert checked > 50
+
+
+def test_weights_are_not_gyro_free_with_an_ahrs_heading_or_attitude() -> None:
+    """The weighted speed part needs weights independent of the gyro's noise
+    (``aided.transport_weighted``): an AHRS yaw used as heading, or an AHRS attitude
+    stream, follows the gyros, so ``velocity.gyro_free_u`` gives None there (the
+    weighted form is then not used) and a box otherwise."""
+    from imubounds.dynamic.estimator.aided.velocity import gyro_free_u
+
+    with nearest():
+        _, ctx, mb = _context(("gnss", "gnss-vel", "compass"), 30)
+        bv = body_velocity(mb)
+        assert gyro_free_u(mb, bv) is not None
+        mb.cache.pop("bodyvel_gyro_free")
+        ctx.aiding.head_independent_of_imu = False
+        assert gyro_free_u(mb, bv) is None

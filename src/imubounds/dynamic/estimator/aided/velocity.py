@@ -207,13 +207,16 @@ def gyro_free_u(w: WindowContext, bv: Any) -> Any:
     ``bv`` lies in its box (the same construction with narrower boxes: heading_at's
     gyro magnitude is capped by the vehicle's rate, the GNSS pitch lies in the max
     tilt; checked, else None). None where an epoch was dropped (the gaps would
-    differ). Computed once."""
+    differ), and None when the heading or the attitude stream is an AHRS output of this
+    IMU (it follows the gyros). Computed once."""
     key = "bodyvel_gyro_free"
     if key in w.cache:
         return w.cache[key]
     ag, veh = w.ag, w.veh
     out = None
-    if bv is not None and bv["dropped"] == 0:
+    ahrs = not ag.head_independent_of_imu or (
+        ag.has_attitude and ag.att_source == "ahrs")
+    if bv is not None and bv["dropped"] == 0 and not ahrs:
         if ag.has_bvel:
             u = bv["u"]
         else:
