@@ -23,6 +23,7 @@ from imubounds.dynamic.estimator.aided.transport_fixes import (
     _rate_terms,
     transport_by_fixes,
 )
+from imubounds.dynamic.estimator.aided.transport_gyro import transport_by_gyro
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
@@ -33,7 +34,10 @@ from imubounds.interval import IntervalArray as IA
 Q_SHARE = 0.1
 #: positions only: the share of that probability for the support's mean |r| in
 #: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
-SUP_SHARE = 0.45
+SUP_SHARE = 0.35
+#: positions only: the share for the gyro-shape form
+#: (:func:`~imubounds.dynamic.estimator.aided.transport_gyro.transport_by_gyro`)
+GYRO_SHARE = 0.1
 
 
 def mean_r_from_heading(
@@ -203,7 +207,7 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
     fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
-    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE if fixes else 0.0)
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE + GYRO_SHARE if fixes else 0.0)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
@@ -218,6 +222,9 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
         rf = transport_by_fixes(w, lp, tau, r_mag, q_mean, SUP_SHARE * w.p_window)
         use = (rf.hi - rf.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rf.lo, ru.lo), np.where(use, rf.hi, ru.hi))
+        rg = transport_by_gyro(w, lp, tau, rng["u_lo"], rng["u_hi"], GYRO_SHARE * w.p_window)
+        use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
+        ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
     if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound
