@@ -23,7 +23,8 @@ from imubounds.dynamic.estimator.aided.transport_fixes import (
     _transport_fix_blocks,
     transport_by_fixes,
 )
-from imubounds.dynamic.estimator.aided.velocity import body_velocity, speed_max
+from imubounds.dynamic.estimator.aided.transport_gyro import mean_r_by_gaps, transport_by_gyro
+from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges, speed_max
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
@@ -53,15 +54,18 @@ TARGET = 1.5
 #: half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``: the
 #: blocks' heading radii) times u's half-range over a heading gap (the GNSS velocity
 #: radius plus the growth between epochs, 0.70 m/s median against the reference's radius
-#: 0.53); positions only (3.04 3.40 2.83 2.41 2.13 2.02 1.70 1.65 with the fix blocks and
-#: the sharper Lambda together, 4-10x before both): at 1.28 s the vehicle bounds alone
-#: (the transport term over one fix gap is wider); above,
-#: ``aided.transport_fixes.transport_by_fixes``: the position boxes (+-10.6 m) where the
-#: block means of K r change between blocks, and u's deviation from its block mean (the
+#: 0.53); positions only (1.40 1.10 1.11 1.43 2.13 2.02 1.70 1.65; 3.04 3.40 2.83 2.41
+#: 2.13 2.02 1.70 1.65 before ``aided.transport_gyro.transport_by_gyro``, 4-10x before
+#: the fix blocks): up to 10 s the gyro-shape form, its width at 1.28 s the heading
+#: boxes' share of ``rbar`` (0.027 rad over 1 s) times u's range from the vehicle bound
+#: (14 m/s) plus the gyro flicker's ramp noise; from 20 s
+#: ``aided.transport_fixes.transport_by_fixes`` (the gyro form's u excursion grows as the
+#: accelerometer's bias bound x tau): the position boxes (+-10.6 m) where the block
+#: means of K r change between blocks, and u's deviation from its block mean (the
 #: accelerometer's per-sample bound E0 = 0.4 m/s^2 x half the block) times the bound of
 #: mean|r|.
 ACCEL_Y_CEILING = {
-    "positions+compass": 3.5,
+    "positions+compass": 2.2,
     "gnss-pos+vel+compass": 1.6,
     "course-heading": TARGET,
     "dvl+compass": TARGET,
@@ -242,6 +246,54 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
         # the paper trip by a third or more; the corners (slower) less since the sharper
         # Lambda also narrowed the chord-speed form's mean|r| (0.78-0.82 at the middle tau)
         assert min(gain) < (0.9 if kw.get("corner_length_m") else 0.7), gain
+
+
+@pytest.mark.parametrize(
+    "seed,kw",
+    [
+        (60, {}),
+        (61, {"corner_length_m": 20.0, "laps": 3}),
+        (62, {"turn_on_scale": 3.0}),
+        (63, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+        (64, {"scale_error": 0.002, "misalignment_deg": 0.1}),
+    ],
+    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment"],
+)
+def test_accel_y_transport_by_gyro_encloses_the_true_mean(seed: int, kw: dict) -> None:
+    """Positions + compass: the gyro-shape form of accel_y's transport term
+    (``aided.transport_gyro.transport_by_gyro``) contains the true trapezoid kernel mean
+    of r u, and its ``rbar`` (``mean_r_by_gaps``) the true kernel mean of r (within the
+    Earth's rate, which the truth's inertial rate adds), at every window of every aided
+    level: straight legs, sharp corners where the vehicle slows, a turn-on gyro bias at
+    3 sigma, scale and misalignment errors; and it is at most half the fix-block form
+    at the shortest aided level (the accelerometer moves u little within a window)."""
+    with nearest():
+        res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
+        sig = _true_ru(res, ctx)
+        r = np.asarray(res.drive.truth.extra["gyro_z"], dtype=float)
+        sig_r = PiecewiseSignal(ctx.imu.bnd, r)
+        bv = body_velocity(mb)
+        n = 0
+        ratios = []
+        for lp in _aided_levels(ctx, mb, "accel_y"):
+            rng = ranges(mb, lp, bv)
+            p = 0.1 * mb.p_window
+            box = transport_by_gyro(mb, lp, lp.tau, rng["u_lo"], rng["u_hi"], p)
+            true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            bad = (true.lo > box.hi) | (true.hi < box.lo)
+            assert not bad.any(), (lp.tau_s, int(bad.sum()))
+            rb = mean_r_by_gaps(mb, lp, lp.tau, 0.04 * mb.p_window)
+            tr = sig_r.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            earth = 7.3e-5 + ctx.vehicle.max_speed / 6.37e6
+            bad = (tr.lo - earth > rb.hi) | (tr.hi + earth < rb.lo)
+            assert not bad.any(), (lp.tau_s, int(bad.sum()))
+            if not ratios:
+                r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
+                fx = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, SUP_SHARE * mb.p_window)
+                ratios.append(float(np.median(box.radius()) / np.median(fx.radius())))
+            n += lp.n
+        assert n > 100
+        assert ratios[0] < 0.5, ratios
 
 
 @pytest.mark.parametrize(

@@ -279,7 +279,7 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     deviations of the sum over the gaps (:func:`_ramp_noise_sd`), the deterministic
     part (the rate random walk's bound, scale and misalignment on the vehicle's rate
     bound, the Earth's rates) within ``2 max|e_d| int_j |t - m_j|``. One event at
-    probability ``p`` per window.""" 
+    probability ``p`` per window."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
     if n == 0 or not w.ag.has_heading or not w.imu.available["gyro_z"] or not w.fine_r:
@@ -331,7 +331,6 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     dsum = np.zeros(n)
     np.add.at(dsum, gw, up(np.abs(slope) * g * g / 4))
     det = up(2 * ed * dsum * (1 + 1e-9))
-    w.cache["_dbg"] = (yk_err, noise, det, ext, head.radius())
     out = head * IA(c0) + IA(yk) + pm(yk_err + noise + det + ext)
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     ok &= sig.unknown_len(lp.a1, lp.b2) == 0
