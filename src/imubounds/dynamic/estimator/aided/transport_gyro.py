@@ -15,7 +15,7 @@ support (``D_p`` a bound of ``|u - u(t_c)|`` on piece p, :func:`_u_excursion`; t
 second product by Cauchy-Schwarz in the measure ``K dt``). Neither needs u's level
 (the positions' +-10.6 m at short tau): only how u moves within the window, from the
 SIGNED integral of accel_x (its error: the bias bound times the length plus the white
-noise's integral, :func:`_accel_error`).
+noise's integral, :mod:`.accel_integral`).
 """
 
 from __future__ import annotations
@@ -23,27 +23,25 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import ndtri
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.accel_integral import (
+    accel_error,
+    c_extremes,
+    k_two,
+    other_rate,
+)
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
 from imubounds.dynamic.estimator.aided.transport_fixes import _by_parts, _rate_terms
-from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.budget import ChannelNoise, centered_ms_bound, kernel_variance
-from imubounds.dynamic.estimator.inputs import RangeExt
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 #: pieces of each of the trapezoid's two intervals (the kernel's bound on a piece)
 PIECES = 8
 _EPS = 2.3e-16
-
-
-def _k_two(p: float) -> float:
-    """``Phi^-1(1 - p/2)``: a two-sided Gaussian bound at probability ``p``."""
-    return float(-ndtri(0.5 * p))
 
 
 def _kernel_ok(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
@@ -80,92 +78,18 @@ def _pieces(lp: LevelPlan, tau: np.ndarray) -> tuple[np.ndarray, ...]:
     return s0, s1, kmax, kint
 
 
-def _accel_table(w: WindowContext) -> RangeExt:
-    """Range table of accel_x's running integral ``C`` at the sample boundaries, each
-    widened by its rounding bound (computed once per run)."""
-    key = "accel_x_cum_ext"
-    if key not in w.cache:
-        sig = w.imu.sig["accel_x"]
-        val, err, _ = sig.cum(sig.bnd)
-        err = up(err * (1 + 1e-9) + 1e-300)
-        w.cache[key] = RangeExt(np.nextafter(val - err, -np.inf), up(val + err))
-    return w.cache[key]
-
-
-def _accel_error(w: WindowContext, x: np.ndarray, absint: np.ndarray, p: float,
-                 m: np.ndarray) -> np.ndarray:
-    """Bound of ``|u(t) - u(t_c) - int_t_c^t y_x|`` for ``|t - t_c| <= x`` (one event of
-    probability ``p`` per window, over its ``PIECES`` nested spans on each side).
-
-    ``u' = f_x + r v - q w - g sin(theta)`` + the Earth's Coriolis and transport terms
-    (as :func:`~imubounds.dynamic.estimator.aided.transport_fixes._u_deviation`: their
-    magnitude ``k_o x``), and ``y_x = (1 + s) f_x + m (f_y, f_z) + b + n``: ``|int f_x -
-    int y_x| <= s int|f_x| + m int(|f_y| + |f_z|) + |int b| + |int n|`` with ``int|f|``
-    from the samples' magnitudes plus E0 (``absint`` the support's ``int |y_x|``); the
-    bias: the turn-on bound plus the wander, ``|int d| <= D_s x`` for a span of at least
-    the stated window (the stated drift bound bounds every such mean) plus the sample
-    bound's excess over ``D_s`` on at most one window's length (the model's rule: its
-    per-sample bound, :class:`~imubounds.dynamic.estimator.budget.Wander`); the white
-    noise's running integral by Levy's inequality (``P(max_(s<=x) |W_s| >= a) <= 2
-    P(|W_x| >= a)``), with ``2 PIECES`` spans per window in a union bound; the
-    quantization's by its value at both ends (``m`` samples, a union bound). Without
-    accel_x: the vehicle's ``max_accel x``."""
-    veh, ctx = w.veh, w.ctx
-    if not w.imu.available["accel_x"]:
-        return up(veh.max_accel * x)
-    cn = ctx.noise["accel_x"]
-    wd = ctx.wander["accel_x"]
-    s = cn.scale
-    model = ctx.k_ps * cn.flicker_sigma() + wd.kr
-    per_sample = float(wd.pick(model, wd.point))
-    mean_long = min(float(wd.pick(model, wd.stated)), per_sample)
-    turn_on = cn.turn_on_bound(ctx.alpha.k("imu_turn_on"))
-    win_s = wd.window_s if wd.rule != "model" else 0.0
-    bias = up((turn_on + mean_long) * x + (per_sample - mean_long) * np.minimum(x, win_s))
-    ratio = max(1.0, w.imu.max_len / w.imu.dt)
-    pw = 0.5 * p if cn.Q > 0 else p
-    kw = _k_two(pw / (4.0 * PIECES))
-    white = up(kw * cn.N * np.sqrt(x * ratio))
-    if cn.Q > 0:
-        mm = np.atleast_1d(m)
-        kq = np.array([_k_two(0.5 * p / (k + 1.0)) for k in mm.ravel()]).reshape(np.shape(x))
-        white = up(white + 2.0 * kq * cn.Q * ratio)
-    E0 = ctx.E0["accel_x"]
-    sc = up(s * (absint + E0 * x) / (1.0 - s))
-    mis = 0.0
-    if cn.misalignment_rad > 0:
-        for other in ("accel_y", "accel_z"):
-            o_max = (w.imu.sig[other].xmax if not w.imu.available[other]
-                     else float(np.max(np.abs(w.imu.sig[other].y))) + ctx.E0[other])
-            mis += cn.misalignment_rad * o_max / (1.0 - ctx.noise[other].scale)
-    return up((bias + white + sc + up(mis * x)) * (1 + 1e-12))
-
-
-def _other_rate(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The magnitude bound of ``u' - f_x`` (``r v - q w - g sin(theta)`` and the Earth's
-    terms), as in ``transport_fixes._u_deviation``."""
-    veh = w.veh
-    S = speed_max(w, a, b)
-    vl = veh.lateral_speed_bound_mps
-    vmax = S if vl is None else np.minimum(S, vl)
-    earth = EARTH_RATE + S / R_EARTH
-    return up(
-        vmax * (veh.max_rate + earth)
-        + G_HI * w.tilt.hull("abs_sinp", a, b).hi
-        + 2 * EARTH_RATE * S + S * S / R_EARTH
-        + veh.vertical_bound * veh.max_rate
-    )
-
-
 def _u_excursion(
     w: WindowContext, lp: LevelPlan, s0: np.ndarray, s1: np.ndarray, p: float
 ) -> np.ndarray:
     """Per piece ``[s0, s1]``: a bound of ``|u(t) - u(t_c)|`` over it (t_c the support's
     centre): ``max |C(t) - C(t_c)|`` over the piece (C accel_x's running integral, linear
     between samples: its extremes at the sample boundaries and the piece's ends; an
-    unknown span counts ``xmax`` per second) plus :func:`_accel_error` and the other
-    terms' ``k_o |t - t_c|`` at the piece's farthest point; at most ``max_accel`` times
-    that distance."""
+    unknown span counts ``xmax`` per second) plus
+    :func:`~imubounds.dynamic.estimator.aided.accel_integral.accel_error` and the other
+    terms' ``k_o |t - t_c|`` (:func:`.accel_integral.other_rate`) at the piece's farthest
+    point (the white noise by Levy's inequality on each side of t_c, a union bound over
+    the ``PIECES`` nested spans of a side; the quantization over the support's samples);
+    at most ``max_accel`` times that distance."""
     veh = w.veh
     tc = 0.5 * (lp.a1 + lp.b2)
     n = lp.a1.size
@@ -175,30 +99,25 @@ def _u_excursion(
     if not w.imu.available["accel_x"]:
         return cap
     sig = w.imu.sig["accel_x"]
-    ext = _accel_table(w)
+    P2 = s0.shape[1]
     f0, f1 = s0.ravel(), s1.ravel()
-    c0, e0, _ = sig.cum(f0)
-    c1, e1, _ = sig.cum(f1)
-    i0 = sig.locate(f0) + 1
-    i1 = np.minimum(sig.locate(f1), sig.bnd.size - 1)
-    has = i1 >= i0
-    mn, mx = ext.query(np.where(has, i0, 0), np.where(has, i1, 0))
-    lo = np.minimum(c0 - e0, c1 - e1)
-    hi = np.maximum(c0 + e0, c1 + e1)
-    lo = np.where(has, np.minimum(lo, mn), lo)
-    hi = np.where(has, np.maximum(hi, mx), hi)
+    tcf = np.repeat(tc, P2)
+    lo, hi, _ = c_extremes(w, f0, f1)
     cc, ec, _ = sig.cum(tc)
-    cc = np.repeat(cc, s0.shape[1])
-    ec = np.repeat(ec, s0.shape[1])
+    cc, ec = np.repeat(cc, P2), np.repeat(ec, P2)
     dev = np.maximum(hi - (cc - ec), (cc + ec) - lo)
-    unk = sig.unknown_len(np.minimum(f0, np.repeat(tc, s0.shape[1])),
-                          np.maximum(f1, np.repeat(tc, s0.shape[1]))) * sig.xmax
+    unk = sig.unknown_len(np.minimum(f0, tcf), np.maximum(f1, tcf)) * sig.xmax
     dev = up(up(dev * (1 + 1e-12)) + unk).reshape(s0.shape)
     absint = sig.abs_integral(lp.a1, lp.b2)
+    # the white noise: Levy's inequality on each side of t_c, PIECES nested spans per side
+    # (a union bound); the quantization at the support's m samples
+    pw = 0.5 * p if w.ctx.noise["accel_x"].Q > 0 else p
+    kw = k_two(pw / (4.0 * PIECES))
     m = w.imu.count(lp.a1, lp.b2)
-    err = _accel_error(w, x, np.broadcast_to(absint[:, None], x.shape), p,
-                       np.broadcast_to(m[:, None], x.shape).ravel())
-    ko = _other_rate(w, lp.a1, lp.b2)
+    kq = (np.array([k_two(0.5 * p / (k + 1.0)) for k in m])[:, None]
+          if w.ctx.noise["accel_x"].Q > 0 else 0.0)
+    err = accel_error(w, x, absint[:, None], kw, kq)
+    ko = other_rate(w, lp.a1, lp.b2)
     out = up(dev + err + up(ko[:, None] * x))
     assert out.shape == (n, s0.shape[1])
     return np.minimum(out, cap)
@@ -324,7 +243,7 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     cn = ctx.noise["gyro_z"]
     ratio = max(1.0, w.imu.max_len / w.imu.dt)
     sd = _ramp_noise_sd(w, cn, s0, s1, slope, gw, n) * ratio
-    noise = up(_k_two(p) * sd * (1 + 1e-9))
+    noise = up(k_two(p) * sd * (1 + 1e-9))
     # the error's deterministic part: |e_d| <= D_KR + s R + 2 m R + earth (R the rate bound)
     R = w.veh.max_rate + earth
     ed = ctx.D_KR["gyro_z"] + cn.scale * R / (1 - cn.scale) + 2 * cn.misalignment_rad * R + earth
