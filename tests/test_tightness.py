@@ -18,6 +18,7 @@ from imubounds.dynamic.estimator.aided.accel_y import (
 )
 from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.transport_fixes import (
+    ACC_SHARE,
     FIX_BLOCKS,
     _psi_variation,
     _transport_fix_blocks,
@@ -54,18 +55,18 @@ TARGET = 1.5
 #: half-range_k(u) int_k |r|``: the bound of mean|r| (``aided.transport.r_abs``: the
 #: blocks' heading radii) times u's half-range over a heading gap (the GNSS velocity
 #: radius plus the growth between epochs, 0.70 m/s median against the reference's radius
-#: 0.53); positions only (1.40 1.10 1.11 1.43 2.13 2.02 1.70 1.65; 3.04 3.40 2.83 2.41
-#: 2.13 2.02 1.70 1.65 before ``aided.transport_gyro.transport_by_gyro``, 4-10x before
-#: the fix blocks): up to 10 s the gyro-shape form, its width at 1.28 s the heading
-#: boxes' share of ``rbar`` (0.027 rad over 1 s) times u's range from the vehicle bound
-#: (14 m/s) plus the gyro flicker's ramp noise; from 20 s
-#: ``aided.transport_fixes.transport_by_fixes`` (the gyro form's u excursion grows as the
-#: accelerometer's bias bound x tau): the position boxes (+-10.6 m) where the block
-#: means of K r change between blocks, and u's deviation from its block mean (the
-#: accelerometer's per-sample bound E0 = 0.4 m/s^2 x half the block) times the bound of
-#: mean|r|.
+#: 0.53); positions only (1.41 1.10 1.12 1.44 1.94 1.81 1.49 1.48; 3.04 3.40 2.83 2.41
+#: 2.13 2.02 1.70 1.65 before ``aided.transport_gyro.transport_by_gyro`` and u's block
+#: deviation from accel_x's signed integral, 4-10x before the fix blocks): up to 10 s
+#: the gyro-shape form, its width at 1.28 s the heading boxes' share of ``rbar`` (0.027
+#: rad over 1 s) times u's range from the vehicle bound (14 m/s) plus the gyro flicker's
+#: ramp noise; from 20 s ``aided.transport_fixes.transport_by_fixes`` (the gyro form's u
+#: excursion grows as the accelerometer's bias bound, 0.23 m/s^2, x tau): the position
+#: boxes (+-10.6 m) where the block means of K r change between blocks (0.18 m/s^2 at
+#: 20 s), and u's deviation from its block mean (bias bound x half the block) times the
+#: bound of mean|r| (0.06 rad/s where the truth's is about 0.01).
 ACCEL_Y_CEILING = {
-    "positions+compass": 2.2,
+    "positions+compass": 2.0,
     "gnss-pos+vel+compass": 1.6,
     "course-heading": TARGET,
     "dvl+compass": TARGET,
@@ -209,18 +210,20 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
         (51, {"corner_length_m": 20.0, "laps": 3}),
         (52, {"turn_on_scale": 3.0}),
         (53, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+        (54, {"scale_error": 0.002, "misalignment_deg": 0.1}),
     ],
-    ids=["paper", "corners", "turn-on", "corners-turn-on"],
+    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment"],
 )
 def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) -> None:
     """Positions + compass: accel_y's transport term over blocks of fix gaps
     (``aided.transport_fixes.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
-    own) contains the true trapezoid kernel mean of r u (the simulator's yaw rate and
-    forward velocity on the IMU's stamps) at every window of every aided level, on the
-    sharp-corners trip (the vehicle slows in the corners) and with a turn-on gyro bias
-    at 3 sigma; and it is narrower than the chord-speed form ``S_max x mean|r|`` at some
-    tau (by half at the longest on the paper trip; in the corners, where the vehicle
-    slows, at the middle ones)."""
+    own, u's block deviation also from accel_x's signed integral) contains the true
+    trapezoid kernel mean of r u (the simulator's yaw rate and forward velocity on the
+    IMU's stamps) at every window of every aided level, on the sharp-corners trip (the
+    vehicle slows in the corners), with a turn-on gyro bias at 3 sigma and with scale
+    and misalignment errors; and it is narrower than the chord-speed form ``S_max x
+    mean|r|`` at some tau (by half at the longest on the paper trip; in the corners,
+    where the vehicle slows, at the middle ones)."""
     with nearest():
         res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
         sig = _true_ru(res, ctx)
@@ -232,9 +235,10 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
             r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
             p_sup = SUP_SHARE * mb.p_window
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
-            psi_var = _psi_variation(mb, lp, p_sup)
+            psi_var = _psi_variation(mb, lp, (1 - ACC_SHARE) * p_sup)
+            p_acc = ACC_SHARE * p_sup / len(FIX_BLOCKS)
             for blk in FIX_BLOCKS:
-                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var)
+                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var, p_acc)
                 bad = (true.lo > box.hi) | (true.hi < box.lo)
                 assert not bad.any(), (lp.tau_s, blk, int(bad.sum()))
             box = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, p_sup)

@@ -13,7 +13,9 @@ least the stated drift window (the stated drift bound bounds every such mean; th
 rule: its per-sample bound) plus the per-sample bound's excess over ``D_s`` on at most one
 window's length (:class:`~imubounds.dynamic.estimator.budget.Wander`); the white noise's
 running integral ``k N sqrt(x)`` (the caller's k, by Levy's inequality) and the
-quantization's ``2 k_q Q`` (its value at both ends).
+quantization's ``2 k_q Q`` (its value at both ends); the samples are the means of the true
+signal over them plus the error, so a span's ends cutting a sample add
+:func:`sample_model`.
 """
 
 from __future__ import annotations
@@ -123,4 +125,13 @@ def accel_error(
     lin, excess, win_s, sc = error_rates(w)
     nw, nq = noise_amplitudes(w)
     return up((lin * x + excess * np.minimum(x, win_s) + sc * absint
-               + kw * nw * np.sqrt(x) + 2.0 * np.asarray(kq) * nq) * (1 + 1e-12))
+               + kw * nw * np.sqrt(x) + 2.0 * np.asarray(kq) * nq + sample_model(w))
+              * (1 + 1e-12))
+
+
+def sample_model(w: WindowContext) -> float:
+    """The span's ends cut a sample: ``|int_part (f - mean_sample f)| <= part x rate x
+    len`` at each end (``rate`` the bound of accel_x's rate of change, len the longest
+    sample): ``2 rate max_len^2``."""
+    ml = w.imu.max_len
+    return float(up(np.asarray(2.0 * w.imu.rate_bound["accel_x"] * ml * ml)))

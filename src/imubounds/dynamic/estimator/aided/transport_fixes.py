@@ -15,6 +15,7 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
     k_two,
     noise_amplitudes,
     other_rate,
+    sample_model,
 )
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
@@ -154,7 +155,7 @@ def _u_deviation(
         signed = up(
             up(hi - lo) + unk * sig.xmax + up((lin + ko) * ln * 0.5)
             + excess * np.minimum(ln * 0.5, win_s) + sc * sig.abs_integral(a, b)
-            + 2.0 * kw * nw * np.sqrt(ln) + 2.0 * kq * nq
+            + 2.0 * kw * nw * np.sqrt(ln) + 2.0 * kq * nq + sample_model(w)
         )
         dev = np.minimum(dev, up(signed * (1 + 1e-12)))
     return up(np.minimum(dev, veh.max_accel * ln * 0.5) * (1 + 1e-12))

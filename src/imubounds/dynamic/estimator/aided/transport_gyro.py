@@ -197,7 +197,9 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     = 0``), the Gaussian noise (white, quantization, flicker) within k standard
     deviations of the sum over the gaps (:func:`_ramp_noise_sd`), the deterministic
     part (the rate random walk's bound, scale and misalignment on the vehicle's rate
-    bound, the Earth's rates) within ``2 max|e_d| int_j |t - m_j|``. One event at
+    bound, the Earth's rates) within ``2 max|e_d| int_j |t - m_j|``, the samples' model
+    (each sample the true rate's mean over it; the rest inside a sample within its
+    rate-of-change bound times the sample) by the samples' lengths and the knots' cuts. One event at
     probability ``p`` per window."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
@@ -250,6 +252,16 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     dsum = np.zeros(n)
     np.add.at(dsum, gw, up(np.abs(slope) * g * g / 4))
     det = up(2 * ed * dsum * (1 + 1e-9))
+    # the samples are the true rate's means over them plus the error: a sample inside a
+    # gap, |int (phi - phi(t_i)) (rmean - r)| <= |slope| (len/2) (rate len/2) len (phi =
+    # slope (t - m), rate the bound of gyro_z's rate of change); a sample a knot cuts (by
+    # ``cut``, the smaller part): |phi(knot)| cut rate len + |slope| rate len^3 per side
+    ml = w.imu.max_len
+    cuts = sig.cut(s0) + sig.cut(s1)
+    sm = up(np.abs(slope) * (g * ml * ml / 4 + 0.5 * g * ml * cuts + 2 * ml**3))
+    sl = np.zeros(n)
+    np.add.at(sl, gw, sm)
+    det = up(det + up(w.imu.rate_bound["gyro_z"] * sl * (1 + 1e-9)))
     out = head * IA(c0) + IA(yk) + pm(yk_err + noise + det + ext)
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     ok &= sig.unknown_len(lp.a1, lp.b2) == 0
@@ -274,10 +286,12 @@ def transport_by_gyro(
     the bound of the noise's mean square deviation from its mean
     (:func:`~imubounds.dynamic.estimator.budget.centered_ms_bound`, the noise's white,
     quantization and flicker parts, as ``aided.transport.r_abs``; ``K_max = 1/tau``),
-    plus the deterministic part (Minkowski). The probability ``p`` of the window's event
-    is split over the ramp noise of ``rbar``, accel_x's white noise and ``MS``. Also
-    ``U0`` the centre of ``[u_lo, u_hi]``: ``|u - U0| <= (u_hi - u_lo)/2`` everywhere;
-    the narrower of the two."""
+    plus the deterministic part (Minkowski); each sample is the true rate's mean over it
+    plus the error, the rest inside a sample (its rate-of-change bound times the sample)
+    added against ``K (u - U0)``'s slope. The probability ``p`` of the window's event is
+    split over the ramp noise of ``rbar`` (0.4), accel_x's white noise (0.3) and ``MS``
+    (0.3). Also ``U0`` the centre of ``[u_lo, u_hi]``: ``|u - U0| <= (u_hi - u_lo)/2``
+    everywhere; the narrower of the two."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
     if n == 0 or not w.ag.has_heading or not w.imu.available["gyro_z"] or not w.fine_r:
@@ -314,7 +328,19 @@ def transport_by_gyro(
     # support (int K = 1, the kernel's pieces' integrals sum to at most 1 + rounding)
     half = up(0.5 * (u_hi - u_lo))
     alt = up(half * up(np.sum(up(kmax * ad), axis=1) + enorm))
-    second = np.minimum(up(ypart + up(enorm * unorm)), alt)
+    # the samples are the true rate's means over them plus the error: the part of e
+    # inside a sample, e_s = rmean_i - r, against phi = K (u - U0) (|phi'| <= K' D + K
+    # max_accel): sum_i int_i |phi - phi(t_i)| |e_s| <= sup|phi'| 2 tau rate len^2/4
+    # (rate gyro_z's rate-of-change bound), its kernel mean likewise with K' times int K
+    # |u - U0| <= D; together (2 D/L + max_accel) rate len^2/2, doubled for the samples
+    # the support's ends cut (where K = 0)
+    lmin = np.minimum(lp.b1 - lp.a1, lp.b2 - lp.b1)
+    ml = w.imu.max_len
+    rb = w.imu.rate_bound["gyro_z"]
+    dmax = np.max(D, axis=1)
+    samp = up((2 * dmax / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
+    samp_alt = up((2 * half / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
+    second = np.minimum(up(ypart + up(enorm * unorm) + samp), up(alt + samp_alt))
     out = first + pm(up(second * (1 + 1e-9)))
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     return IA(np.where(ok, out.lo, -np.inf), np.where(ok, out.hi, np.inf))
