@@ -17,12 +17,11 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
     other_rate,
     sample_model,
 )
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.positions import body_u_mean_parts, gap_units
 from imubounds.dynamic.estimator.aided.transport import r_abs
-from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
@@ -128,22 +127,14 @@ def _u_deviation(
     |u(t) - u(s)| <= k (b - a)/2 + int_[a,b] h``; also ``<= max_accel (b - a)/2``."""
     veh = w.veh
     ln = b - a
-    S = speed_max(w, a, b)
-    vl = veh.lateral_speed_bound_mps
-    vmax = S if vl is None else np.minimum(S, vl)
-    earth = EARTH_RATE + S / R_EARTH
-    k = up(
-        vmax * (veh.max_rate + earth)
-        + G_HI * w.tilt.hull("abs_sinp", a, b).hi
-        + 2 * EARTH_RATE * S + S * S / R_EARTH
-        + veh.vertical_bound * veh.max_rate
-    )
+    ko = other_rate(w, a, b)
     if w.imu.available["accel_x"]:
         cn = w.ctx.noise["accel_x"]
-        k = up(k + w.ctx.E0["accel_x"] / (1.0 - cn.scale))
-        h = up(w.imu.sig["accel_x"].abs_integral(a, b) / (1.0 - cn.scale))
+        k = up(ko + w.ctx.E0["accel_x"] / (1.0 - cn.scale))
+        absint = w.imu.sig["accel_x"].abs_integral(a, b)
+        h = up(absint / (1.0 - cn.scale))
     else:
-        k = up(k + w.imu.sig["accel_x"].xmax)
+        k = up(ko + w.imu.sig["accel_x"].xmax)
         h = np.zeros(np.shape(a))
     dev = up(up(k * ln * 0.5) + h)
     if kw is not None and w.imu.available["accel_x"]:
@@ -151,10 +142,9 @@ def _u_deviation(
         sig = w.imu.sig["accel_x"]
         lin, excess, win_s, sc = error_rates(w)
         nw, nq = noise_amplitudes(w)
-        ko = other_rate(w, a, b)
         signed = up(
             up(hi - lo) + unk * sig.xmax + up((lin + ko) * ln * 0.5)
-            + excess * np.minimum(ln * 0.5, win_s) + sc * sig.abs_integral(a, b)
+            + excess * np.minimum(ln * 0.5, win_s) + sc * absint
             + 2.0 * kw * nw * np.sqrt(ln) + 2.0 * kq * nq + sample_model(w)
         )
         dev = np.minimum(dev, up(signed * (1 + 1e-12)))
