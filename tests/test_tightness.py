@@ -255,6 +255,44 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
 @pytest.mark.parametrize(
     "seed,kw",
     [
+        (65, {"corner_length_m": 20.0, "laps": 3}),
+        (66, {"turn_on_scale": 3.0, "scale_error": 0.002, "misalignment_deg": 0.1}),
+    ],
+    ids=["corners", "turn-on-scale-misalignment"],
+)
+def test_u_deviation_from_the_signed_accel_integral_encloses_the_truth(
+    seed: int, kw: dict
+) -> None:
+    """``transport_fixes._u_deviation`` with accel_x's signed integral (the white noise's
+    factor given) bounds the true ``max |u(t) - mean_B u|`` over blocks of 4-32 fix gaps
+    (the vehicle slows in the corners), and is below the per-sample form on most blocks."""
+    from imubounds.dynamic.estimator.aided.transport_fixes import _u_deviation
+
+    with nearest():
+        res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
+        u = np.asarray(res.drive.truth.u_mps, dtype=float)
+        assert u.size == ctx.imu.n
+        t = ctx.aiding.gnss_t
+        mid = 0.5 * (ctx.imu.bnd[:-1] + ctx.imu.bnd[1:])
+        sig_u = PiecewiseSignal(ctx.imu.bnd, u)
+        narrower = []
+        for blk in FIX_BLOCKS:
+            a, b = t[:-blk:blk], t[blk::blk]
+            new = _u_deviation(mb, a, b, 6.0)  # k of the white noise: p about 1e-9
+            old = _u_deviation(mb, a, b)
+            lo, hi = sig_u.integral(a, b)
+            mean = 0.5 * (lo + hi) / (b - a)
+            k0, k1 = np.searchsorted(mid, a), np.searchsorted(mid, b)
+            true = np.array([np.max(np.abs(u[i:j] - m))
+                             for i, j, m in zip(k0, k1, mean, strict=True)])
+            assert np.all(true <= new), (blk, float(np.max(true - new)))
+            narrower.append(float(np.mean(new < old)))
+        assert min(narrower) > 0.5, narrower
+
+
+@pytest.mark.parametrize(
+    "seed,kw",
+    [
         (60, {}),
         (61, {"corner_length_m": 20.0, "laps": 3}),
         (62, {"turn_on_scale": 3.0}),
