@@ -3,8 +3,9 @@ mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
 (:func:`transport_by_gaps`), positions only also over blocks of fix gaps
-(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`), the
-narrower of the two."""
+(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`) and from
+the gyro's shape (:func:`~imubounds.dynamic.estimator.aided.transport_gyro.transport_by_gyro`),
+the narrowest."""
 
 from __future__ import annotations
 
@@ -190,8 +191,9 @@ def gyro_deviation_bounds(
     """The transport term's two gyro bounds, sharing the window's second bounded event
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
     (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
-    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`,
-    the rest to the first): the kernel mean of |r| (``aided.transport.r_abs``) and
+    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
+    and the gyro-shape form, ``SUP_SHARE + GYRO_SHARE`` with positions only, the rest to
+    the first): the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
