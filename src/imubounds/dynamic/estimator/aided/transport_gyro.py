@@ -139,32 +139,15 @@ def _ramp_noise_sd(
     dt = w.imu.dt
     one = _one_sd(cn, dt)
     out = np.zeros(n)
+    if gw.size == 0:
+        return out
     cache: dict[bytes, float] = {}
     start = np.flatnonzero(np.r_[True, gw[1:] != gw[:-1]])
     stop = np.r_[start[1:], gw.size]
     first = sig.locate(s0[start])
-    # a regular sample grid: windows whose knots sit alike on it (offsets from their
-    # first sample within 1e-6 dt, slopes equal in single precision) share the weights
-    # up to sum |dc| <= 2 (delta + shift) sum |slope| g + 2^-23 sum |slope| g^2/4
-    # (delta the offsets' rounding, shift the grid's drift from k dt over the window)
-    dev = float(np.max(np.abs(np.diff(bnd) - dt))) if bnd.size > 1 else 0.0
-    regular = dev <= 1e-9 * dt and w.imu.n_gaps == 0
-    seen: dict[bytes, float] = {}
-    for a, b, i0 in zip(start, stop, first, strict=True):
-        k0, k1 = s0[a:b], s1[a:b]
-        sl = slope[a:b]
-        desc = b""
-        if regular:
-            kn = np.r_[k0, k1[-1:]]
-            desc = (np.round((kn - bnd[i0]) / dt, 6).tobytes()
-                    + sl.astype(np.float32).tobytes())
-            if desc in seen:
-                g = k1 - k0
-                shift = dev * ((kn[-1] - kn[0]) / dt + 2)
-                extra = one * float(np.sum(np.abs(sl) * (2 * (0.5e-6 * dt + shift) * g
-                                                         + 2.0**-23 * g * g / 4)))
-                out[gw[a]] = up(seen[desc] + extra)
-                continue
+
+    def exact(a: int, b: int, i0: int) -> float:
+        k0, k1, sl = s0[a:b], s1[a:b], slope[a:b]
         i1 = int(sig.locate(np.array([k1[-1]]))[0])
         inner = bnd[i0 + 1 : i1 + 1]
         z = np.unique(np.concatenate([k0, k1[-1:], inner[(inner > k0[0]) & (inner < k1[-1])]]))
@@ -177,14 +160,43 @@ def _ramp_noise_sd(
         c = np.bincount(i, weights=part, minlength=i1 - i0 + 1)
         scale = float(np.max(np.abs(c))) if c.size else 0.0
         if scale == 0.0:
-            continue
+            return 0.0
         key = np.round(c / scale, 9).tobytes()
         if key not in cache:
             cache[key] = math.sqrt(kernel_variance(cn, c / scale, dt, False))
         # the key's rounding: at most 1e-9 of the scale per weight (sd <= sum |dc| x one sd)
-        out[gw[a]] = up(scale * (cache[key] + 1e-9 * c.size * one))
-        if regular:
-            seen[desc] = float(out[gw[a]])
+        return float(up(scale * (cache[key] + 1e-9 * c.size * one)))
+
+    dev = float(np.max(np.abs(np.diff(bnd) - dt))) if bnd.size > 1 else 0.0
+    if not (dev <= 1e-9 * dt and w.imu.n_gaps == 0):
+        for a, b, i0 in zip(start, stop, first, strict=True):
+            out[gw[a]] = exact(int(a), int(b), int(i0))
+        return out
+    # a regular sample grid: windows whose knots sit alike on it (offsets from their
+    # first sample within 1e-6 dt, slopes equal in single precision) share the weights
+    # up to sum |dc| <= 2 (delta + shift) sum |slope| g + 2^-23 sum |slope| g^2/4
+    # (delta the offsets' rounding, shift the grid's drift from k dt over the window)
+    cnt = stop - start
+    mg = int(np.max(cnt))
+    rows = np.full((start.size, 2 * mg + 2), -1e300)
+    rows[:, 0] = cnt
+    col = np.arange(gw.size) - np.repeat(start, cnt)
+    wi = np.repeat(np.arange(start.size), cnt)
+    base = bnd[first][wi]
+    rows[wi, 1 + col] = np.round((s0 - base) / dt, 6)
+    rows[wi, 1 + mg + col] = slope.astype(np.float32)
+    rows[:, -1] = np.round((s1[stop - 1] - bnd[first]) / dt, 6)
+    _, rep, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    inv = np.ravel(inv)
+    sd_rep = np.array([exact(int(start[r]), int(stop[r]), int(first[r])) for r in rep])
+    g = s1 - s0
+    span = s1[stop - 1] - s0[start]
+    shift = dev * (span / dt + 2)
+    terms = np.abs(slope) * (2 * (0.5e-6 * dt + shift[wi]) * g + 2.0**-23 * g * g / 4)
+    extra = one * np.bincount(wi, weights=terms, minlength=start.size)
+    res = up(sd_rep[inv] + up(extra * (1 + 1e-9)))
+    res[rep] = sd_rep  # the representatives' own weights
+    out[gw[start]] = res
     return out
 
 
@@ -198,15 +210,19 @@ def _gap_knots(w: WindowContext, lp: LevelPlan) -> tuple[np.ndarray, np.ndarray]
     """Per window the knots ``a1``, the heading epochs inside, ``b1`` and ``b2`` (sorted,
     unique): the flattened knots and their window."""
     ht = w.ag.head_t
+    n = lp.a1.size
     k0 = np.searchsorted(ht, lp.a1, side="right")
-    k1 = np.searchsorted(ht, lp.b2, side="left")
-    kl: list[np.ndarray] = []
-    wl: list[np.ndarray] = []
-    for i in range(lp.a1.size):
-        kn = np.unique(np.concatenate([[lp.a1[i], lp.b1[i], lp.b2[i]], ht[k0[i]:k1[i]]]))
-        kl.append(kn)
-        wl.append(np.full(kn.size, i))
-    return np.concatenate(kl), np.concatenate(wl)
+    k1 = np.maximum(np.searchsorted(ht, lp.b2, side="left"), k0)
+    cnt = k1 - k0
+    win_e = np.repeat(np.arange(n), cnt)
+    start = np.repeat(np.cumsum(cnt) - cnt, cnt)
+    idx = np.repeat(k0, cnt) + (np.arange(int(np.sum(cnt))) - start)
+    t = np.concatenate([lp.a1, lp.b1, lp.b2, ht[idx]])
+    win = np.concatenate([np.arange(n), np.arange(n), np.arange(n), win_e])
+    order = np.lexsort((t, win))
+    t, win = t[order], win[order]
+    keep = np.r_[True, (win[1:] != win[:-1]) | (t[1:] != t[:-1])]
+    return t[keep], win[keep]
 
 
 def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -> IA:
@@ -241,7 +257,9 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     slope = (k1 - k0) / g
     ref = heading_at(w, lp.a1).mid()
     ref = np.where(np.isfinite(ref), ref, 0.0)
-    hk = heading_at(w, kn)
+    ku, kinv = np.unique(kn, return_inverse=True)  # windows share most knots
+    hu = heading_at(w, ku)
+    hk = IA(hu.lo[kinv], hu.hi[kinv])
     ps = IA(hk.lo[:-1][same], hk.hi[:-1][same]) - IA(ref[gw])
     pe = IA(hk.lo[1:][same], hk.hi[1:][same]) - IA(ref[gw])
     c0, ext, earth = _rate_terms(w, lp, tau, None)
