@@ -2,7 +2,8 @@
 mean(r u) + g mean(sin phi cos theta)`` plus the Earth rate, with ``mean(r u) =
 u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second term by
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
-(:func:`transport_by_gaps`), positions only also over blocks of fix gaps
+(:func:`transport_by_gaps`, its speed part also as one weighted mean:
+:mod:`.transport_weighted`), positions only also over blocks of fix gaps
 (:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`) and from
 the gyro's shape (:func:`~imubounds.dynamic.estimator.aided.transport_gyro.transport_by_gyro`),
 the narrowest."""
@@ -25,6 +26,7 @@ from imubounds.dynamic.estimator.aided.transport_fixes import (
     transport_by_fixes,
 )
 from imubounds.dynamic.estimator.aided.transport_gyro import transport_by_gyro
+from imubounds.dynamic.estimator.aided.transport_weighted import gap_weights, weighted_speed
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
@@ -33,6 +35,9 @@ from imubounds.interval import IntervalArray as IA
 #: the share of the window's gyro-deviation probability given to the bound of mean|q|
 #: (its term, ``u x mean|q| x tan(max tilt)``, is small: a share of 0.1 costs it little)
 Q_SHARE = 0.1
+#: boxcar windows with velocity epochs: the share of that probability for the weighted
+#: speed part of :func:`transport_by_gaps` (:mod:`.transport_weighted`)
+W_SHARE = 0.3
 #: positions only: the share of that probability for the support's mean |r| in
 #: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
 SUP_SHARE = 0.35
@@ -121,6 +126,33 @@ def _trip_gaps(w: WindowContext, bv: Any) -> tuple[np.ndarray, np.ndarray]:
     return w.cache[key]
 
 
+def window_gaps(
+    ht: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Windows ``[a, b]`` cut at the heading epochs ``ht``: they hold ``ht[k0 .. k1-1]``;
+    the first gap is ``[a, fb]`` (``fb = ht[k0]``, ``b`` without an epoch inside), the
+    last ``[la, b]`` (``la = ht[k1 - 1]``, only used where there is an epoch inside)."""
+    k0 = np.searchsorted(ht, a, side="right")
+    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    has = k1 > k0
+    last = ht.size - 1
+    fb = np.where(has, ht[np.minimum(k0, last)], b)
+    la = np.where(has, ht[np.clip(k1 - 1, 0, last)], a)
+    return k0, k1, fb, la
+
+
+def weighted_floors(
+    w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray, fb: np.ndarray,
+    la: np.ndarray, has: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The floors ``(fb, wf, la, wl)`` of :func:`.transport_weighted.weighted_speed`: the
+    gyro-free half-ranges of u on each window's first and last gaps (``la = +inf``
+    where the window holds no heading epoch: its one gap is the first)."""
+    wf = gap_weights(w, bv, a, fb)
+    wl = np.where(has, gap_weights(w, bv, la, b), 0.0)
+    return fb, wf, np.where(has, la, np.inf), wl
+
+
 def transport_by_gaps(
     w: WindowContext,
     lp: LevelPlan,
@@ -128,6 +160,7 @@ def transport_by_gaps(
     bv: Any,
     r_mag: np.ndarray,
     q_mean: np.ndarray | None = None,
+    p_weighted: float = 0.0,
 ) -> IA:
     """``mean(r u)`` over boxcar windows, cut at the heading epochs inside: on gap k,
     ``u = u0_k + (u - u0_k)`` with ``u0_k`` the centre of u's range over the gap
@@ -139,23 +172,21 @@ def transport_by_gaps(
     twice by u0) plus ``max|u0| tau (rate cdev + (mean|q| + earth) tan)``
     (:func:`_rate_terms`: r relative to the navigation frame, the Earth's rates in the
     Coriolis term); the second within ``sum_k half-range_k(u) int_k |r|``
-    (:func:`_speed_levels`). The per-window sums: :func:`.gap_sums.gap_sums` (compiled;
-    the gaps between heading epochs computed once per run)."""
+    (:func:`_speed_levels`), or with ``p_weighted > 0`` the smaller of that and the
+    weighted bound of :func:`.transport_weighted.weighted_speed` (holding with
+    probability ``>= 1 - p_weighted`` per window: the gyro centred on blocks of heading
+    gaps, each sample's |r| weighted by its gap's half-range). The per-window sums:
+    :func:`.gap_sums.gap_sums` (compiled; the gaps between heading epochs computed once
+    per run)."""
     from imubounds.dynamic.estimator.aided.gap_sums import gap_sums
 
     a, b = lp.a1, lp.b2
     ht = w.ag.head_t
     n = a.size
-    k0 = np.searchsorted(ht, a, side="right")
-    k1 = np.maximum(np.searchsorted(ht, b, side="left"), k0)
+    k0, k1, fb, la = window_gaps(ht, a, b)
     ni = k1 - k0
     knot_h, gap_g = _trip_gaps(w, bv)
     has = ni >= 1
-    last = ht.size - 1
-    # each window's first gap [a, ht[k0]] ([a, b] without an epoch inside) and last gap
-    # [ht[k1 - 1], b] (only used where there is an epoch inside)
-    fb = np.where(has, ht[np.minimum(k0, last)], b)
-    la = np.where(has, ht[np.clip(k1 - 1, 0, last)], a)
     gap_f = _gap_rows(w, bv, a, fb)
     gap_l = _gap_rows(w, bv, la, b)
     # the levels d0: quantiles of the half-ranges of every window's gaps (as a multiset:
@@ -180,6 +211,9 @@ def transport_by_gaps(
     nk = ni + 2
     rad = up((rad + (nk + 6) * _EPS * 4 * mag + 1e-300) * (1 + 1e-12))
     speed = _speed_levels(dmax, ex, d0, tau, r_mag, earth)
+    if p_weighted > 0:
+        floors = weighted_floors(w, bv, a, b, fb, la, has)
+        speed = np.minimum(speed, weighted_speed(w, lp, tau, bv, p_weighted, floors, earth))
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
@@ -192,8 +226,9 @@ def gyro_deviation_bounds(
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
     (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
     mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
-    and the gyro-shape form, ``SUP_SHARE + GYRO_SHARE`` with positions only, the rest to
-    the first): the kernel mean of |r| (``aided.transport.r_abs``) and
+    and the gyro-shape form (``SUP_SHARE + GYRO_SHARE`` with positions only), the rest to
+    the first, ``sup_share`` also standing for :data:`W_SHARE` of the weighted speed part):
+    the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
@@ -209,15 +244,17 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     h = horizontal_terms(w, plan, lp, tau)
     ends, rng = h.ends, h.rng
     fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
-    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, SUP_SHARE + GYRO_SHARE if fixes else 0.0)
+    bv = body_velocity(w)
+    gaps = not plan.trapezoid and bv is not None and w.ag.has_heading
+    share = SUP_SHARE + GYRO_SHARE if fixes else (W_SHARE if gaps else 0.0)
+    r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, share)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
     du = up(0.5 * (rng["u_hi"] - rng["u_lo"]))
     ru = IA(u0) * mean_r + pm(du * r_mag)
-    bv = body_velocity(w)
-    if not plan.trapezoid and bv is not None and w.ag.has_heading:
+    if gaps:
         # the narrower of the two enclosures of mean(r u), per window
-        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
+        rg = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean, W_SHARE * w.p_window)
         use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     if fixes:

@@ -3,8 +3,9 @@
 Boxcar between heading epochs: ``r = psi' cos(theta)/cos(phi) - q tan(phi)``, so the
 kernel mean of the yaw rate is ``c0 (psi(b) - psi(a))/tau +- rate |c - c0| +- mean|q|
 tan(phi)`` with ``c = cos(theta)/cos(phi)`` over the window, plus the Earth rate. Also the
-heading between its epochs (:func:`heading_at`, :func:`heading_mean`), which the
-accelerometer constraints use.
+heading between its epochs (:func:`heading_at`, :func:`heading_mean`) and the bounds of
+its rate (:func:`psi_dot_abs` of the mean, :func:`psi_rate_bound` at each time), which
+the accelerometer constraints use.
 """
 
 from __future__ import annotations
@@ -20,16 +21,103 @@ from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 
+def _earth(w: WindowContext) -> float:
+    """``Omega + S_max/R_E``: the rate of the level frame in inertial space, which the
+    gyros measure besides the body's rate relative to it."""
+    return float(up(np.asarray(EARTH_RATE + w.veh.max_speed / R_EARTH)))
+
+
 def psi_dot_abs(
     w: WindowContext, a: np.ndarray, b: np.ndarray, own_q: bool = True
 ) -> np.ndarray:
-    """Bound of mean |d psi/dt| over [a, b] from the gyro magnitudes (other channels)."""
+    """Bound of mean |d psi/dt| over [a, b] from the gyro magnitudes (other channels):
+    ``|psi'| <= (|r| + |q| |sin(phi)|)/cos(theta)`` with r, q the body's rates relative to
+    the level frame, each at most the gyro's (inertial) rate plus ``Omega + S_max/R_E``;
+    at most the vehicle's rate cap ``max_rate/cos(max_tilt)``, and at most ``Rm + Cm/(b -
+    a)`` (:func:`psi_rate_bound`: ``int_a^b |psi'| <= Rm (b - a) + Cm``; smaller on spans
+    that cut samples, whose magnitudes count whole here)."""
     veh = w.veh
+    earth = _earth(w)
     r = w.gyro_abs_mean("gyro_z", a, b)
     q = w.gyro_abs_mean("gyro_y", a, b) if own_q else np.full(r.shape, veh.max_rate)
     sr = w.tilt.hull("abs_sinr", a, b).hi
     sec = 1.0 + w.tilt.hull("sec_p_minus_1", a, b).hi
-    return np.minimum(up((r + q * sr) * sec), veh.max_rate / math.cos(veh.max_tilt))
+    m = up(up(r + earth + up(up(q + earth) * sr)) * sec)
+    m = np.minimum(m, veh.max_rate / math.cos(veh.max_tilt))
+    span = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
+    if np.any(span > 0):
+        rm, cm = psi_rate_bound(w, a, b, own_q=own_q)
+        alt = up(rm + cm / np.maximum(span, 1e-300))
+        m = np.where(span > 0, np.minimum(m, alt), m)
+    return m
+
+
+def _abs_rate(
+    w: WindowContext, ch: str, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, C)`` with ``int_s^t |x| <= M (t - s) + C`` for EVERY ``[s, t]`` inside
+    ``[a, b]`` (x the true signal of gyro ``ch``: a bound at each time, not of the mean
+    over ``[a, b]`` only). The sample model: sample k is the mean ``mu_k`` of x over its
+    period (length ``L_k <= L``, the longest), ``|mu_k| <= m_k = (|y_k| + E0)/(1 - s)``
+    (E0 the per-sample error bound, s the scale error, as
+    :meth:`~imubounds.dynamic.estimator.aided.common.WindowContext.mag_mean`), and
+    ``|x'| <= D`` (the vehicle's angular-acceleration bound). With ``M = max(max_k m_k,
+    D L/2)`` over the samples ``[a, b]`` touches (a range-maximum table of |y|, once per
+    run): a whole period gives ``int |x| = |L_k mu_k| <= L_k M`` where x keeps its sign,
+    else ``x(z) = 0`` inside and ``int |x| <= D int |t - z| <= D L_k^2/2 <= L_k M``; a
+    part of length l of one period gives, where x keeps its sign, ``|l mu_k + int_part (x
+    - mu_k)| <= l m_k + D int |H| <= l m_k + D l (L_k - l)/2`` (by parts: ``int_part (x -
+    mu_k) = -int x' H``, H the running integral of ``1_part - l/L_k`` over the period, zero
+    at both ends: ``int |H| = (p^2 + p'^2) l/(2 (L_k - l))``, p and p' the lengths before
+    and after the part), else ``D int_part |t - z| <= D l (L_k - l/2) <= l M + D l (L_k -
+    l)/2``: at most ``l M + D L^2/8``; ``[s, t]`` has at most two parts, ``C = D L^2/4``.
+    Spans with an unknown sample or outside the samples: ``(xmax, 0)``, the vehicle's
+    signal bound at each time."""
+    sig = w.imu.sig[ch]
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    shape = np.broadcast(a, b).shape
+    xmax = np.full(shape, sig.xmax)
+    if not w.imu.available[ch]:
+        return xmax, np.zeros(shape)
+    key = "abs_y_ext_" + ch
+    if key not in w.cache:
+        w.cache[key] = RangeExt(np.abs(sig.y))
+    _, ymax = w.cache[key].query(sig.locate(a), sig.locate(b))
+    cn = w.ctx.noise[ch]
+    d, ell = w.imu.rate_bound[ch], w.imu.max_len
+    m = np.maximum(up(up(ymax + w.ctx.E0[ch]) / (1.0 - cn.scale)), up(d * ell * 0.5))
+    c = float(up(np.asarray(d * ell * ell * 0.25)))
+    bad = (sig.unknown_len(a, b) > 0) | (a < w.imu.bnd[0]) | (b > w.imu.bnd[-1])
+    bad |= m >= sig.xmax
+    return np.where(bad, xmax, m), np.where(bad, 0.0, c)
+
+
+def psi_rate_bound(
+    w: WindowContext, a: np.ndarray, b: np.ndarray, own_q: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(Rm, Cm)`` with ``int_s^t |psi'| <= Rm (t - s) + Cm`` for every ``[s, t]`` inside
+    ``[a, b]`` (the rate at each time, to a constant: not the mean over ``[a, b]`` alone):
+    ``psi' = (r cos(phi) + q sin(phi))/cos(theta)``, r and q the body's rates relative to
+    the level frame, each within ``Omega + S_max/R_E`` of the gyro's, so ``|psi'| <= (|r_g|
+    + E + (|q_g| + E) max|sin(phi)|) max sec(theta)`` over the span (E = ``Omega +
+    S_max/R_E``) and, with :func:`_abs_rate` of gyro_z and gyro_y (``own_q`` False: the
+    vehicle's rate bound for |q|), ``Rm = sec (M_r + E + (M_q + E) sr)``, ``Cm = sec (C_r +
+    C_q sr)``; the vehicle's cap ``max_rate/cos(max_tilt)`` (with ``Cm = 0``) where it is
+    smaller."""
+    veh = w.veh
+    earth = _earth(w)
+    r, cr = _abs_rate(w, "gyro_z", a, b)
+    if own_q:
+        q, cq = _abs_rate(w, "gyro_y", a, b)
+    else:
+        q, cq = np.full(r.shape, veh.max_rate), np.zeros(r.shape)
+    sr = w.tilt.hull("abs_sinr", a, b).hi
+    sec = 1.0 + w.tilt.hull("sec_p_minus_1", a, b).hi
+    rm = up(up(r + earth + up(up(q + earth) * sr)) * sec)
+    cm = up(up(cr + up(cq * sr)) * sec)
+    cap = veh.max_rate / math.cos(veh.max_tilt)
+    use_cap = rm >= cap
+    return np.where(use_cap, cap, rm), np.where(use_cap, 0.0, cm)
 
 
 def heading_at(w: WindowContext, t: np.ndarray, own_q: bool = True) -> IA:

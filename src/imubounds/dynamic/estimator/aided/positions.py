@@ -14,7 +14,12 @@ import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import heading_at, heading_mean, psi_dot_abs
+from imubounds.dynamic.estimator.aided.heading import (
+    heading_at,
+    heading_mean,
+    psi_dot_abs,
+    psi_rate_bound,
+)
 from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.inputs import lateral_h_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
@@ -46,14 +51,18 @@ def _envelope_integrals(
     w: WindowContext, a: np.ndarray, b: np.ndarray, psi0: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of ``int_a^b |psi - psi0|`` and ``int_a^b (psi - psi0)^2`` over each fix gap
-    from the heading at its ends, the bound I = R (b - a) of ``int_a^b |psi'|`` (R =
-    ``psi_dot_abs``, a bound of the MEAN |psi'| over the gap, not of the rate at each
-    time) and the rate cap Rm (the vehicle's, through the tilt): with ``x = int_a^t
-    |psi'|``, ``psi(t) <= psi_hi(a) + x`` and ``psi(t) <= psi_hi(b) + I - x``, so ``psi``
-    lies under ``U = min(psi_hi(a) + Rm (t - a), psi_hi(b) + Rm (b - t), (psi_hi(a) +
-    psi_hi(b) + I)/2)`` (concave, linear between its breakpoints) and over the like
-    ``L``; ``|psi - psi0| <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k +
-    y^k``."""
+    from the heading at its ends, the bound I of ``int_a^b |psi'|`` (``psi_dot_abs`` x the
+    gap: the MEAN |psi'| over the gap, not the rate at each time) and the rate bound
+    ``int_s^t |psi'| <= Rm (t - s) + Cm`` for every ``[s, t]`` inside the gap
+    (``psi_rate_bound``: the gyros' largest samples, their per-sample error bound, the
+    change inside a sample, the Earth's rates and the tilt coupling; at most the
+    vehicle's cap), which also gives ``I <= Rm (b - a) + Cm``: with ``x = int_a^t
+    |psi'|``, ``psi(t) <= psi_hi(a) + x``, ``x <= Rm (t - a) + Cm`` and ``psi(t) <=
+    psi_hi(b) + I - x``, ``I - x <= Rm (b - t) + Cm``, so ``psi`` lies under ``U =
+    min(psi_hi(a) + Cm + Rm (t - a), psi_hi(b) + Cm + Rm (b - t), (psi_hi(a) + psi_hi(b) +
+    I)/2)`` (concave; the two lines meet above the third term since I <= Rm (b - a) +
+    2 Cm, so U is linear between its breakpoints) and over the like ``L``; ``|psi - psi0|
+    <= max((U - psi0)+, (psi0 - L)+)`` and ``max(x, y)^k <= x^k + y^k``."""
     pa, pb = heading_at(w, a), heading_at(w, b)
     ok = np.isfinite(pa.lo) & np.isfinite(pa.hi) & np.isfinite(pb.lo) & np.isfinite(pb.hi)
     ok &= np.isfinite(psi0)
@@ -63,19 +72,21 @@ def _envelope_integrals(
     pb = IA(np.where(ok, pb.lo, 0.0), np.where(ok, pb.hi, 0.0))
     psi0 = np.where(ok, psi0, 0.0)
     g = b - a
-    integral = up(psi_dot_abs(w, a, b) * g)
-    rm = max(w.veh.max_rate / math.cos(w.veh.max_tilt), 1e-12)
+    rm, cm = psi_rate_bound(w, a, b)
+    rm = np.maximum(rm, 1e-12)
+    integral = np.minimum(up(psi_dot_abs(w, a, b) * g), up(up(rm * g) + cm))
     out1 = np.zeros(a.shape)
     out2 = np.zeros(a.shape)
     for sgn, ya, yb in ((1.0, pa.hi, pb.hi), (-1.0, -pa.lo, -pb.lo)):
         # sgn = 1: U - psi0; sgn = -1: psi0 - L (mirrored: -L is a min of lines too)
         cap = up((ya + yb + integral) / 2)
-        t1 = np.clip(a + (cap - ya) / rm, a, b)
-        t2 = np.maximum(np.clip(b - (cap - yb) / rm, a, b), t1)
+        la, lb = up(ya + cm), up(yb + cm)  # the lines' values at a and b
+        t1 = np.clip(a + (cap - la) / rm, a, b)
+        t2 = np.maximum(np.clip(b - (cap - lb) / rm, a, b), t1)
 
-        def env(t: np.ndarray, ya: np.ndarray = ya, yb: np.ndarray = yb,
+        def env(t: np.ndarray, la: np.ndarray = la, lb: np.ndarray = lb,
                 cap: np.ndarray = cap) -> np.ndarray:
-            return np.minimum(np.minimum(ya + rm * (t - a), yb + rm * (b - t)), cap)
+            return np.minimum(np.minimum(la + rm * (t - a), lb + rm * (b - t)), cap)
 
         v = [env(x) - sgn * psi0 for x in (a, t1, t2, b)]
         for v0, v1, ell in ((v[0], v[1], t1 - a), (v[1], v[2], t2 - t1), (v[2], v[3], b - t2)):

@@ -23,7 +23,18 @@ from imubounds.dynamic.estimator.budget import centered_ms_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
-__all__ = ["abs_dev_integral", "r_abs"]
+__all__ = ["abs_dev_integral", "det_mean", "r_abs"]
+
+
+def det_mean(w: WindowContext, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+    """Bound of the mean over ``[s0, s1]`` of the gyro_z error's deterministic deviation
+    from its own mean: ``2 D + 2 s mean|r| + 2 m (mean|p| + mean|q|)`` (``D`` the
+    channel's deterministic bound, ``s`` its scale and ``m`` its misalignment bound)."""
+    cn = w.ctx.noise["gyro_z"]
+    det = 2 * w.ctx.D_KR["gyro_z"] + 2 * cn.scale * w.mag_mean("gyro_z", s0, s1)
+    for other in ("gyro_x", "gyro_y"):
+        det = det + 2 * cn.misalignment_rad * w.mag_mean(other, s0, s1)
+    return det
 
 
 def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
@@ -58,9 +69,7 @@ def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
     # two is used)
     ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.5 * p) for mm in uc])[inv]
     ratio = max(1.0, w.imu.max_len / w.imu.dt)
-    det = 2 * w.ctx.D_KR["gyro_z"] + 2 * cn.scale * w.mag_mean("gyro_z", s0, s1)
-    for other in ("gyro_x", "gyro_y"):
-        det = det + 2 * cn.misalignment_rad * w.mag_mean(other, s0, s1)
+    det = det_mean(w, s0, s1)
     fine = dev + rad + np.sqrt(ms) * ratio + det
     fine = up(fine * L / tau)
     out = np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))

@@ -60,8 +60,11 @@ def _from_body_sensor(w: WindowContext) -> tuple[np.ndarray, IA, IA, IA, str]:
     return t, u, v, wz, f"body velocity ({ag.bvel_kind})"
 
 
-def _course_minus_heading(w: WindowContext, t: np.ndarray, S: IA) -> IA:
-    """``chi - psi`` at the GNSS velocity epochs ``t`` (speed interval ``S``)."""
+def _course_minus_heading(
+    w: WindowContext, t: np.ndarray, S: IA, psi: IA | None = None
+) -> IA:
+    """``chi - psi`` at the GNSS velocity epochs ``t`` (speed interval ``S``); ``psi`` the
+    heading there (else :func:`~.heading.heading_at`)."""
     ag, veh = w.ag, w.veh
     ok = ag.gvel_ok
     R = ag.gvel_hi[ok]
@@ -87,16 +90,47 @@ def _course_minus_heading(w: WindowContext, t: np.ndarray, S: IA) -> IA:
     )
     chi = course(vem, vnm) + pm(np.where(fast, e_chi, 0.0))
     chi = IA(np.where(fast, chi.lo, -np.inf), np.where(fast, chi.hi, np.inf))
-    psi = heading_at(w, t)
+    if psi is None:
+        psi = heading_at(w, t)
     fin = np.isfinite(psi.lo) & np.isfinite(psi.hi) & fast
     kk = np.where(fin, np.round((chi.mid() - np.where(fin, psi.mid(), 0.0)) / TWO_PI), 0)
     psi = psi + IA(TWO_PI * kk) * IA(1.0 - 2**-50, 1.0 + 2**-50)
     return chi - psi
 
 
-def _from_gnss_velocity(w: WindowContext) -> tuple[np.ndarray, IA, IA, IA, str]:
+def _heading_gyro_free(w: WindowContext, t: np.ndarray) -> IA:
+    """The heading at ``t`` without the gyros: each neighbouring heading epoch's box
+    widened by the vehicle's heading-rate cap (``max_rate / cos(max_tilt)``) times the
+    distance to it, the two intersected (the compass box itself at a heading epoch)."""
+    ag, veh = w.ag, w.veh
+    ht = ag.head_t
+    lo = np.full(t.shape, -np.inf)
+    hi = np.full(t.shape, np.inf)
+    if ht.size == 0:
+        return IA(lo, hi)
+    rate = up(np.asarray(veh.max_rate / math.cos(veh.max_tilt) * (1 + 1e-12)))
+    j = np.searchsorted(ht, t)
+    for e in (j - 1, j):
+        ok = (e >= 0) & (e < ht.size)
+        ee = np.clip(e, 0, ht.size - 1)
+        dist = np.abs(t - ht[ee])
+        g = np.where(dist <= 1e-9, 0.0, up(rate * dist))
+        c_lo = np.nextafter(ag.head_c[ee] - ag.head_h[ee] - g, -np.inf)
+        c_hi = up(ag.head_c[ee] + ag.head_h[ee] + g)
+        lo = np.where(ok, np.maximum(lo, c_lo), lo)
+        hi = np.where(ok, np.minimum(hi, c_hi), hi)
+    bad = lo > hi  # inconsistent neighbours: their hull
+    return IA(np.where(bad, np.minimum(lo, hi), lo), np.where(bad, np.maximum(lo, hi), hi))
+
+
+def _from_gnss_velocity(
+    w: WindowContext, gyro_free: bool = False
+) -> tuple[np.ndarray, IA, IA, IA, str]:
     """u, v, w at the GNSS velocity epochs: the velocity rotated by the heading, then to
-    the body frame with the roll/pitch intervals."""
+    the body frame with the roll/pitch intervals. ``gyro_free``: the heading from the
+    compass boxes carried by the vehicle's rate cap (:func:`_heading_gyro_free`, not by
+    the gyro's magnitude), and without an attitude stream the tilt within +-max tilt
+    (not the pitch from GNSS altitude, which follows the gyros)."""
     ag, veh = w.ag, w.veh
     vl = veh.lateral_speed_bound_mps
     ok = ag.gvel_ok
@@ -106,9 +140,14 @@ def _from_gnss_velocity(w: WindowContext) -> tuple[np.ndarray, IA, IA, IA, str]:
     # the radial bound R: ||V| - |Vm|| <= R and |chi - chi_m| <= asin(R / |Vm|)
     sm = sqrt(sqr(vem) + sqr(vnm))
     S = (sm + pm(R)) & IA(np.zeros(t.size), np.full(t.size, np.inf))
-    d = _course_minus_heading(w, t, S)
+    psi = _heading_gyro_free(w, t) if gyro_free else None
+    d = _course_minus_heading(w, t, S, psi)
     uh, vh = S * cos(d), S * sin(d)
-    rl, rh, pl, ph = ag.tilt(t, veh)
+    if gyro_free and not ag.has_attitude:  # not the pitch from GNSS altitude (gyros)
+        z = np.full(t.size, veh.max_tilt)
+        rl, rh, pl, ph = -z, z, -z, z
+    else:
+        rl, rh, pl, ph = ag.tilt(t, veh)
     roll, pitch = IA(rl, rh), IA(pl, ph)
     sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
     wz = pm(np.full(t.size, veh.vertical_bound))
@@ -159,9 +198,45 @@ def body_velocity(w: WindowContext) -> Any:
     return w.cache["bodyvel"]
 
 
-def vel_range(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> dict[str, np.ndarray]:
+def gyro_free_u(w: WindowContext, bv: Any) -> Any:
+    """``bv`` with u at the epochs from the aiding alone (no gyro magnitude: the GNSS
+    velocity rotated by the compass boxes carried by the vehicle's rate cap, the course
+    heading's bound as it is, the tilt within +-max tilt without an attitude stream; a
+    DVL/wheel's u as it is), for weights that
+    must not depend on the gyro's noise (:mod:`.transport_weighted`); each ``u`` of
+    ``bv`` lies in its box (the same construction with narrower boxes: heading_at's
+    gyro magnitude is capped by the vehicle's rate, the GNSS pitch lies in the max
+    tilt; checked, else None). None where an epoch was dropped (the gaps would
+    differ). Computed once."""
+    key = "bodyvel_gyro_free"
+    if key in w.cache:
+        return w.cache[key]
+    ag, veh = w.ag, w.veh
+    out = None
+    if bv is not None and bv["dropped"] == 0:
+        if ag.has_bvel:
+            u = bv["u"]
+        else:
+            t, u, _, _, _ = _from_gnss_velocity(w, gyro_free=True)
+            u = u & pm(np.full(t.size, veh.max_speed))
+            if t.size != bv["t"].size or np.any(u.is_empty()):
+                u = None
+            elif np.any((u.lo > bv["u"].lo) | (u.hi < bv["u"].hi)):
+                u = None  # (rounding of the 2 pi unwrap) not a box around bv's u
+        if u is not None:
+            out = dict(bv)
+            out["u"] = u
+            out["uext"] = RangeExt(u.lo, u.hi)
+    w.cache[key] = out
+    return out
+
+
+def vel_range(
+    w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray, tv: bool = True
+) -> dict[str, np.ndarray]:
     """Over the support [a, b]: hull of u, max |v|, max |w| (epochs inside, plus the
-    growth between epochs), in m/s."""
+    growth between epochs), in m/s. ``tv`` False: the growth from the vehicle's bounds
+    only (not the IMU magnitudes' total variation of :func:`gap_growth`)."""
     t = bv["t"]
     i = np.clip(np.searchsorted(t, a, side="right") - 1, 0, t.size - 1)
     j = np.clip(np.searchsorted(t, b, side="left"), 0, t.size - 1)
@@ -177,7 +252,7 @@ def vel_range(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> dict[s
     # outside the epoch span the growth is over the distance to the nearest epoch
     ext = np.maximum(t[i] - a, 0.0) + np.maximum(b - t[j], 0.0)
     g = growth(w, np.maximum(gmax, 2 * ext))
-    single = t.size < 2
+    single = (t.size < 2) or not tv
     g_u = np.where((ext > 0) | single, g, np.minimum(g, gu))
     g_v = np.where((ext > 0) | single, g, np.minimum(g, gv))
     vl = w.veh.lateral_speed_bound_mps
