@@ -22,13 +22,15 @@ from imubounds.dynamic.estimator.aided.accel_y import (
 )
 from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.aided.transport_fixes import (
+    ACC_SHARE,
     FIX_BLOCKS,
     _psi_variation,
     _transport_fix_blocks,
     transport_by_fixes,
 )
+from imubounds.dynamic.estimator.aided.transport_gyro import mean_r_by_gaps, transport_by_gyro
 from imubounds.dynamic.estimator.aided.transport_weighted import weighted_speed
-from imubounds.dynamic.estimator.aided.velocity import body_velocity, speed_max
+from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges, speed_max
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
@@ -57,15 +59,18 @@ TARGET = 1.5
 #: ``aided.transport_weighted.weighted_speed``, each gap's |r| weighted by u's half-range
 #: on it instead of the largest half-range times the bound of mean|r|), and the ceiling
 #: positions only is held to while it misses it (issue 24 item 4; docs/dynamic-method.md
-#: section 6): 3.04 3.40 2.83 2.41 2.13 2.02 1.70 1.65 with the fix blocks and the sharper
-#: Lambda together (4-10x before both): at 1.28 s the vehicle bounds alone (the transport
-#: term over one fix gap is wider); above,
-#: ``aided.transport_fixes.transport_by_fixes``: the position boxes (+-10.6 m) where the
-#: block means of K r change between blocks, and u's deviation from its block mean (the
-#: accelerometer's per-sample bound E0 = 0.4 m/s^2 x half the block) times the bound of
-#: mean|r|.
+#: section 6): 1.41 1.10 1.12 1.44 1.94 1.81 1.49 1.48 (3.04 3.40 2.83 2.41 2.13 2.02
+#: 1.70 1.65 before ``aided.transport_gyro.transport_by_gyro`` and u's block deviation
+#: from accel_x's signed integral, 4-10x before the fix blocks): up to 10 s the
+#: gyro-shape form, its width at 1.28 s the heading boxes' share of ``rbar`` (0.027 rad
+#: over 1 s) times u's range from the vehicle bound (14 m/s) plus the gyro flicker's ramp
+#: noise; from 20 s ``aided.transport_fixes.transport_by_fixes`` (the gyro form's u
+#: excursion grows as the accelerometer's bias bound, 0.23 m/s^2, x tau): the position
+#: boxes (+-10.6 m) where the block means of K r change between blocks (0.18 m/s^2 at
+#: 20 s), and u's deviation from its block mean (bias bound x half the block) times the
+#: bound of mean|r| (0.06 rad/s where the truth's is about 0.01).
 ACCEL_Y_CEILING = {
-    "positions+compass": 3.5,
+    "positions+compass": 2.0,
     "gnss-pos+vel+compass": TARGET,
     "course-heading": TARGET,
     "dvl+compass": TARGET,
@@ -294,18 +299,20 @@ def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw:
         (51, {"corner_length_m": 20.0, "laps": 3}),
         (52, {"turn_on_scale": 3.0}),
         (53, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+        (54, {"scale_error": 0.002, "misalignment_deg": 0.1}),
     ],
-    ids=["paper", "corners", "turn-on", "corners-turn-on"],
+    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment"],
 )
 def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) -> None:
     """Positions + compass: accel_y's transport term over blocks of fix gaps
     (``aided.transport_fixes.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
-    own) contains the true trapezoid kernel mean of r u (the simulator's yaw rate and
-    forward velocity on the IMU's stamps) at every window of every aided level, on the
-    sharp-corners trip (the vehicle slows in the corners) and with a turn-on gyro bias
-    at 3 sigma; and it is narrower than the chord-speed form ``S_max x mean|r|`` at some
-    tau (by half at the longest on the paper trip; in the corners, where the vehicle
-    slows, at the middle ones)."""
+    own, u's block deviation also from accel_x's signed integral) contains the true
+    trapezoid kernel mean of r u (the simulator's yaw rate and forward velocity on the
+    IMU's stamps) at every window of every aided level, on the sharp-corners trip (the
+    vehicle slows in the corners), with a turn-on gyro bias at 3 sigma and with scale
+    and misalignment errors; and it is narrower than the chord-speed form ``S_max x
+    mean|r|`` at some tau (by half at the longest on the paper trip; in the corners,
+    where the vehicle slows, at the middle ones)."""
     with nearest():
         res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
         sig = _true_ru(res, ctx)
@@ -317,9 +324,10 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
             r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
             p_sup = SUP_SHARE * mb.p_window
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
-            psi_var = _psi_variation(mb, lp, p_sup)
+            psi_var = _psi_variation(mb, lp, (1 - ACC_SHARE) * p_sup)
+            p_acc = ACC_SHARE * p_sup / len(FIX_BLOCKS)
             for blk in FIX_BLOCKS:
-                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var)
+                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var, p_acc)
                 bad = (true.lo > box.hi) | (true.hi < box.lo)
                 assert not bad.any(), (lp.tau_s, blk, int(bad.sum()))
             box = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, p_sup)
@@ -331,6 +339,92 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
         # the paper trip by a third or more; the corners (slower) less since the sharper
         # Lambda also narrowed the chord-speed form's mean|r| (0.78-0.82 at the middle tau)
         assert min(gain) < (0.9 if kw.get("corner_length_m") else 0.7), gain
+
+
+@pytest.mark.parametrize(
+    "seed,kw",
+    [
+        (65, {"corner_length_m": 20.0, "laps": 3}),
+        (66, {"turn_on_scale": 3.0, "scale_error": 0.002, "misalignment_deg": 0.1}),
+    ],
+    ids=["corners", "turn-on-scale-misalignment"],
+)
+def test_u_deviation_from_the_signed_accel_integral_encloses_the_truth(
+    seed: int, kw: dict
+) -> None:
+    """``transport_fixes._u_deviation`` with accel_x's signed integral (the white noise's
+    factor given) bounds the true ``max |u(t) - mean_B u|`` over blocks of 4-32 fix gaps
+    (the vehicle slows in the corners), and is below the per-sample form on most blocks."""
+    from imubounds.dynamic.estimator.aided.transport_fixes import _u_deviation
+
+    with nearest():
+        res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
+        u = np.asarray(res.drive.truth.u_mps, dtype=float)
+        assert u.size == ctx.imu.n
+        t = ctx.aiding.gnss_t
+        mid = 0.5 * (ctx.imu.bnd[:-1] + ctx.imu.bnd[1:])
+        sig_u = PiecewiseSignal(ctx.imu.bnd, u)
+        narrower = []
+        for blk in FIX_BLOCKS:
+            a, b = t[:-blk:blk], t[blk::blk]
+            new = _u_deviation(mb, a, b, 6.0)  # k of the white noise: p about 1e-9
+            old = _u_deviation(mb, a, b)
+            lo, hi = sig_u.integral(a, b)
+            mean = 0.5 * (lo + hi) / (b - a)
+            k0, k1 = np.searchsorted(mid, a), np.searchsorted(mid, b)
+            true = np.array([np.max(np.abs(u[i:j] - m))
+                             for i, j, m in zip(k0, k1, mean, strict=True)])
+            assert np.all(true <= new), (blk, float(np.max(true - new)))
+            narrower.append(float(np.mean(new < old)))
+        assert min(narrower) > 0.5, narrower
+
+
+@pytest.mark.parametrize(
+    "seed,kw",
+    [
+        (60, {}),
+        (61, {"corner_length_m": 20.0, "laps": 3}),
+        (62, {"turn_on_scale": 3.0}),
+        (63, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+        (64, {"scale_error": 0.002, "misalignment_deg": 0.1}),
+    ],
+    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment"],
+)
+def test_accel_y_transport_by_gyro_encloses_the_true_mean(seed: int, kw: dict) -> None:
+    """Positions + compass: the gyro-shape form of accel_y's transport term
+    (``aided.transport_gyro.transport_by_gyro``) contains the true trapezoid kernel mean
+    of r u, and its ``rbar`` (``mean_r_by_gaps``) the true kernel mean of r (within the
+    Earth's rate, which the truth's inertial rate adds), at every window of every aided
+    level: straight legs, sharp corners where the vehicle slows, a turn-on gyro bias at
+    3 sigma, scale and misalignment errors; and it is at most half the fix-block form
+    at the shortest aided level (the accelerometer moves u little within a window)."""
+    with nearest():
+        res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
+        sig = _true_ru(res, ctx)
+        r = np.asarray(res.drive.truth.extra["gyro_z"], dtype=float)
+        sig_r = PiecewiseSignal(ctx.imu.bnd, r)
+        bv = body_velocity(mb)
+        n = 0
+        ratios = []
+        for lp in _aided_levels(ctx, mb, "accel_y"):
+            rng = ranges(mb, lp, bv)
+            p = 0.1 * mb.p_window
+            box = transport_by_gyro(mb, lp, lp.tau, rng["u_lo"], rng["u_hi"], p)
+            true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            bad = (true.lo > box.hi) | (true.hi < box.lo)
+            assert not bad.any(), (lp.tau_s, int(bad.sum()))
+            rb = mean_r_by_gaps(mb, lp, lp.tau, 0.04 * mb.p_window)
+            tr = sig_r.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
+            earth = 7.3e-5 + ctx.vehicle.max_speed / 6.37e6
+            bad = (tr.lo - earth > rb.hi) | (tr.hi + earth < rb.lo)
+            assert not bad.any(), (lp.tau_s, int(bad.sum()))
+            if not ratios:
+                r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
+                fx = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, SUP_SHARE * mb.p_window)
+                ratios.append(float(np.median(box.radius()) / np.median(fx.radius())))
+            n += lp.n
+        assert n > 100
+        assert ratios[0] < 0.5, ratios
 
 
 @pytest.mark.parametrize(

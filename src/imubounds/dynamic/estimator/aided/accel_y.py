@@ -4,8 +4,9 @@ u0 mean(r) + mean((u - u0) r)``: mean(r) from the heading difference, the second
 ``max|u - u0| mean|r|``; with velocity epochs also per heading gap
 (:func:`transport_by_gaps`, its speed part also as one weighted mean:
 :mod:`.transport_weighted`), positions only also over blocks of fix gaps
-(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`), the
-narrower of the two."""
+(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`) and from
+the gyro's shape (:func:`~imubounds.dynamic.estimator.aided.transport_gyro.transport_by_gyro`),
+the narrowest."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from imubounds.dynamic.estimator.aided.transport_fixes import (
     _rate_terms,
     transport_by_fixes,
 )
+from imubounds.dynamic.estimator.aided.transport_gyro import transport_by_gyro
 from imubounds.dynamic.estimator.aided.transport_weighted import gap_weights, weighted_speed
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, vel_range
 from imubounds.dynamic.estimator.aided.yaw import q_window_mean
@@ -38,7 +40,10 @@ Q_SHARE = 0.1
 W_SHARE = 0.3
 #: positions only: the share of that probability for the support's mean |r| in
 #: :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
-SUP_SHARE = 0.45
+SUP_SHARE = 0.35
+#: positions only: the share for the gyro-shape form
+#: (:func:`~imubounds.dynamic.estimator.aided.transport_gyro.transport_by_gyro`)
+GYRO_SHARE = 0.1
 
 
 def mean_r_from_heading(
@@ -220,9 +225,10 @@ def gyro_deviation_bounds(
     """The transport term's two gyro bounds, sharing the window's second bounded event
     (the first is the band's; ``full._plan_windows`` counts two per accelerometer window)
     (``Q_SHARE`` of its probability to the second, ``sup_share`` kept for the support's
-    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`,
-    the rest to the first, ``sup_share`` also standing for :data:`W_SHARE` of the
-    weighted speed part): the kernel mean of |r| (``aided.transport.r_abs``) and
+    mean |r| of :func:`~imubounds.dynamic.estimator.aided.transport_fixes.transport_by_fixes`
+    and the gyro-shape form (``SUP_SHARE + GYRO_SHARE`` with positions only), the rest to
+    the first, ``sup_share`` also standing for :data:`W_SHARE` of the weighted speed part):
+    the kernel mean of |r| (``aided.transport.r_abs``) and
     of |q| for the tilt coupling ``q tan(phi)`` of r (``aided.yaw.q_window_mean``)."""
     p = w.p_window
     try:
@@ -240,7 +246,7 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
     fixes = plan.trapezoid and w.ag.has_heading and w.ag.gnss_t.size > 2
     bv = body_velocity(w)
     gaps = not plan.trapezoid and bv is not None and w.ag.has_heading
-    share = SUP_SHARE if fixes else (W_SHARE if gaps else 0.0)
+    share = SUP_SHARE + GYRO_SHARE if fixes else (W_SHARE if gaps else 0.0)
     r_mag, q_mean = gyro_deviation_bounds(w, lp, tau, share)
     mean_r = mean_r_from_heading(w, lp, tau, plan.trapezoid, q_mean)
     u0 = 0.5 * (rng["u_lo"] + rng["u_hi"])
@@ -255,6 +261,9 @@ def accel_y(w: WindowContext, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray)
         rf = transport_by_fixes(w, lp, tau, r_mag, q_mean, SUP_SHARE * w.p_window)
         use = (rf.hi - rf.lo) < (ru.hi - ru.lo)
         ru = IA(np.where(use, rf.lo, ru.lo), np.where(use, rf.hi, ru.hi))
+        rg = transport_by_gyro(w, lp, tau, rng["u_lo"], rng["u_hi"], GYRO_SHARE * w.p_window)
+        use = (rg.hi - rg.lo) < (ru.hi - ru.lo)
+        ru = IA(np.where(use, rg.lo, ru.lo), np.where(use, rg.hi, ru.hi))
     grav = w.tilt.kmean("g_sinr_cosp", lp, tau)
     x = (ends["v2"] - ends["v1"]) / IA(tau) + ru + grav + h.earth
     if w.veh.vertical_bound > 0:  # p w, |w| <= the vertical (heave) bound

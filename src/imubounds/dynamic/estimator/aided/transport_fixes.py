@@ -9,12 +9,19 @@ import math
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.accel_integral import (
+    c_extremes,
+    error_rates,
+    k_two,
+    noise_amplitudes,
+    other_rate,
+    sample_model,
+)
+from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.positions import body_u_mean_parts, gap_units
 from imubounds.dynamic.estimator.aided.transport import r_abs
-from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
@@ -23,6 +30,9 @@ _EPS = 2.3e-16
 SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
 #: block lengths (in fix gaps) of the positions-only transport bound (:func:`transport_by_fixes`)
 FIX_BLOCKS = (4, 6, 8, 10, 12, 16, 24, 32)
+#: the share of :func:`transport_by_fixes`'s probability for accel_x's noise in
+#: :func:`_u_deviation` (the rest for the support's mean |r|, :func:`_psi_variation`)
+ACC_SHARE = 0.2
 
 
 def _rate_terms(
@@ -101,7 +111,10 @@ def _fix_blocks(t: np.ndarray, lp: LevelPlan, mb: int) -> tuple[np.ndarray, ...]
     return s, e, win, e <= m[win]
 
 
-def _u_deviation(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _u_deviation(
+    w: WindowContext, a: np.ndarray, b: np.ndarray, kw: float | None = None,
+    kq: float = 0.0,
+) -> np.ndarray:
     """Bound of ``max_t |u(t) - mean_[a,b] u|`` over [a, b] (u the body forward velocity):
     ``u' = f_x - q w + r v - g sin(theta)`` (+ the Earth's Coriolis and transport terms),
     and per sample ``|f_x| <= (|y_x| + E0)/(1 - s)`` (as
@@ -114,24 +127,27 @@ def _u_deviation(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     |u(t) - u(s)| <= k (b - a)/2 + int_[a,b] h``; also ``<= max_accel (b - a)/2``."""
     veh = w.veh
     ln = b - a
-    S = speed_max(w, a, b)
-    vl = veh.lateral_speed_bound_mps
-    vmax = S if vl is None else np.minimum(S, vl)
-    earth = EARTH_RATE + S / R_EARTH
-    k = up(
-        vmax * (veh.max_rate + earth)
-        + G_HI * w.tilt.hull("abs_sinp", a, b).hi
-        + 2 * EARTH_RATE * S + S * S / R_EARTH
-        + veh.vertical_bound * veh.max_rate
-    )
+    ko = other_rate(w, a, b)
     if w.imu.available["accel_x"]:
         cn = w.ctx.noise["accel_x"]
-        k = up(k + w.ctx.E0["accel_x"] / (1.0 - cn.scale))
-        h = up(w.imu.sig["accel_x"].abs_integral(a, b) / (1.0 - cn.scale))
+        k = up(ko + w.ctx.E0["accel_x"] / (1.0 - cn.scale))
+        absint = w.imu.sig["accel_x"].abs_integral(a, b)
+        h = up(absint / (1.0 - cn.scale))
     else:
-        k = up(k + w.imu.sig["accel_x"].xmax)
+        k = up(ko + w.imu.sig["accel_x"].xmax)
         h = np.zeros(np.shape(a))
     dev = up(up(k * ln * 0.5) + h)
+    if kw is not None and w.imu.available["accel_x"]:
+        lo, hi, unk = c_extremes(w, a, b)
+        sig = w.imu.sig["accel_x"]
+        lin, excess, win_s, sc = error_rates(w)
+        nw, nq = noise_amplitudes(w)
+        signed = up(
+            up(hi - lo) + unk * sig.xmax + up((lin + ko) * ln * 0.5)
+            + excess * np.minimum(ln * 0.5, win_s) + sc * absint
+            + 2.0 * kw * nw * np.sqrt(ln) + 2.0 * kq * nq + sample_model(w)
+        )
+        dev = np.minimum(dev, up(signed * (1 + 1e-12)))
     return up(np.minimum(dev, veh.max_accel * ln * 0.5) * (1 + 1e-12))
 
 
@@ -220,10 +236,13 @@ def _psi_variation(w: WindowContext, lp: LevelPlan, p_sup: float) -> np.ndarray:
 
 def _transport_fix_blocks(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, mb: int, r_mag: np.ndarray,
-    q_mean: np.ndarray | None, psi_var: np.ndarray,
+    q_mean: np.ndarray | None, psi_var: np.ndarray, p_acc: float = 0.0,
 ) -> IA:
     """:func:`transport_by_fixes` for blocks of ``mb`` fix gaps (``psi_var`` from
-    :func:`_psi_variation`)."""
+    :func:`_psi_variation`; ``p_acc`` > 0: u's deviation also from accel_x's signed
+    integral, one event at that probability per window over its blocks: Levy's
+    inequality for the white noise, 4 tails per block, and the quantization over the
+    samples of the longest block, a union bound)."""
     t = w.ag.gnss_t
     h = w.ag.gnss_h
     n = lp.a1.size
@@ -233,7 +252,15 @@ def _transport_fix_blocks(
     cb, rest = body_u_mean_parts(w, s, e)
     fin = np.isfinite(cb) & np.isfinite(rest)
     cb = np.where(fin, cb, 0.0)
-    du = np.where(fin, up(rest + _u_deviation(w, ta, tb)), np.inf)
+    kw, kq = None, 0.0
+    if p_acc > 0 and s.size:
+        nb = int(np.max(np.bincount(win)))
+        q = w.ctx.noise["accel_x"].Q > 0
+        kw = k_two((0.5 if q else 1.0) * p_acc / (2.0 * nb))
+        if q:
+            mm = int(np.max(w.imu.count(ta, tb)))
+            kq = k_two(0.5 * p_acc / (nb * (mm + 1.0)))
+    du = np.where(fin, up(rest + _u_deviation(w, ta, tb, kw, kq)), np.inf)
     L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
     # per fix gap: its block, window, first fix, the kernel at its midpoint and slope
     cnt = e - s
@@ -320,10 +347,11 @@ def transport_by_fixes(
     t_j, with ``int_B psi`` from the heading hull of each fix gap and psi(t_j) from the
     heading boxes (:func:`~imubounds.dynamic.estimator.aided.heading.heading_at`; all
     relative to the heading at a1, as the weights sum to zero)."""
-    psi_var = _psi_variation(w, lp, p_sup)
+    psi_var = _psi_variation(w, lp, (1.0 - ACC_SHARE) * p_sup)
+    p_acc = ACC_SHARE * p_sup / len(FIX_BLOCKS)
     best: IA | None = None
     for mb in FIX_BLOCKS:
-        x = _transport_fix_blocks(w, lp, tau, mb, r_mag, q_mean, psi_var)
+        x = _transport_fix_blocks(w, lp, tau, mb, r_mag, q_mean, psi_var, p_acc)
         if best is None:
             best = x
         else:
