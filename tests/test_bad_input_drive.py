@@ -649,3 +649,21 @@ def test_12_vn100_nan_yaw_and_frozen_fixes_are_counted(
     assert drive.counts["attitude_nan"] == df.shape[0] and drive.attitude is None
     assert drive.counts["gnss_one_spot"] == g.shape[0] - drive.counts.get("gnss_no_fix", 0)
     assert any("one spot" in w and gps.name in w for w in drive.warnings)
+
+
+@pytest.mark.parametrize("name", ["vn100_bu353_circle", "comma2k19_example1"])
+def test_a_drive_yaml_in_a_log_directory_is_read(
+    name: str, shared_data: Path, tmp_path: Path
+) -> None:
+    """The console's advice ("state vehicle.max_tilt_deg in drive.yaml", ...) holds for
+    every directory layout: a drive.yaml beside a VN-100 pair or in a comma2k19 segment
+    is the user's settings, not ignored; without one every setting is a named default."""
+    d = shutil.copytree(shared_data / "dynamic" / name, tmp_path / name)
+    plain = read_drive(d)
+    assert plain.settings.vehicle.max_tilt_deg == 10.0
+    assert any("no drive.yaml" in a for a in plain.settings.assumed)
+    (d / "drive.yaml").write_text("vehicle:\n  max_tilt_deg: 4\n")
+    drive = read_drive(d)
+    assert drive.settings.vehicle.max_tilt_deg == 4.0
+    assert not any("no drive.yaml" in a for a in drive.settings.assumed)
+    assert "vehicle.max_tilt_deg" not in drive.settings.defaulted

@@ -43,7 +43,8 @@ def register(sub: Any) -> None:
         "directory (imu.csv, gnss.csv, velocity.csv, heading.csv, attitude.csv, truth.csv, "
         "drive.yaml), an 'imubounds simulate' "
         "directory, a VN-100 directory (or its two CSV files), a comma2k19 segment, a ROS "
-        "bag/MCAP, a PX4 ULog, or an NMEA file with an IMU log.",
+        "bag/MCAP, a PX4 ULog, or an NMEA file with an IMU log. A drive.yaml in the "
+        "log's directory (any of these layouts) gives its settings.",
     )
     p.add_argument("log", nargs="+", help="drive directory or files")
     p.add_argument("-o", "--out", default="out", metavar="DIR", help="output directory")

@@ -219,9 +219,9 @@ def dominant_default(
         f"the assumed default maximum tilt ({veh.max_tilt / DEG:g} deg; nothing in the data "
         f"bounds roll and pitch) dominates: gravity through it is +-{grav:.3g} m/s^2 of the "
         f"+-{halfwidth:.3g} m/s^2 at tau {tau_s:.3g} s; an attitude stream or "
-        "vehicle.max_tilt_deg in drive.yaml tightens it (the drive's GNSS and speed cannot: "
-        "the IMU's mount pitch on the vehicle adds to f_x what an accelerometer bias adds; "
-        "docs/dynamic-method.md section 3a)"
+        "vehicle.max_tilt_deg in drive.yaml (or --max-tilt) tightens it (the drive's GNSS "
+        "and speed cannot: the IMU's mount pitch on the vehicle adds to f_x what an "
+        "accelerometer bias adds; docs/dynamic-method.md section 3a)"
     )
 
 

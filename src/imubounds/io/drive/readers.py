@@ -176,11 +176,13 @@ def _detect_dir(d: Path) -> tuple[str, dict[str, Any]]:
         return "rosbag", {"path": d}
     if (d / "processed_log").is_dir():
         return "comma2k19", {"dir": d}
-    if is_layout(d):
-        return "generic", {"dir": d}
     imu = sorted(d.glob("*_imu.csv"))
     gps = sorted(d.glob("*_gps.csv"))
-    if len(imu) == 1 and len(gps) == 1:
+    vn_pair = len(imu) == 1 and len(gps) == 1
+    # a drive.yaml beside a VN-100 pair is that drive's settings (load_drive reads it)
+    if is_layout(d) and not (vn_pair and not any(d.glob("imu.*"))):
+        return "generic", {"dir": d}
+    if vn_pair:
         return "vn100", {"imu": imu[0], "gps": gps[0]}
     present = [f"{s}.csv" for s in FILES if any(d.glob(f"{s}.*"))]
     raise InputError(
@@ -725,6 +727,11 @@ def read_drive(
             drive.meta["converted_from"] = str(info["converted_from"])
     else:
         where = f"{ps[0]}" if len(ps) == 1 else ", ".join(map(str, ps))
+        own = Path(ps[0]) / SETTINGS_FILE if len(ps) == 1 else None
+        if settings is None and own is not None and own.is_file():
+            # a drive.yaml beside a VN-100 pair, in a comma2k19 segment or a bag folder
+            # is the user's, as in the drive layout
+            settings = own
         s, info = _settings(settings, f"settings of {where}")
         _override_axes(s, imu_axes)
         if layout == "vn100":
