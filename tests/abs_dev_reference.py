@@ -1,6 +1,6 @@
 """Plain reference of the compiled per-window integrals of ``|y - c|`` over piecewise-
 constant samples (:func:`imubounds.dynamic.estimator.aided.transport_blocks.abs_dev_integral`,
-:func:`imubounds.dynamic.estimator.aided.transport_weighted.weighted_abs_dev`): every
+:func:`imubounds.dynamic.estimator.aided.transport_blocks.weighted_abs_dev`): every
 window's overlap with every segment as one dense matrix (O(windows x segments) memory),
 in exact rational arithmetic, to test the compiled loops' sums and their rounding
 inflation against."""

@@ -1,5 +1,5 @@
 """The compiled integrals of ``om |y - c|`` per window (``transport_blocks.abs_dev_integral``,
-``transport_weighted.weighted_abs_dev``) against their plain exact reference
+``transport_blocks.weighted_abs_dev``) against their plain exact reference
 (tests/abs_dev_reference.py): never below the exact value (they are upper bounds used in
 guaranteed intervals) and above it by no more than their stated rounding inflation."""
 
@@ -11,8 +11,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
-from imubounds.dynamic.estimator.aided.transport_weighted import weighted_abs_dev
+from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral, weighted_abs_dev
 from tests.abs_dev_reference import weighted_abs_dev_exact
 
 _F = st.floats(-50.0, 50.0, allow_nan=False, allow_subnormal=False)

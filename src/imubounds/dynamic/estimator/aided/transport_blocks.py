@@ -50,18 +50,25 @@ from imubounds.interval import IntervalArray as IA
 
 
 @njit(cache=True)
-def abs_dev_integral(
+def weighted_abs_dev(  # noqa: PLR0913 (the kernel takes its arrays one by one)
     bnd: np.ndarray,
     y: np.ndarray,
     unknown: np.ndarray,
     xmax: float,
+    om: np.ndarray,
     a: np.ndarray,
     b: np.ndarray,
     c: np.ndarray,
+    tf: np.ndarray,
+    wf: np.ndarray,
+    tl: np.ndarray,
+    wl: np.ndarray,
 ) -> np.ndarray:
-    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
-    segments ``bnd``; an unknown segment counts ``xmax + |c|``). Plain float sums
-    inflated by ``(n + 2) * 2^-52`` relative for rounding."""
+    """Upper bounds of ``int_a^b om |y - c| dt`` per window (piecewise-constant ``y`` and
+    weight ``om`` on the segments ``bnd``; a segment's part starting before ``tf`` takes
+    at least the weight ``wf``, one ending after ``tl`` at least ``wl``; an unknown
+    segment counts ``xmax + |c|``). Plain float sums inflated by ``(n + 8) 2^-52``
+    relative for rounding (each term three roundings, the sum one per term)."""
     out = np.empty(a.size)
     nseg = bnd.size - 1
     for w in range(a.size):
@@ -76,11 +83,34 @@ def abs_dev_integral(
             s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
             if s1 > s0:
                 v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
-                acc += v * (s1 - s0)
+                wt = om[k]
+                if s0 < tf[w] and wf[w] > wt:
+                    wt = wf[w]
+                if s1 > tl[w] and wl[w] > wt:
+                    wt = wl[w]
+                acc += wt * v * (s1 - s0)
                 cnt += 1
             k += 1
-        out[w] = acc * (1.0 + (cnt + 4) * 2.3e-16)
+        out[w] = acc * (1.0 + (cnt + 8) * 2.3e-16)
     return out
+
+
+@njit(cache=True)
+def abs_dev_integral(
+    bnd: np.ndarray,
+    y: np.ndarray,
+    unknown: np.ndarray,
+    xmax: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+) -> np.ndarray:
+    """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
+    segments ``bnd``; an unknown segment counts ``xmax + |c|``): :func:`weighted_abs_dev`
+    with unit weights and no floors."""
+    n = a.size
+    return weighted_abs_dev(bnd, y, unknown, xmax, np.ones(bnd.size - 1), a, b, c,
+                            np.full(n, -np.inf), np.zeros(n), np.full(n, np.inf), np.zeros(n))
 
 
 def centred_distance_norm(m: int) -> float:

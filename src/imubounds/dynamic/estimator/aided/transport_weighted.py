@@ -44,64 +44,17 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.transport import det_mean
-from imubounds.dynamic.estimator.aided.transport_blocks import _tables
+from imubounds.dynamic.estimator.aided.transport_blocks import _tables, weighted_abs_dev
 from imubounds.dynamic.estimator.aided.velocity import gyro_free_u, vel_range
 from imubounds.dynamic.estimator.inputs import RangeExt
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 
 #: the block lengths (in heading gaps) tried here, the probability split over them
 WEIGHTED_BLOCKS = (4,)
-
-
-@njit(cache=True)
-def weighted_abs_dev(  # noqa: PLR0913 (the kernel takes its arrays one by one)
-    bnd: np.ndarray,
-    y: np.ndarray,
-    unknown: np.ndarray,
-    xmax: float,
-    om: np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
-    c: np.ndarray,
-    tf: np.ndarray,
-    wf: np.ndarray,
-    tl: np.ndarray,
-    wl: np.ndarray,
-) -> np.ndarray:
-    """Upper bounds of ``int_a^b om |y - c| dt`` per window (piecewise-constant ``y`` and
-    weight ``om`` on the segments ``bnd``; a segment's part starting before ``tf`` takes
-    at least the weight ``wf``, one ending after ``tl`` at least ``wl``; an unknown
-    segment counts ``xmax + |c|``). Plain float sums inflated by ``(n + 8) 2^-52``
-    relative for rounding (each term three roundings, the sum one per term)."""
-    out = np.empty(a.size)
-    nseg = bnd.size - 1
-    for w in range(a.size):
-        lo = np.searchsorted(bnd, a[w], side="right") - 1
-        if lo < 0:
-            lo = 0
-        acc = 0.0
-        cnt = 0
-        k = lo
-        while k < nseg and bnd[k] < b[w]:
-            s0 = bnd[k] if bnd[k] > a[w] else a[w]
-            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
-            if s1 > s0:
-                v = xmax + abs(c[w]) if unknown[k] else abs(y[k] - c[w])
-                wt = om[k]
-                if s0 < tf[w] and wf[w] > wt:
-                    wt = wf[w]
-                if s1 > tl[w] and wl[w] > wt:
-                    wt = wl[w]
-                acc += wt * v * (s1 - s0)
-                cnt += 1
-            k += 1
-        out[w] = acc * (1.0 + (cnt + 8) * 2.3e-16)
-    return out
 
 
 def gap_weights(w: WindowContext, bv: Any, a: np.ndarray, b: np.ndarray) -> np.ndarray:
