@@ -35,6 +35,7 @@ from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
 from imubounds.dynamic.estimator.aided.transport_fixes import _by_parts, _rate_terms
+from imubounds.dynamic.estimator.aided.transport_split import known_shape_terms
 from imubounds.dynamic.estimator.budget import ChannelNoise, centered_ms_bound, kernel_variance
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -80,7 +81,7 @@ def _pieces(lp: LevelPlan, tau: np.ndarray) -> tuple[np.ndarray, ...]:
 
 def _u_excursion(
     w: WindowContext, lp: LevelPlan, s0: np.ndarray, s1: np.ndarray, p: float
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """Per piece ``[s0, s1]``: a bound of ``|u(t) - u(t_c)|`` over it (t_c the support's
     centre): ``max |C(t) - C(t_c)|`` over the piece (C accel_x's running integral, linear
     between samples: its extremes at the sample boundaries and the piece's ends; an
@@ -89,7 +90,10 @@ def _u_excursion(
     terms' ``k_o |t - t_c|`` (:func:`.accel_integral.other_rate`) at the piece's farthest
     point (the white noise by Levy's inequality on each side of t_c, a union bound over
     the ``PIECES`` nested spans of a side; the quantization over the support's samples);
-    at most ``max_accel`` times that distance."""
+    at most ``max_accel`` times that distance. Second: the bound ``D'`` of ``delta = u - U0
+    - A - b_TO (t - t_c)`` (:mod:`.transport_split`: A the measured ``C - C(t_c)``, b_TO
+    the turn-on bias), the same terms without the measured part and the turn-on (the
+    same white-noise event; inf where accel_x is missing; the caller adds A's rounding)."""
     veh = w.veh
     tc = 0.5 * (lp.a1 + lp.b2)
     n = lp.a1.size
@@ -97,7 +101,7 @@ def _u_excursion(
     x = up(np.maximum(np.abs(s0 - tcp), np.abs(s1 - tcp)))
     cap = up(veh.max_accel * x)
     if not w.imu.available["accel_x"]:
-        return cap
+        return cap, np.full(s0.shape, np.inf)
     sig = w.imu.sig["accel_x"]
     P2 = s0.shape[1]
     f0, f1 = s0.ravel(), s1.ravel()
@@ -117,10 +121,11 @@ def _u_excursion(
     kq = (np.array([k_two(0.5 * p / (k + 1.0)) for k in m])[:, None]
           if w.ctx.noise["accel_x"].Q > 0 else 0.0)
     err = accel_error(w, x, absint[:, None], kw, kq)
-    ko = other_rate(w, lp.a1, lp.b2)
-    out = up(dev + err + up(ko[:, None] * x))
+    ko = up(other_rate(w, lp.a1, lp.b2)[:, None] * x)
+    out = up(dev + err + ko)
     assert out.shape == (n, s0.shape[1])
-    return np.minimum(out, cap)
+    rest = up(accel_error(w, x, absint[:, None], kw, kq, turn_on=False) + ko)
+    return np.minimum(out, cap), rest
 
 
 def _ramp_noise_sd(
@@ -344,7 +349,7 @@ def transport_by_gyro(
     rbar = mean_r_by_gaps(w, lp, tau, 0.4 * p)
     first = rbar * IA(u_lo, u_hi)
     s0, s1, kmax, kint = _pieces(lp, tau)
-    D = _u_excursion(w, lp, s0, s1, 0.3 * p)
+    D, Dr = _u_excursion(w, lp, s0, s1, 0.2 * p)
     sig = w.imu.sig["gyro_z"]
     yb = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, tau)
     fin = np.isfinite(yb.lo) & np.isfinite(yb.hi)
@@ -360,7 +365,7 @@ def transport_by_gyro(
     cn = ctx.noise["gyro_z"]
     m = w.imu.count(lp.a1, lp.b2)
     uc, inv = np.unique(m, return_inverse=True)
-    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.3 * p) for mm in uc])[inv]
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.2 * p) for mm in uc])[inv]
     sig_n = np.sqrt(up(w.imu.max_len * m * ms / tau * (1 + 1e-9)))
     earth = EARTH_RATE + w.veh.max_speed / R_EARTH
     R = w.veh.max_rate + earth
@@ -385,6 +390,15 @@ def transport_by_gyro(
     samp = up((2 * dmax / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
     samp_alt = up((2 * half / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
     second = np.minimum(up(ypart + up(enorm * unorm) + samp), up(alt + samp_alt))
+    # the split of u - U0 into the measured A, the turn-on's b_TO (t - t_c) and delta
+    # (:mod:`.transport_split`): the known shapes' terms plus the old form with D'
+    known, tb, aerr = known_shape_terms(w, lp, tau, c, rho, ed, 0.2 * p)
+    turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))
+    Dp = up(Dr + aerr[:, None])
+    ypart2 = np.sum(up(Dp * up(kmax * ad)), axis=1)
+    unorm2 = up(np.sqrt(up(np.sum(up(kint * up(Dp * Dp)), axis=1) * (1 + 1e-9))) * (1 + 1e-9))
+    split = up(known + up(turn_on * tb) + ypart2 + up(enorm * unorm2) + samp)
+    second = np.minimum(second, np.where(np.isfinite(split), split, np.inf))
     out = first + pm(up(second * (1 + 1e-9)))
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     return IA(np.where(ok, out.lo, -np.inf), np.where(ok, out.hi, np.inf))
