@@ -41,23 +41,33 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.signal import lfilter
 
 from imubounds.dynamic.estimator.aided.accel_integral import k_two
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.budget import kernel_variance
+from imubounds.dynamic.estimator.budget import ChannelNoise
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 
 _EPS = 2.3e-16
 
 
-def _nodes(
-    bnd: np.ndarray, a1: float, b1: float, b2: float, i0: int, i1: int
-) -> np.ndarray:
-    """The support's pieces: its knots and the sample boundaries inside (sorted)."""
-    inner = bnd[i0 + 1 : i1 + 1]
-    inner = inner[(inner > a1) & (inner < b2)]
-    return np.unique(np.concatenate([[a1, b1, b2], inner]))
+def _cum_table(w: WindowContext) -> tuple[np.ndarray, np.ndarray]:
+    """accel_x's running integral C at every sample boundary and its rounding bound
+    (computed once per run)."""
+    key = "transport_split_cum"
+    if key not in w.cache:
+        sig = w.imu.sig["accel_x"]
+        val, err, _ = sig.cum(sig.bnd)
+        w.cache[key] = (val, up(err * (1 + 1e-9) + 1e-300))
+    return w.cache[key]
+
+
+def _simpson(h: np.ndarray, k0: np.ndarray, k1: np.ndarray, f0: np.ndarray,
+             f1: np.ndarray) -> np.ndarray:
+    """``int K f`` over a piece of length h where K and f are linear (ends k, f): exact
+    (Simpson's rule on the quadratic K f)."""
+    return h / 6.0 * (2 * k0 * f0 + k0 * f1 + k1 * f0 + 2 * k1 * f1)
 
 
 def known_shape_terms(
@@ -74,72 +84,119 @@ def known_shape_terms(
     - m)|`` (to be multiplied by the turn-on bound) and the bound of C's rounding in A (it
     goes into ``delta``). ``c +- rho`` encloses ``ybar``, ``ed`` bounds the gyro's
     deterministic error; the two Gaussians at probability ``p/2`` each. ``inf`` where a
-    sample of either channel is unknown in the support."""
+    sample of either channel is unknown in the support. Computed for all windows at once:
+    a row per window, a column per sample of its support (the sample cut at ``b1`` into
+    two pieces, at the support's ends clipped)."""
     n = lp.a1.size
-    known = np.full(n, np.inf)
-    tb = np.full(n, np.inf)
-    aerr = np.full(n, np.inf)
+    inf = np.full(n, np.inf)
     gy = w.imu.sig["gyro_z"]
     ax = w.imu.sig["accel_x"]
-    if n == 0:
-        return known, tb, aerr
+    if n == 0 or gy.bnd.size != ax.bnd.size or not np.array_equal(gy.bnd, ax.bnd):
+        return inf, inf.copy(), inf.copy()
     cn = w.ctx.noise["gyro_z"]
     dt = w.imu.dt
     ratio = max(1.0, w.imu.max_len / dt)
     kg = k_two(0.5 * p)
     bnd = gy.bnd
-    tc_all = 0.5 * (lp.a1 + lp.b2)
+    a1, b1, b2 = lp.a1[:, None], lp.b1[:, None], lp.b2[:, None]
+    ta = tau[:, None]
+    tc = 0.5 * (lp.a1 + lp.b2)
     ok = (gy.unknown_len(lp.a1, lp.b2) == 0) & (ax.unknown_len(lp.a1, lp.b2) == 0)
-    i0s = gy.locate(lp.a1)
-    i1s = gy.locate(lp.b2)
-    cc, ec, _ = ax.cum(tc_all)
-    for i in range(n):
-        if not ok[i]:
-            continue
-        a1, b1, b2, tc = float(lp.a1[i]), float(lp.b1[i]), float(lp.b2[i]), float(tc_all[i])
-        z = _nodes(bnd, a1, b1, b2, int(i0s[i]), int(i1s[i]))
-        t0, t1 = z[:-1], z[1:]
-        h = t1 - t0
-        L1, L2, ta = b1 - a1, b2 - b1, float(tau[i])
-        kz = np.clip(np.where(z <= b1, (z - a1) / (L1 * ta), (b2 - z) / (L2 * ta)), 0.0, None)
-        k0, k1 = kz[:-1], kz[1:]
-        cv, ce, _ = ax.cum(z)
-        az = cv - cc[i]
-        a_e = float(up(np.max(ce) + ec[i] + 4 * _EPS * (np.max(np.abs(cv)) + abs(cc[i]))))
-        a0, a1v = az[:-1], az[1:]
-        wk = 0.5 * h * (k0 + k1)
-        wka = h / 6.0 * (2 * k0 * a0 + k0 * a1v + k1 * a0 + 2 * k1 * a1v)
-        s0, s1 = t0 - tc, t1 - tc
-        wkt = h / 6.0 * (2 * k0 * s0 + k0 * s1 + k1 * s0 + 2 * k1 * s1)
-        seg = gy.locate(0.5 * (t0 + t1))
-        yv = gy.y[seg] - c[i]
-        # the measured parts; their rounding: each product and sum within a few ulps of
-        # the sum of magnitudes (2 n eps relative, n the pieces)
-        m_a = float(np.dot(yv, wka))
-        m_t = float(np.dot(yv, wkt))
-        nz = z.size + 8
-        abs_ka = float(np.sum(wk * np.maximum(np.abs(a0), np.abs(a1v))))
-        abs_kt = float(np.sum(wk * np.maximum(np.abs(s0), np.abs(s1))))
-        e_a = 4 * nz * _EPS * float(np.dot(np.abs(yv), np.abs(wka)) + abs_ka)
-        e_t = 4 * nz * _EPS * float(np.dot(np.abs(yv), np.abs(wkt)) + abs_kt)
-        # the gyro's error on the centred weights K (A - Abar), K (t - t_c - m)
-        abar = float(np.sum(wka))
-        tbar = float(np.sum(wkt))
-        j = seg - seg[0]
-        ca = np.bincount(j, weights=wka - abar * wk)
-        ct = np.bincount(j, weights=wkt - tbar * wk)
-        sda = math.sqrt(kernel_variance(cn, ca, dt, False)) * ratio
-        sdt = math.sqrt(kernel_variance(cn, ct, dt, False)) * ratio
-        # int K |f - fbar| <= sum_piece int K x max over the piece's ends (f linear there)
-        dev_a = float(np.sum(wk * np.maximum(np.abs(a0 - abar), np.abs(a1v - abar))))
-        dev_t = float(np.sum(wk * np.maximum(np.abs(s0 - tbar), np.abs(s1 - tbar))))
-        # the rounding of the centred weights: |d c| <= 4 n eps (|wka| + |abar| wk)
-        rnd_a = 4 * nz * _EPS * (float(np.sum(np.abs(wka))) + abs(abar))
-        rnd_t = 4 * nz * _EPS * (float(np.sum(np.abs(wkt))) + abs(tbar))
-        one = math.sqrt(cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2)
-        known[i] = (abs(m_a) + e_a + float(rho[i]) * abs_ka + kg * (sda + rnd_a * one * ratio)
-                    + ed * dev_a)
-        tb[i] = (abs(m_t) + e_t + float(rho[i]) * abs_kt + kg * (sdt + rnd_t * one * ratio)
-                 + ed * dev_t)
-        aerr[i] = a_e
-    return (up(known * (1 + 1e-9)), up(tb * (1 + 1e-9)), aerr)
+    i0 = gy.locate(lp.a1)
+    cnt = gy.locate(lp.b2) - i0 + 1
+    k = i0[:, None] + np.arange(int(np.max(cnt)))[None, :]
+    valid = np.arange(k.shape[1])[None, :] < cnt[:, None]
+    k = np.minimum(k, bnd.size - 2)
+    lo = np.where(valid, np.maximum(bnd[k], a1), 0.0)
+    hi = np.where(valid, np.minimum(bnd[k + 1], b2), 0.0)
+    hi = np.maximum(hi, lo)
+    cval, cerr = _cum_table(w)
+    ya = ax.y[k]
+    cc, ec, _ = ax.cum(tc)
+    L1, L2 = b1 - a1, b2 - b1
+
+    def kern(t: np.ndarray, right: bool) -> np.ndarray:
+        return np.clip((b2 - t) / (L2 * ta) if right else (t - a1) / (L1 * ta), 0.0, None)
+
+    wk = np.zeros(k.shape)
+    wka = np.zeros(k.shape)
+    wkt = np.zeros(k.shape)
+    abs_a = np.zeros(k.shape)
+    abs_t = np.zeros(k.shape)
+    pieces = []
+    for right in (False, True):  # the sample's part before b1 (I1), after it (I2)
+        z0 = np.maximum(lo, b1) if right else lo
+        z1 = hi if right else np.minimum(hi, b1)
+        h = np.maximum(z1 - z0, 0.0)
+        z1 = z0 + h
+        k0, k1 = kern(z0, right), kern(z1, right)
+        # A = C - C(t_c), C linear on the sample: C(bnd_k) + y_k (z - bnd_k)
+        f0 = cval[k] + ya * (z0 - bnd[k]) - cc[:, None]
+        f1 = cval[k] + ya * (z1 - bnd[k]) - cc[:, None]
+        s0, s1 = z0 - tc[:, None], z1 - tc[:, None]
+        wk += 0.5 * h * (k0 + k1)
+        wka += _simpson(h, k0, k1, f0, f1)
+        wkt += _simpson(h, k0, k1, s0, s1)
+        pieces.append((h, k0, k1, f0, f1, s0, s1))
+    kw = np.array([0.5 * pc[0] * (pc[1] + pc[2]) for pc in pieces])  # int K per piece
+    for j, (_, _, _, f0, f1, s0, s1) in enumerate(pieces):
+        abs_a += kw[j] * np.maximum(np.abs(f0), np.abs(f1))
+        abs_t += kw[j] * np.maximum(np.abs(s0), np.abs(s1))
+    abs_ka, abs_kt = np.sum(abs_a, axis=1), np.sum(abs_t, axis=1)
+    # C's rounding in A: the table's bound, the products' and the difference's
+    amag = np.max(np.where(valid, np.abs(cval[k]) + np.abs(ya) * (bnd[k + 1] - bnd[k]), 0.0),
+                  axis=1)
+    aerr = up(np.max(np.where(valid, cerr[k], 0.0), axis=1) + ec
+              + 8 * _EPS * (amag + np.abs(cc)))
+    yv = np.where(valid, gy.y[k] - c[:, None], 0.0)
+    nz = 2 * k.shape[1] + 8
+    m_a = np.sum(yv * wka, axis=1)
+    m_t = np.sum(yv * wkt, axis=1)
+    # the sums' rounding: within 2 n eps of the sums of magnitudes (n the pieces), the
+    # pieces' Simpson sums likewise (the abs bounds dominate the products' magnitudes)
+    e_a = 8 * nz * _EPS * (np.sum(np.abs(yv) * abs_a, axis=1) + abs_ka)
+    e_t = 8 * nz * _EPS * (np.sum(np.abs(yv) * abs_t, axis=1) + abs_kt)
+    abar = np.sum(wka, axis=1)
+    tbar = np.sum(wkt, axis=1)
+    ca = wka - abar[:, None] * wk
+    ct = wkt - tbar[:, None] * wk
+    # int K |f - fbar| <= sum_piece int K x max over the piece's ends (f linear there)
+    dev_a = np.zeros(n)
+    dev_t = np.zeros(n)
+    for j, (_, _, _, f0, f1, s0, s1) in enumerate(pieces):
+        dev_a += np.sum(kw[j] * np.maximum(np.abs(f0 - abar[:, None]), np.abs(f1 - abar[:, None])),
+                        axis=1)
+        dev_t += np.sum(kw[j] * np.maximum(np.abs(s0 - tbar[:, None]), np.abs(s1 - tbar[:, None])),
+                        axis=1)
+    # the centred weights' rounding: |dc| <= 8 n eps (|wka| + |abar| wk) per weight, its
+    # sd at most sum |dc| x one sample's sd
+    one = math.sqrt(cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2)
+    rnd_a = 8 * nz * _EPS * (np.sum(np.abs(wka), axis=1) + np.abs(abar)) * one * ratio
+    rnd_t = 8 * nz * _EPS * (np.sum(np.abs(wkt), axis=1) + np.abs(tbar)) * one * ratio
+    sd = np.sqrt(batch_variance(cn, np.concatenate([ca, ct]), dt)) * ratio
+    known = (np.abs(m_a) + e_a + rho * abs_ka + kg * (sd[:n] + rnd_a) + ed * dev_a)
+    tb = (np.abs(m_t) + e_t + rho * abs_kt + kg * (sd[n:] + rnd_t) + ed * dev_t)
+    known = np.where(ok, up(known * (1 + 1e-9)), np.inf)
+    tb = np.where(ok, up(tb * (1 + 1e-9)), np.inf)
+    return known, tb, np.where(ok, aerr, np.inf)
+
+
+def batch_variance(cn: ChannelNoise, rows: np.ndarray, dt: float) -> np.ndarray:
+    """``budget.kernel_variance(cn, c, dt, False)`` for each row ``c`` of ``rows`` at
+    once (the same formula: white ``N^2 sum c^2 / dt``, quantization ``Q^2 sum (diff
+    c)^2 / dt^2`` with c padded by a zero at both ends, each Gauss-Markov component
+    ``sigma^2 c' Phi c`` by the two exponential filters); a row's trailing zeros add
+    nothing to any of the sums (the backward filter runs through zeros only until the
+    row's last weight). Inflated by 1e-9 relative for rounding, as there."""
+    c = np.zeros((rows.shape[0], rows.shape[1] + 2))
+    c[:, 1:-1] = rows
+    v = cn.N * cn.N * np.sum(c * c, axis=1) / dt
+    if cn.Q > 0:
+        d = np.diff(c, axis=1)
+        v += cn.Q * cn.Q * np.sum(d * d, axis=1) / (dt * dt)
+    for sg, b in cn.gm_terms():
+        phi = math.exp(-b * dt)
+        f = lfilter([1.0], [1.0, -phi], c, axis=1)
+        g = lfilter([1.0], [1.0, -phi], c[:, ::-1], axis=1)[:, ::-1]
+        v += sg * sg * np.sum(c * (f + g - c), axis=1)
+    return np.asarray(np.maximum(v, 0.0) * (1.0 + 1e-9))
