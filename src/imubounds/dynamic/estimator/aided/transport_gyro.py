@@ -42,6 +42,9 @@ from imubounds.interval import IntervalArray as IA
 
 #: pieces of each of the trapezoid's two intervals (the kernel's bound on a piece)
 PIECES = 8
+#: the split of u - U0 (:mod:`.transport_split`) is computed where it could narrow the
+#: form by at least this share of its width
+SPLIT_GAIN = 0.03
 _EPS = 2.3e-16
 
 
@@ -392,7 +395,13 @@ def transport_by_gyro(
     second = np.minimum(up(ypart + up(enorm * unorm) + samp), up(alt + samp_alt))
     # the split of u - U0 into the measured A, the turn-on's b_TO (t - t_c) and delta
     # (:mod:`.transport_split`): the known shapes' terms plus the old form with D'
-    known, tb, aerr = known_shape_terms(w, lp, tau, c, rho, ed, 0.2 * p)
+    # computed where the known shapes' terms being 0 would narrow the form by at least
+    # SPLIT_GAIN of its width (its cost is a row of the support's samples per window)
+    ypart_r = np.sum(up(Dr * up(kmax * ad)), axis=1)
+    unorm_r = np.sqrt(np.sum(kint * Dr * Dr, axis=1))
+    width = up(rbar.hi - rbar.lo) * np.maximum(np.abs(u_lo), np.abs(u_hi)) + second
+    want = second - (ypart_r + enorm * unorm_r + samp) > SPLIT_GAIN * width
+    known, tb, aerr = known_shape_terms(w, lp, tau, want, c, rho, ed, 0.2 * p)
     turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))
     Dp = up(Dr + aerr[:, None])
     ypart2 = np.sum(up(Dp * up(kmax * ad)), axis=1)

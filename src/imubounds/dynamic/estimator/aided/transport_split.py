@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from imubounds.dynamic.estimator.aided.accel_integral import k_two
+from imubounds.dynamic.estimator.aided.accel_integral import c_extremes, k_two
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.budget import ChannelNoise
@@ -63,17 +63,26 @@ def _cum_table(w: WindowContext) -> tuple[np.ndarray, np.ndarray]:
     return w.cache[key]
 
 
+def _err_max(w: WindowContext) -> np.ndarray:
+    """The running maximum of :func:`_cum_table`'s rounding bounds (once per run)."""
+    key = "transport_split_cum_errmax"
+    if key not in w.cache:
+        w.cache[key] = np.maximum.accumulate(_cum_table(w)[1])
+    return w.cache[key]
+
+
 def _simpson(h: np.ndarray, k0: np.ndarray, k1: np.ndarray, f0: np.ndarray,
              f1: np.ndarray) -> np.ndarray:
     """``int K f`` over a piece of length h where K and f are linear (ends k, f): exact
     (Simpson's rule on the quadratic K f)."""
-    return h / 6.0 * (2 * k0 * f0 + k0 * f1 + k1 * f0 + 2 * k1 * f1)
+    return h / 6.0 * (k0 * (f0 + f0 + f1) + k1 * (f0 + f1 + f1))
 
 
 def known_shape_terms(
     w: WindowContext,
     lp: LevelPlan,
     tau: np.ndarray,
+    sel: np.ndarray,
     c: np.ndarray,
     rho: np.ndarray,
     ed: float,
@@ -84,10 +93,27 @@ def known_shape_terms(
     - m)|`` (to be multiplied by the turn-on bound) and the bound of C's rounding in A (it
     goes into ``delta``). ``c +- rho`` encloses ``ybar``, ``ed`` bounds the gyro's
     deterministic error; the two Gaussians at probability ``p/2`` each. ``inf`` where a
-    sample of either channel is unknown in the support. Computed for all windows at once:
+    sample of either channel is unknown in the support, and on the windows not in ``sel``
+    (a boolean mask: the caller's choice of where the terms can narrow its bound).
+    Computed for the selected windows at once:
     a row per window, a column per sample of its support (the sample cut at ``b1`` into
     two pieces, at the support's ends clipped)."""
-    n = lp.a1.size
+    nall = lp.a1.size
+    out = (np.full(nall, np.inf), np.full(nall, np.inf), np.full(nall, np.inf))
+    if not np.any(sel):
+        return out
+    res = _terms(w, lp.a1[sel], lp.b1[sel], lp.b2[sel], tau[sel], c[sel], rho[sel], ed, p)
+    for o, r in zip(out, res, strict=True):
+        o[sel] = r
+    return out
+
+
+def _terms(
+    w: WindowContext, la1: np.ndarray, lb1: np.ndarray, lb2: np.ndarray, tau: np.ndarray,
+    c: np.ndarray, rho: np.ndarray, ed: float, p: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`known_shape_terms` on windows ``[la1, lb2]`` (``lb1`` the kernel's apex)."""
+    n = la1.size
     inf = np.full(n, np.inf)
     gy = w.imu.sig["gyro_z"]
     ax = w.imu.sig["accel_x"]
@@ -98,82 +124,85 @@ def known_shape_terms(
     ratio = max(1.0, w.imu.max_len / dt)
     kg = k_two(0.5 * p)
     bnd = gy.bnd
-    a1, b1, b2 = lp.a1[:, None], lp.b1[:, None], lp.b2[:, None]
-    ta = tau[:, None]
-    tc = 0.5 * (lp.a1 + lp.b2)
-    ok = (gy.unknown_len(lp.a1, lp.b2) == 0) & (ax.unknown_len(lp.a1, lp.b2) == 0)
-    i0 = gy.locate(lp.a1)
-    cnt = gy.locate(lp.b2) - i0 + 1
-    k = i0[:, None] + np.arange(int(np.max(cnt)))[None, :]
-    valid = np.arange(k.shape[1])[None, :] < cnt[:, None]
-    k = np.minimum(k, bnd.size - 2)
-    lo = np.where(valid, np.maximum(bnd[k], a1), 0.0)
-    hi = np.where(valid, np.minimum(bnd[k + 1], b2), 0.0)
-    hi = np.maximum(hi, lo)
+    a1, b1, b2 = la1[:, None], lb1[:, None], lb2[:, None]
+    r1, r2 = 1.0 / ((b1 - a1) * tau[:, None]), 1.0 / ((b2 - b1) * tau[:, None])
+    tc = 0.5 * (la1 + lb2)
+    ok = (gy.unknown_len(la1, lb2) == 0) & (ax.unknown_len(la1, lb2) == 0)
+    i0 = gy.locate(la1)
+    i1 = gy.locate(lb2)
+    # a column per sample from the one holding a1; past the one holding b2 the columns'
+    # pieces are empty (both ends clipped to b2: zero weights)
+    k = np.minimum(i0[:, None] + np.arange(int(np.max(i1 - i0)) + 1)[None, :], bnd.size - 2)
     cval, cerr = _cum_table(w)
-    ya = ax.y[k]
     cc, ec, _ = ax.cum(tc)
-    L1, L2 = b1 - a1, b2 - b1
+    bk = bnd[k]
+    ya = ax.y[k]
+    base = cval[k] - cc[:, None]
 
-    def kern(t: np.ndarray, right: bool) -> np.ndarray:
-        return np.clip((b2 - t) / (L2 * ta) if right else (t - a1) / (L1 * ta), 0.0, None)
+    def kern(t: np.ndarray) -> np.ndarray:
+        # the trapezoid (a2 = b1): the smaller of its rising and falling lines, >= 0
+        return np.maximum(np.minimum((t - a1) * r1, (b2 - t) * r2), 0.0)
 
-    wk = np.zeros(k.shape)
-    wka = np.zeros(k.shape)
-    wkt = np.zeros(k.shape)
-    abs_a = np.zeros(k.shape)
-    abs_t = np.zeros(k.shape)
-    pieces = []
-    for right in (False, True):  # the sample's part before b1 (I1), after it (I2)
-        z0 = np.maximum(lo, b1) if right else lo
-        z1 = hi if right else np.minimum(hi, b1)
-        h = np.maximum(z1 - z0, 0.0)
-        z1 = z0 + h
-        k0, k1 = kern(z0, right), kern(z1, right)
-        # A = C - C(t_c), C linear on the sample: C(bnd_k) + y_k (z - bnd_k)
-        f0 = cval[k] + ya * (z0 - bnd[k]) - cc[:, None]
-        f1 = cval[k] + ya * (z1 - bnd[k]) - cc[:, None]
+    def piece(z0: np.ndarray, z1: np.ndarray) -> tuple[np.ndarray, ...]:
+        h = z1 - z0
+        k0, k1 = kern(z0), kern(z1)
+        f0, f1 = base + ya * (z0 - bk), base + ya * (z1 - bk)
         s0, s1 = z0 - tc[:, None], z1 - tc[:, None]
-        wk += 0.5 * h * (k0 + k1)
-        wka += _simpson(h, k0, k1, f0, f1)
-        wkt += _simpson(h, k0, k1, s0, s1)
-        pieces.append((h, k0, k1, f0, f1, s0, s1))
-    kw = np.array([0.5 * pc[0] * (pc[1] + pc[2]) for pc in pieces])  # int K per piece
-    for j, (_, _, _, f0, f1, s0, s1) in enumerate(pieces):
-        abs_a += kw[j] * np.maximum(np.abs(f0), np.abs(f1))
-        abs_t += kw[j] * np.maximum(np.abs(s0), np.abs(s1))
-    abs_ka, abs_kt = np.sum(abs_a, axis=1), np.sum(abs_t, axis=1)
-    # C's rounding in A: the table's bound, the products' and the difference's
-    amag = np.max(np.where(valid, np.abs(cval[k]) + np.abs(ya) * (bnd[k + 1] - bnd[k]), 0.0),
-                  axis=1)
-    aerr = up(np.max(np.where(valid, cerr[k], 0.0), axis=1) + ec
-              + 8 * _EPS * (amag + np.abs(cc)))
-    yv = np.where(valid, gy.y[k] - c[:, None], 0.0)
-    nz = 2 * k.shape[1] + 8
-    m_a = np.sum(yv * wka, axis=1)
-    m_t = np.sum(yv * wkt, axis=1)
-    # the sums' rounding: within 2 n eps of the sums of magnitudes (n the pieces), the
-    # pieces' Simpson sums likewise (the abs bounds dominate the products' magnitudes)
-    e_a = 8 * nz * _EPS * (np.sum(np.abs(yv) * abs_a, axis=1) + abs_ka)
-    e_t = 8 * nz * _EPS * (np.sum(np.abs(yv) * abs_t, axis=1) + abs_kt)
+        return 0.5 * h * (k0 + k1), _simpson(h, k0, k1, f0, f1), _simpson(h, k0, k1, s0, s1)
+
+    # each sample of the support as one piece (its part inside [a1, b2]); K is linear on
+    # it except on the sample holding b1, which is redone below as two pieces
+    lo = np.clip(bk, a1, b2)
+    hi = np.clip(bnd[k + 1], a1, b2)
+    wk, wka, wkt = piece(lo, hi)
+    cell = (np.arange(n), np.minimum(gy.locate(lb1) - i0, k.shape[1] - 1))
+    lo_b, hi_b = lo[cell][:, None], hi[cell][:, None]
+    mid = np.clip(b1, lo_b, hi_b)
+    keep = (bk, ya, base)
+    bk, ya, base = (x[cell][:, None] for x in keep)
+    p1, p2 = piece(lo_b, mid), piece(mid, hi_b)
+    bk, ya, base = keep
+    wk[cell] = (p1[0] + p2[0])[:, 0]
+    wka[cell] = (p1[1] + p2[1])[:, 0]
+    wkt[cell] = (p1[2] + p2[2])[:, 0]
+    # A's extremes over the support (C linear between the samples: the range table of
+    # C at the sample boundaries and the ends, rounding included, less C(t_c) +- its
+    # rounding): int K |A| <= max |A|, int K |A - Abar| <= max |A - Abar| (int K = 1 up
+    # to the sums' rounding, the factor 1 + 1e-9); likewise |t - t_c| <= half the support
+    clo, chi, _ = c_extremes(w, la1, lb2)
+    amin_f, amax_f = clo - cc - ec, chi - cc + ec
+    amax = up(np.maximum(np.abs(amin_f), np.abs(amax_f)))
     abar = np.sum(wka, axis=1)
     tbar = np.sum(wkt, axis=1)
+    half = 0.5 * (lb2 - la1)
+    abs_ka = amax * (1 + 1e-9)
+    abs_kt = half * (1 + 1e-9)
+    dev_a = np.maximum(amax_f - abar, abar - amin_f) * (1 + 1e-9)
+    dev_t = (half + np.abs(tbar)) * (1 + 1e-9)
+    # C's rounding in A: the table's bound (its running maximum up to the support's last
+    # boundary), C(t_c)'s, and the few operations forming A at a point (each within an
+    # ulp of |C| + |C(t_c)| + |y_x| max_len)
+    cmax = float(np.max(np.abs(cval))) + float(np.max(np.abs(ax.y))) * w.imu.max_len
+    aerr = up(_err_max(w)[np.minimum(i1 + 1, bnd.size - 1)] + ec
+              + 8 * _EPS * (cmax + np.abs(cc)))
+    yv = gy.y[k] - c[:, None]
+    nz = k.shape[1] + 8
+    m_a = np.sum(yv * wka, axis=1)
+    m_t = np.sum(yv * wkt, axis=1)
+    # the sums' rounding: within 2 n eps of the sums of magnitudes (n the pieces), |y -
+    # c| <= max|y| + |c|, sum |wka| <= max|A| sum wk, sum |wkt| <= half sum wk; each
+    # piece's Simpson sum within a few ulps of those
+    ymax = float(np.max(np.abs(gy.y))) + np.abs(c)
+    e_a = 8 * nz * _EPS * (ymax + 1) * 2 * abs_ka
+    e_t = 8 * nz * _EPS * (ymax + 1) * 2 * abs_kt
     ca = wka - abar[:, None] * wk
     ct = wkt - tbar[:, None] * wk
-    # int K |f - fbar| <= sum_piece int K x max over the piece's ends (f linear there)
-    dev_a = np.zeros(n)
-    dev_t = np.zeros(n)
-    for j, (_, _, _, f0, f1, s0, s1) in enumerate(pieces):
-        dev_a += np.sum(kw[j] * np.maximum(np.abs(f0 - abar[:, None]), np.abs(f1 - abar[:, None])),
-                        axis=1)
-        dev_t += np.sum(kw[j] * np.maximum(np.abs(s0 - tbar[:, None]), np.abs(s1 - tbar[:, None])),
-                        axis=1)
     # the centred weights' rounding: |dc| <= 8 n eps (|wka| + |abar| wk) per weight, its
     # sd at most sum |dc| x one sample's sd
     one = math.sqrt(cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2)
-    rnd_a = 8 * nz * _EPS * (np.sum(np.abs(wka), axis=1) + np.abs(abar)) * one * ratio
-    rnd_t = 8 * nz * _EPS * (np.sum(np.abs(wkt), axis=1) + np.abs(tbar)) * one * ratio
-    sd = np.sqrt(batch_variance(cn, np.concatenate([ca, ct]), dt)) * ratio
+    rnd_a = 8 * nz * _EPS * (abs_ka + np.abs(abar)) * one * ratio
+    rnd_t = 8 * nz * _EPS * (abs_kt + np.abs(tbar)) * one * ratio
+    sd = batch_sd(cn, np.concatenate([ca, ct]), dt) * ratio
     known = (np.abs(m_a) + e_a + rho * abs_ka + kg * (sd[:n] + rnd_a) + ed * dev_a)
     tb = (np.abs(m_t) + e_t + rho * abs_kt + kg * (sd[n:] + rnd_t) + ed * dev_t)
     known = np.where(ok, up(known * (1 + 1e-9)), np.inf)
@@ -181,22 +210,73 @@ def known_shape_terms(
     return known, tb, np.where(ok, aerr, np.inf)
 
 
-def batch_variance(cn: ChannelNoise, rows: np.ndarray, dt: float) -> np.ndarray:
-    """``budget.kernel_variance(cn, c, dt, False)`` for each row ``c`` of ``rows`` at
-    once (the same formula: white ``N^2 sum c^2 / dt``, quantization ``Q^2 sum (diff
-    c)^2 / dt^2`` with c padded by a zero at both ends, each Gauss-Markov component
-    ``sigma^2 c' Phi c`` by the two exponential filters); a row's trailing zeros add
-    nothing to any of the sums (the backward filter runs through zeros only until the
-    row's last weight). Inflated by 1e-9 relative for rounding, as there."""
-    c = np.zeros((rows.shape[0], rows.shape[1] + 2))
-    c[:, 1:-1] = rows
-    v = cn.N * cn.N * np.sum(c * c, axis=1) / dt
+#: samples per block of the Gauss-Markov variances (:func:`batch_sd`)
+BLOCK = 16
+
+
+def _gm_block_sd(sg: float, phi: float, d: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """Per row, a bound of the standard deviation of ``sum_k c_k x_k`` (x a stationary
+    Gauss-Markov process, variance ``sg^2``, correlation ``phi^|j-k|``) with c split on
+    blocks of B = :data:`BLOCK` samples as ``c_k = d_b + r_k`` (``d_b`` the block's mean
+    weight, ``sum_(k in b) r_k = 0``; ``r2`` = ``sum r_k^2``): by Minkowski, ``sd(sum_b d_b
+    X_b) + sd(sum r_k x_k)`` (X_b the block sums). The first exactly: ``Var(X_b) = sg^2
+    P``, ``P = sum_(u,v<B) phi^|u-v|``, and for blocks Delta >= 1 apart ``Cov = sg^2 S^2
+    phi^(1-B) psi^Delta`` (``S = sum_(v<B) phi^v``, ``psi = phi^B``), so ``Var = sg^2
+    ((P - S^2 phi^(1-B)) sum d^2 + S^2 phi^(1-B) d' Psi d)``, ``d' Psi d`` by the two
+    exponential filters of ``psi`` (as ``budget.kernel_variance``). The second: r sums
+    to zero on each block, so ``r' Phi r = r' (Phi - Phi~) r`` for ``Phi~`` constant on
+    block pairs (``psi^Delta``); ``|phi^|j-k| - psi^Delta| <= 1 - phi^(B-1)`` in a block
+    and ``<= phi^(B Delta - B + 1) (1 - phi^(2B-2))`` Delta >= 1 blocks apart, so each row
+    of the difference sums to at most ``lam = B (1 - phi^(B-1)) + 2 B phi (1 -
+    phi^(2B-2)) / (1 - psi)`` (Gershgorin: ``|r' E r| <= lam |r|^2``); also ``r' Phi r
+    <= (1 + phi)/(1 - phi) |r|^2`` (Phi's row sums); the smaller."""
+    B = BLOCK
+    v = np.arange(B)
+    S = float(np.sum(phi**v))
+    uu, vv = np.meshgrid(v, v)
+    P = float(np.sum(phi ** np.abs(uu - vv)))
+    off = S * S * phi ** (1 - B)
+    psi = phi**B
+    f = lfilter([1.0], [1.0, -psi], d, axis=1)
+    g = lfilter([1.0], [1.0, -psi], d[:, ::-1], axis=1)[:, ::-1]
+    dd = np.sum(d * d, axis=1)
+    var_d = (P - off) * dd + off * np.sum(d * (f + g - d), axis=1)
+    # the rounding of the filters and sums: within 1e-9 of their magnitudes' bound
+    # (|d' Psi d| <= (1 + psi)/(1 - psi) |d|^2, each term's few ulps)
+    mag = (abs(P - off) + off * (1 + psi) / max(1 - psi, 1e-300)) * dd
+    var_d = np.maximum(var_d, 0.0) + 1e-9 * mag
+    lam = B * (1 - phi ** (B - 1)) + 2 * B * phi * (1 - phi ** (2 * B - 2)) / max(1 - psi, 1e-300)
+    lam = min(lam * (1 + 1e-9), (1 + phi) / max(1 - phi, 1e-300))
+    return sg * (np.sqrt(var_d) + np.sqrt(lam * r2)) * (1 + 1e-9)
+
+
+def batch_sd(cn: ChannelNoise, rows: np.ndarray, dt: float) -> np.ndarray:
+    """Per row ``c`` of ``rows`` (weights on consecutive samples), a bound of the standard
+    deviation of ``sum_k c_k n_k``, n the channel's Gaussian noise (white, quantization,
+    flicker as independent parts: their standard deviations added, a bound of the root
+    of the summed variances): white ``N sqrt(sum c^2 / dt)`` and quantization ``Q
+    sqrt(sum (diff c)^2) / dt`` (c padded by a zero at both ends) exactly, each of the
+    flicker's Gauss-Markov components by :func:`_gm_block_sd` (the rows padded with
+    zeros to whole blocks: a zero weight adds nothing)."""
+    n, m = rows.shape
+    nb = -(-m // BLOCK)
+    c = np.zeros((n, nb * BLOCK))
+    c[:, :m] = rows
+    white = cn.N * np.sqrt(np.sum(c * c, axis=1) * (1 + 1e-9) / dt)
+    quant = np.zeros(n)
     if cn.Q > 0:
-        d = np.diff(c, axis=1)
-        v += cn.Q * cn.Q * np.sum(d * d, axis=1) / (dt * dt)
+        cq = np.zeros((n, m + 2))
+        cq[:, 1:-1] = rows
+        dq = np.diff(cq, axis=1)
+        quant = cn.Q * np.sqrt(np.sum(dq * dq, axis=1) * (1 + 1e-9)) / dt
+    cb = c.reshape(n, nb, BLOCK)
+    d = np.mean(cb, axis=2)
+    r = cb - d[:, :, None]
+    r2 = np.sum(r * r, axis=(1, 2))
+    # the block means' rounding leaves sum_b r_k within a few ulps of zero: r' Phi~ r
+    # <= (sum_b |sum r|)^2 <= (4 eps sum |c|)^2, added to |r|^2 (Phi~ entries <= 1)
+    r2 = r2 + (4 * 2.3e-16 * np.sum(np.abs(c), axis=1)) ** 2
+    var = white * white + quant * quant
     for sg, b in cn.gm_terms():
-        phi = math.exp(-b * dt)
-        f = lfilter([1.0], [1.0, -phi], c, axis=1)
-        g = lfilter([1.0], [1.0, -phi], c[:, ::-1], axis=1)[:, ::-1]
-        v += sg * sg * np.sum(c * (f + g - c), axis=1)
-    return np.asarray(np.maximum(v, 0.0) * (1.0 + 1e-9))
+        var = var + _gm_block_sd(sg, math.exp(-b * dt), d, r2) ** 2
+    return np.asarray(up(np.sqrt(var * (1 + 1e-9)) * (1 + 1e-9)))
