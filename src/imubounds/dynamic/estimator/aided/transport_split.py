@@ -130,41 +130,46 @@ def _terms(
     ok = (gy.unknown_len(la1, lb2) == 0) & (ax.unknown_len(la1, lb2) == 0)
     i0 = gy.locate(la1)
     i1 = gy.locate(lb2)
-    # a column per sample from the one holding a1; past the one holding b2 the columns'
-    # pieces are empty (both ends clipped to b2: zero weights)
-    k = np.minimum(i0[:, None] + np.arange(int(np.max(i1 - i0)) + 1)[None, :], bnd.size - 2)
+    # a column per sample from the one holding a1, its boundaries the nodes (clipped to
+    # [a1, b2]: past the sample holding b2 the pieces are empty, zero weights)
+    m = int(np.max(i1 - i0)) + 1
+    j = np.arange(m + 1)[None, :]
+    kn = np.minimum(i0[:, None] + j, bnd.size - 1)
+    z = np.clip(bnd[kn], a1, b2)
+    k = np.minimum(kn[:, :-1], bnd.size - 2)
     cval, cerr = _cum_table(w)
     cc, ec, _ = ax.cum(tc)
-    bk = bnd[k]
-    ya = ax.y[k]
-    base = cval[k] - cc[:, None]
+    # C at a node: the table at a sample boundary, else (a1, b2) along its sample's slope
+    kk = np.minimum(kn, i1[:, None])
+    fz = cval[kk] + ax.y[kk] * (z - bnd[kk]) - cc[:, None]
 
     def kern(t: np.ndarray) -> np.ndarray:
         # the trapezoid (a2 = b1): the smaller of its rising and falling lines, >= 0
         return np.maximum(np.minimum((t - a1) * r1, (b2 - t) * r2), 0.0)
 
-    def piece(z0: np.ndarray, z1: np.ndarray) -> tuple[np.ndarray, ...]:
-        h = z1 - z0
-        k0, k1 = kern(z0), kern(z1)
-        f0, f1 = base + ya * (z0 - bk), base + ya * (z1 - bk)
-        s0, s1 = z0 - tc[:, None], z1 - tc[:, None]
-        return 0.5 * h * (k0 + k1), _simpson(h, k0, k1, f0, f1), _simpson(h, k0, k1, s0, s1)
-
-    # each sample of the support as one piece (its part inside [a1, b2]); K is linear on
-    # it except on the sample holding b1, which is redone below as two pieces
-    lo = np.clip(bk, a1, b2)
-    hi = np.clip(bnd[k + 1], a1, b2)
-    wk, wka, wkt = piece(lo, hi)
-    cell = (np.arange(n), np.minimum(gy.locate(lb1) - i0, k.shape[1] - 1))
-    lo_b, hi_b = lo[cell][:, None], hi[cell][:, None]
-    mid = np.clip(b1, lo_b, hi_b)
-    keep = (bk, ya, base)
-    bk, ya, base = (x[cell][:, None] for x in keep)
-    p1, p2 = piece(lo_b, mid), piece(mid, hi_b)
-    bk, ya, base = keep
-    wk[cell] = (p1[0] + p2[0])[:, 0]
-    wka[cell] = (p1[1] + p2[1])[:, 0]
-    wkt[cell] = (p1[2] + p2[2])[:, 0]
+    kz = kern(z)
+    sz = z - tc[:, None]
+    h = z[:, 1:] - z[:, :-1]
+    k0, k1 = kz[:, :-1], kz[:, 1:]
+    wk = 0.5 * h * (k0 + k1)
+    wka = _simpson(h, k0, k1, fz[:, :-1], fz[:, 1:])
+    wkt = _simpson(h, k0, k1, sz[:, :-1], sz[:, 1:])
+    # K is linear on each piece except on the sample holding b1: redone as two pieces
+    # (A linear on the sample: its value at b1 by the sample's slope)
+    rows = np.arange(n)
+    jb = np.minimum(gy.locate(lb1) - i0, m - 1)
+    za, zb = z[rows, jb], z[rows, jb + 1]
+    zm = np.clip(lb1, za, zb)
+    fa, fb = fz[rows, jb], fz[rows, jb + 1]
+    ib = kk[rows, jb]
+    fm = cval[ib] + ax.y[ib] * (zm - bnd[ib]) - cc
+    ka, kb = kz[rows, jb], kz[rows, jb + 1]
+    km = np.maximum(np.minimum((zm - la1) * r1[:, 0], (lb2 - zm) * r2[:, 0]), 0.0)
+    sa, sb, sm = za - tc, zb - tc, zm - tc
+    ha, hb = zm - za, zb - zm
+    wk[rows, jb] = 0.5 * ha * (ka + km) + 0.5 * hb * (km + kb)
+    wka[rows, jb] = _simpson(ha, ka, km, fa, fm) + _simpson(hb, km, kb, fm, fb)
+    wkt[rows, jb] = _simpson(ha, ka, km, sa, sm) + _simpson(hb, km, kb, sm, sb)
     # A's extremes over the support (C linear between the samples: the range table of
     # C at the sample boundaries and the ends, rounding included, less C(t_c) +- its
     # rounding): int K |A| <= max |A|, int K |A - Abar| <= max |A - Abar| (int K = 1 up
@@ -211,7 +216,7 @@ def _terms(
 
 
 #: samples per block of the Gauss-Markov variances (:func:`batch_sd`)
-BLOCK = 16
+BLOCK = 32
 
 
 def _gm_block_sd(sg: float, phi: float, d: np.ndarray, r2: np.ndarray) -> np.ndarray:
