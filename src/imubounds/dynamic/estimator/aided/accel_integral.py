@@ -96,7 +96,7 @@ def error_rates(w: WindowContext, turn_on: bool = True) -> tuple[float, float, f
     model = ctx.k_ps * cn.flicker_sigma() + wd.kr
     per_sample = float(wd.pick(model, wd.point))
     mean_long = min(float(wd.pick(model, wd.stated)), per_sample)
-    turn_on = cn.turn_on_bound(ctx.alpha.k("imu_turn_on")) if turn_on else 0.0
+    b_to = cn.turn_on_bound(ctx.alpha.k("imu_turn_on")) if turn_on else 0.0
     win_s = float(wd.window_s) if wd.rule != "model" else 0.0
     mis = 0.0
     if cn.misalignment_rad > 0:
@@ -104,7 +104,7 @@ def error_rates(w: WindowContext, turn_on: bool = True) -> tuple[float, float, f
             o_max = (w.imu.sig[other].xmax if not w.imu.available[other]
                      else float(np.max(np.abs(w.imu.sig[other].y))) + ctx.E0[other])
             mis += cn.misalignment_rad * o_max / (1.0 - ctx.noise[other].scale)
-    lin = turn_on + mean_long + s * ctx.E0["accel_x"] / (1.0 - s) + mis
+    lin = b_to + mean_long + s * ctx.E0["accel_x"] / (1.0 - s) + mis
     return (float(up(np.asarray(lin * (1 + 1e-12)))), per_sample - mean_long, win_s,
             s / (1.0 - s))
 

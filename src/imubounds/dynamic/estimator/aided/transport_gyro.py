@@ -15,7 +15,8 @@ support (``D_p`` a bound of ``|u - u(t_c)|`` on piece p, :func:`_u_excursion`; t
 second product by Cauchy-Schwarz in the measure ``K dt``). Neither needs u's level
 (the positions' +-10.6 m at short tau): only how u moves within the window, from the
 SIGNED integral of accel_x (its error: the bias bound times the length plus the white
-noise's integral, :mod:`.accel_integral`).
+noise's integral, :mod:`.accel_integral`). Where the measured integral and the turn-on's
+known shape carry most of u's excursion, they leave it (:mod:`.transport_split`).
 """
 
 from __future__ import annotations
@@ -340,10 +341,15 @@ def transport_by_gyro(
     quantization and flicker parts, as ``aided.transport.r_abs``; ``K_max = 1/tau``),
     plus the deterministic part (Minkowski); each sample is the true rate's mean over it
     plus the error, the rest inside a sample (its rate-of-change bound times the sample)
-    added against ``K (u - U0)``'s slope. The probability ``p`` of the window's event is
-    split over the ramp noise of ``rbar`` (0.4), accel_x's white noise (0.3) and ``MS``
-    (0.3). Also ``U0`` the centre of ``[u_lo, u_hi]``: ``|u - U0| <= (u_hi - u_lo)/2``
-    everywhere; the narrower of the two."""
+    added against ``K (u - U0)``'s slope. Also ``U0`` the centre of ``[u_lo, u_hi]``:
+    ``|u - U0| <= (u_hi - u_lo)/2`` everywhere; and the split of ``u - U0`` into accel_x's
+    measured integral A, the turn-on's ``b_TO (t - t_c)`` and the rest (:mod:`.transport_split`:
+    the known shapes' terms, ``b_TO``'s bound times its term, plus the first form with the
+    rest's bound ``D'`` for ``D``; computed where the known terms being 0 would narrow the
+    form by at least :data:`SPLIT_GAIN` of its width); the narrowest. The probability
+    ``p`` of the window's event is split over the ramp noise of ``rbar`` (0.4), accel_x's
+    white noise (0.2, one event for D and D'), ``MS`` (0.2) and the split's two Gaussians
+    (0.1 each)."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
     if n == 0 or not w.ag.has_heading or not w.imu.available["gyro_z"] or not w.fine_r:

@@ -24,15 +24,20 @@ kernel mean of ``t - t_c``). The first and the measured half of the third are nu
 from the samples (y constant on a sample, A and K linear on the pieces between the sample
 boundaries and the kernel's knots: exact by Simpson's rule; ``ybar`` within ``c +- rho``
 adds ``rho int K |A|``, resp. ``rho int K |t - t_c|``; C's rounding enters delta). The
-gyro's error on the known weights ``K (A - Abar)`` and ``K (t - t_c - m)``: its Gaussian
-part (white, quantization, flicker) a zero-mean Gaussian whose variance is exact for the
-weights (``budget.kernel_variance``; the weights sum to zero, so the turn-on drops out;
-regular samples, the sd times the ratio of the longest sample to the period as
+gyro's error on the known weights ``K (A - Abar)`` and ``K (t - t_c - m)``: its constant
+(turn-on) part cancels up to ``|1 - int K|`` (the kernel's normalisation, within 1e-9:
+``E0 |1 - int K| int K |f|``, E0 the gyro's per-sample bound); its Gaussian part (white,
+quantization, flicker: the wander's changes within the window keep the flicker model, as
+everywhere in section 1 of the docs) a zero-mean Gaussian, its standard deviation bounded
+for the weights by :func:`batch_sd` (white and quantization exact, each Gauss-Markov
+component on blocks of :data:`BLOCK` samples plus the blocks' residual; regular samples,
+the sd times the ratio of the longest sample to the period as
 ``transport_gyro._ramp_noise_sd``), within ``k`` standard deviations; its deterministic
 part (scale and misalignment on the rate bound, the rate random walk's bound, the
 Earth's rates: ``|e_d| <= ed``) within ``ed int K |f - fbar|``. The weights A come from
 the accelerometer's samples only and ``t - t_c`` from the clock: both independent of
-the gyro's noise, so the Gaussian statement holds for them as for fixed weights.
+the gyro's noise, so the Gaussian statement holds for them as for fixed weights (the
+two Gaussians at ``p/2`` each of the caller's share).
 The last term is the old form's (``transport_gyro``) with ``D'``.
 """
 
@@ -208,8 +213,12 @@ def _terms(
     rnd_a = 8 * nz * _EPS * (abs_ka + np.abs(abar)) * one * ratio
     rnd_t = 8 * nz * _EPS * (abs_kt + np.abs(tbar)) * one * ratio
     sd = batch_sd(cn, np.concatenate([ca, ct]), dt) * ratio
-    known = (np.abs(m_a) + e_a + rho * abs_ka + kg * (sd[:n] + rnd_a) + ed * dev_a)
-    tb = (np.abs(m_t) + e_t + rho * abs_kt + kg * (sd[n:] + rnd_t) + ed * dev_t)
+    # the gyro's constant error: int K (e0 - e0 int K) f = e0 (1 - int K) int K f, int K
+    # = (L1 + L2) / (2 tau) up to two roundings
+    norm = np.abs((lb2 - la1) / (2 * tau) - 1) + 4 * _EPS
+    e0 = w.ctx.E0["gyro_z"] * norm
+    known = (np.abs(m_a) + e_a + (rho + e0) * abs_ka + kg * (sd[:n] + rnd_a) + ed * dev_a)
+    tb = (np.abs(m_t) + e_t + (rho + e0) * abs_kt + kg * (sd[n:] + rnd_t) + ed * dev_t)
     known = np.where(ok, up(known * (1 + 1e-9)), np.inf)
     tb = np.where(ok, up(tb * (1 + 1e-9)), np.inf)
     return known, tb, np.where(ok, aerr, np.inf)
