@@ -474,7 +474,6 @@ def test_u_split_known_shape_terms_bound_the_true_projections() -> None:
         bnd = ctx.imu.bnd
         ya = np.asarray(mb.imu.sig["accel_x"].y, dtype=float)
         cb = np.concatenate([[0.0], np.cumsum(ya * np.diff(bnd))])
-        sig_r = PiecewiseSignal(bnd, r)
         sig_y = mb.imu.sig["gyro_z"]
         bv = body_velocity(mb)
         checked = 0

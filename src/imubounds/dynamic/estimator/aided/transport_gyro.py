@@ -403,17 +403,23 @@ def transport_by_gyro(
     # (:mod:`.transport_split`): the known shapes' terms plus the old form with D'
     # computed where the known shapes' terms being 0 would narrow the form by at least
     # SPLIT_GAIN of its width (its cost is a row of the support's samples per window)
-    ypart_r = np.sum(up(Dr * up(kmax * ad)), axis=1)
-    unorm_r = np.sqrt(np.sum(kint * Dr * Dr, axis=1))
-    width = up(rbar.hi - rbar.lo) * np.maximum(np.abs(u_lo), np.abs(u_hi)) + second
-    want = second - (ypart_r + enorm * unorm_r + samp) > SPLIT_GAIN * width
+    want = fin & np.all(np.isfinite(Dr), axis=1) & np.isfinite(second)
+    want &= np.isfinite(rbar.lo) & np.isfinite(rbar.hi)
+    if np.any(want):
+        dr = np.where(want[:, None], Dr, 0.0)
+        lb = np.sum(dr * kmax * ad, axis=1) + enorm * np.sqrt(np.sum(kint * dr * dr, axis=1))
+        width = np.where(want, rbar.hi - rbar.lo, 0.0) * np.maximum(np.abs(u_lo), np.abs(u_hi))
+        want &= second - (lb + samp) > SPLIT_GAIN * (width + second)
     known, tb, aerr = known_shape_terms(w, lp, tau, want, c, rho, ed, 0.2 * p)
-    turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))
-    Dp = up(Dr + aerr[:, None])
-    ypart2 = np.sum(up(Dp * up(kmax * ad)), axis=1)
-    unorm2 = up(np.sqrt(up(np.sum(up(kint * up(Dp * Dp)), axis=1) * (1 + 1e-9))) * (1 + 1e-9))
-    split = up(known + up(turn_on * tb) + ypart2 + up(enorm * unorm2) + samp)
-    second = np.minimum(second, np.where(np.isfinite(split), split, np.inf))
+    want &= np.isfinite(known) & np.isfinite(tb) & np.isfinite(aerr)
+    if np.any(want):
+        turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))
+        Dp = up(Dr[want] + aerr[want, None])
+        ypart2 = np.sum(up(Dp * up(kmax[want] * ad[want])), axis=1)
+        unorm2 = np.sqrt(up(np.sum(up(kint[want] * up(Dp * Dp)), axis=1) * (1 + 1e-9)))
+        split = up(known[want] + up(turn_on * tb[want]) + ypart2
+                   + up(enorm[want] * up(unorm2 * (1 + 1e-9))) + samp[want])
+        second[want] = np.minimum(second[want], split)
     out = first + pm(up(second * (1 + 1e-9)))
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     return IA(np.where(ok, out.lo, -np.inf), np.where(ok, out.hi, np.inf))

@@ -107,9 +107,16 @@ def known_shape_terms(
     out = (np.full(nall, np.inf), np.full(nall, np.inf), np.full(nall, np.inf))
     if not np.any(sel):
         return out
-    res = _terms(w, lp.a1[sel], lp.b1[sel], lp.b2[sel], tau[sel], c[sel], rho[sel], ed, p)
-    for o, r in zip(out, res, strict=True):
-        o[sel] = r
+    idx = np.flatnonzero(sel)
+    # chunks of windows holding at most CELLS samples together (memory: a few arrays of
+    # that size)
+    span = np.maximum(lp.b2[idx] - lp.a1[idx], 0.0) / w.imu.dt + 2
+    step = max(1, int(CELLS // max(float(np.max(span)), 1.0)))
+    for j0 in range(0, idx.size, step):
+        ix = idx[j0 : j0 + step]
+        res = _terms(w, lp.a1[ix], lp.b1[ix], lp.b2[ix], tau[ix], c[ix], rho[ix], ed, p)
+        for o, r in zip(out, res, strict=True):
+            o[ix] = r
     return out
 
 
@@ -224,6 +231,8 @@ def _terms(
     return known, tb, np.where(ok, aerr, np.inf)
 
 
+#: the samples of one chunk of windows (:func:`known_shape_terms`)
+CELLS = 400_000
 #: samples per block of the Gauss-Markov variances (:func:`batch_sd`)
 BLOCK = 32
 
