@@ -110,7 +110,7 @@ def known_shape_terms(
     idx = np.flatnonzero(sel)
     # chunks of windows holding at most CELLS samples together (memory: a few arrays of
     # that size)
-    span = np.maximum(lp.b2[idx] - lp.a1[idx], 0.0) / w.imu.dt + 2
+    span = w.imu.count(lp.a1[idx], lp.b2[idx]) + 2
     step = max(1, int(CELLS // max(float(np.max(span)), 1.0)))
     for j0 in range(0, idx.size, step):
         ix = idx[j0 : j0 + step]
