@@ -84,9 +84,11 @@ def other_rate(w: WindowContext, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def error_rates(w: WindowContext) -> tuple[float, float, float, float]:
+def error_rates(w: WindowContext, turn_on: bool = True) -> tuple[float, float, float, float]:
     """``(lin, excess, window, scale)``: the error of ``int f_x`` over a span x is at most
-    ``lin x + excess min(x, window) + scale int|y_x|`` + the noise (:func:`accel_error`)."""
+    ``lin x + excess min(x, window) + scale int|y_x|`` + the noise (:func:`accel_error`);
+    ``turn_on=False``: without the turn-on bias (``lin`` less the turn-on bound, for a
+    caller that carries the turn-on as a constant times the span)."""
     ctx = w.ctx
     cn = ctx.noise["accel_x"]
     wd = ctx.wander["accel_x"]
@@ -94,7 +96,7 @@ def error_rates(w: WindowContext) -> tuple[float, float, float, float]:
     model = ctx.k_ps * cn.flicker_sigma() + wd.kr
     per_sample = float(wd.pick(model, wd.point))
     mean_long = min(float(wd.pick(model, wd.stated)), per_sample)
-    turn_on = cn.turn_on_bound(ctx.alpha.k("imu_turn_on"))
+    b_to = cn.turn_on_bound(ctx.alpha.k("imu_turn_on")) if turn_on else 0.0
     win_s = float(wd.window_s) if wd.rule != "model" else 0.0
     mis = 0.0
     if cn.misalignment_rad > 0:
@@ -102,7 +104,7 @@ def error_rates(w: WindowContext) -> tuple[float, float, float, float]:
             o_max = (w.imu.sig[other].xmax if not w.imu.available[other]
                      else float(np.max(np.abs(w.imu.sig[other].y))) + ctx.E0[other])
             mis += cn.misalignment_rad * o_max / (1.0 - ctx.noise[other].scale)
-    lin = turn_on + mean_long + s * ctx.E0["accel_x"] / (1.0 - s) + mis
+    lin = b_to + mean_long + s * ctx.E0["accel_x"] / (1.0 - s) + mis
     return (float(up(np.asarray(lin * (1 + 1e-12)))), per_sample - mean_long, win_s,
             s / (1.0 - s))
 
@@ -117,12 +119,14 @@ def noise_amplitudes(w: WindowContext) -> tuple[float, float]:
 
 
 def accel_error(
-    w: WindowContext, x: np.ndarray, absint: np.ndarray, kw: float, kq: np.ndarray | float
+    w: WindowContext, x: np.ndarray, absint: np.ndarray, kw: float, kq: np.ndarray | float,
+    turn_on: bool = True,
 ) -> np.ndarray:
     """Bound of ``|int_s^t f_x - int_s^t y_x|`` over a span ``|t - s| <= x`` (module
     docstring; ``absint`` a bound of ``int |y_x|`` there, ``kw``, ``kq`` the caller's
-    factors of the white noise and quantization)."""
-    lin, excess, win_s, sc = error_rates(w)
+    factors of the white noise and quantization); ``turn_on=False``: of that less ``b_TO
+    (t - s)`` (:func:`error_rates`)."""
+    lin, excess, win_s, sc = error_rates(w, turn_on)
     nw, nq = noise_amplitudes(w)
     return up((lin * x + excess * np.minimum(x, win_s) + sc * absint
                + kw * nw * np.sqrt(x) + 2.0 * np.asarray(kq) * nq + sample_model(w))

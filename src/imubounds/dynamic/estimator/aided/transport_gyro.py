@@ -15,7 +15,8 @@ support (``D_p`` a bound of ``|u - u(t_c)|`` on piece p, :func:`_u_excursion`; t
 second product by Cauchy-Schwarz in the measure ``K dt``). Neither needs u's level
 (the positions' +-10.6 m at short tau): only how u moves within the window, from the
 SIGNED integral of accel_x (its error: the bias bound times the length plus the white
-noise's integral, :mod:`.accel_integral`).
+noise's integral, :mod:`.accel_integral`). Where the measured integral and the turn-on's
+known shape carry most of u's excursion, they leave it (:mod:`.transport_split`).
 """
 
 from __future__ import annotations
@@ -35,12 +36,16 @@ from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
 from imubounds.dynamic.estimator.aided.transport_fixes import _by_parts, _rate_terms
+from imubounds.dynamic.estimator.aided.transport_split import known_shape_terms
 from imubounds.dynamic.estimator.budget import ChannelNoise, centered_ms_bound, kernel_variance
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
 #: pieces of each of the trapezoid's two intervals (the kernel's bound on a piece)
 PIECES = 8
+#: the split of u - U0 (:mod:`.transport_split`) is computed where it could narrow the
+#: form by at least this share of its width
+SPLIT_GAIN = 0.03
 _EPS = 2.3e-16
 
 
@@ -80,7 +85,7 @@ def _pieces(lp: LevelPlan, tau: np.ndarray) -> tuple[np.ndarray, ...]:
 
 def _u_excursion(
     w: WindowContext, lp: LevelPlan, s0: np.ndarray, s1: np.ndarray, p: float
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """Per piece ``[s0, s1]``: a bound of ``|u(t) - u(t_c)|`` over it (t_c the support's
     centre): ``max |C(t) - C(t_c)|`` over the piece (C accel_x's running integral, linear
     between samples: its extremes at the sample boundaries and the piece's ends; an
@@ -89,7 +94,10 @@ def _u_excursion(
     terms' ``k_o |t - t_c|`` (:func:`.accel_integral.other_rate`) at the piece's farthest
     point (the white noise by Levy's inequality on each side of t_c, a union bound over
     the ``PIECES`` nested spans of a side; the quantization over the support's samples);
-    at most ``max_accel`` times that distance."""
+    at most ``max_accel`` times that distance. Second: the bound ``D'`` of ``delta = u - U0
+    - A - b_TO (t - t_c)`` (:mod:`.transport_split`: A the measured ``C - C(t_c)``, b_TO
+    the turn-on bias), the same terms without the measured part and the turn-on (the
+    same white-noise event; inf where accel_x is missing; the caller adds A's rounding)."""
     veh = w.veh
     tc = 0.5 * (lp.a1 + lp.b2)
     n = lp.a1.size
@@ -97,7 +105,7 @@ def _u_excursion(
     x = up(np.maximum(np.abs(s0 - tcp), np.abs(s1 - tcp)))
     cap = up(veh.max_accel * x)
     if not w.imu.available["accel_x"]:
-        return cap
+        return cap, np.full(s0.shape, np.inf)
     sig = w.imu.sig["accel_x"]
     P2 = s0.shape[1]
     f0, f1 = s0.ravel(), s1.ravel()
@@ -117,10 +125,11 @@ def _u_excursion(
     kq = (np.array([k_two(0.5 * p / (k + 1.0)) for k in m])[:, None]
           if w.ctx.noise["accel_x"].Q > 0 else 0.0)
     err = accel_error(w, x, absint[:, None], kw, kq)
-    ko = other_rate(w, lp.a1, lp.b2)
-    out = up(dev + err + up(ko[:, None] * x))
+    ko = up(other_rate(w, lp.a1, lp.b2)[:, None] * x)
+    out = up(dev + err + ko)
     assert out.shape == (n, s0.shape[1])
-    return np.minimum(out, cap)
+    rest = up(accel_error(w, x, absint[:, None], kw, kq, turn_on=False) + ko)
+    return np.minimum(out, cap), rest
 
 
 def _ramp_noise_sd(
@@ -332,10 +341,15 @@ def transport_by_gyro(
     quantization and flicker parts, as ``aided.transport.r_abs``; ``K_max = 1/tau``),
     plus the deterministic part (Minkowski); each sample is the true rate's mean over it
     plus the error, the rest inside a sample (its rate-of-change bound times the sample)
-    added against ``K (u - U0)``'s slope. The probability ``p`` of the window's event is
-    split over the ramp noise of ``rbar`` (0.4), accel_x's white noise (0.3) and ``MS``
-    (0.3). Also ``U0`` the centre of ``[u_lo, u_hi]``: ``|u - U0| <= (u_hi - u_lo)/2``
-    everywhere; the narrower of the two."""
+    added against ``K (u - U0)``'s slope. Also ``U0`` the centre of ``[u_lo, u_hi]``:
+    ``|u - U0| <= (u_hi - u_lo)/2`` everywhere; and the split of ``u - U0`` into accel_x's
+    measured integral A, the turn-on's ``b_TO (t - t_c)`` and the rest (:mod:`.transport_split`:
+    the known shapes' terms, ``b_TO``'s bound times its term, plus the first form with the
+    rest's bound ``D'`` for ``D``; computed where the known terms being 0 would narrow the
+    form by at least :data:`SPLIT_GAIN` of its width); the narrowest. The probability
+    ``p`` of the window's event is split over the ramp noise of ``rbar`` (0.4), accel_x's
+    white noise (0.2, one event for D and D'), ``MS`` (0.2) and the split's two Gaussians
+    (0.1 each)."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
     if n == 0 or not w.ag.has_heading or not w.imu.available["gyro_z"] or not w.fine_r:
@@ -344,7 +358,7 @@ def transport_by_gyro(
     rbar = mean_r_by_gaps(w, lp, tau, 0.4 * p)
     first = rbar * IA(u_lo, u_hi)
     s0, s1, kmax, kint = _pieces(lp, tau)
-    D = _u_excursion(w, lp, s0, s1, 0.3 * p)
+    D, Dr = _u_excursion(w, lp, s0, s1, 0.2 * p)
     sig = w.imu.sig["gyro_z"]
     yb = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, tau)
     fin = np.isfinite(yb.lo) & np.isfinite(yb.hi)
@@ -360,7 +374,7 @@ def transport_by_gyro(
     cn = ctx.noise["gyro_z"]
     m = w.imu.count(lp.a1, lp.b2)
     uc, inv = np.unique(m, return_inverse=True)
-    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.3 * p) for mm in uc])[inv]
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.2 * p) for mm in uc])[inv]
     sig_n = np.sqrt(up(w.imu.max_len * m * ms / tau * (1 + 1e-9)))
     earth = EARTH_RATE + w.veh.max_speed / R_EARTH
     R = w.veh.max_rate + earth
@@ -385,6 +399,27 @@ def transport_by_gyro(
     samp = up((2 * dmax / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
     samp_alt = up((2 * half / lmin + w.veh.max_accel) * rb * ml * ml * (1 + 1e-9))
     second = np.minimum(up(ypart + up(enorm * unorm) + samp), up(alt + samp_alt))
+    # the split of u - U0 into the measured A, the turn-on's b_TO (t - t_c) and delta
+    # (:mod:`.transport_split`): the known shapes' terms plus the old form with D'
+    # computed where the known shapes' terms being 0 would narrow the form by at least
+    # SPLIT_GAIN of its width (its cost is a row of the support's samples per window)
+    want = fin & np.all(np.isfinite(Dr), axis=1) & np.isfinite(second)
+    want &= np.isfinite(rbar.lo) & np.isfinite(rbar.hi)
+    if np.any(want):
+        dr = np.where(want[:, None], Dr, 0.0)
+        lb = np.sum(dr * kmax * ad, axis=1) + enorm * np.sqrt(np.sum(kint * dr * dr, axis=1))
+        width = np.where(want, rbar.hi - rbar.lo, 0.0) * np.maximum(np.abs(u_lo), np.abs(u_hi))
+        want &= second - (lb + samp) > SPLIT_GAIN * (width + second)
+    known, tb, aerr = known_shape_terms(w, lp, tau, want, c, rho, ed, 0.2 * p)
+    want &= np.isfinite(known) & np.isfinite(tb) & np.isfinite(aerr)
+    if np.any(want):
+        turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))
+        Dp = up(Dr[want] + aerr[want, None])
+        ypart2 = np.sum(up(Dp * up(kmax[want] * ad[want])), axis=1)
+        unorm2 = np.sqrt(up(np.sum(up(kint[want] * up(Dp * Dp)), axis=1) * (1 + 1e-9)))
+        split = up(known[want] + up(turn_on * tb[want]) + ypart2
+                   + up(enorm[want] * up(unorm2 * (1 + 1e-9))) + samp[want])
+        second[want] = np.minimum(second[want], split)
     out = first + pm(up(second * (1 + 1e-9)))
     ok = np.isfinite(out.lo) & np.isfinite(out.hi) & _kernel_ok(w, lp, tau)
     return IA(np.where(ok, out.lo, -np.inf), np.where(ok, out.hi, np.inf))
