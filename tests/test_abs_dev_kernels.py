@@ -66,3 +66,19 @@ def test_abs_dev_integral_against_the_exact_reference(case: tuple[np.ndarray, ..
     got = abs_dev_integral(bnd, y, unknown, xmax, a, b, c)
     _close_above(got, weighted_abs_dev_exact(bnd, y, unknown, xmax, ones, a, b, c,
                                              none_lo, zero, none_hi, zero), y.size)
+
+
+def test_products_that_underflow_still_give_an_upper_bound() -> None:
+    """Hypothesis found it: a weight times a deviation times a length below the smallest
+    subnormal rounds to 0, under the exact value; the kernel adds 1e-300."""
+    bnd = np.arange(6.0)
+    y = np.array([6.5e-200, 0.0, 0.0, 0.0, 0.0])
+    unknown = np.zeros(5, dtype=bool)
+    a, b = np.array([0.0]), np.array([1.75e-180])
+    lo, hi, zero = np.array([-np.inf]), np.array([np.inf]), np.zeros(1)
+    for om in (np.ones(5), np.array([1.0, 0.0, 0.0, 0.0, 0.0])):
+        got = weighted_abs_dev(bnd, y, unknown, 7.0, om, a, b, zero, lo, zero, hi, zero)
+        exact = weighted_abs_dev_exact(bnd, y, unknown, 7.0, om, a, b, zero, lo, zero, hi,
+                                       zero)
+        assert exact[0] > 0 and Fraction(float(got[0])) >= exact[0]
+    assert abs_dev_integral(bnd, y, unknown, 7.0, a, b, zero)[0] > 0

@@ -68,7 +68,8 @@ def weighted_abs_dev(  # noqa: PLR0913 (the kernel takes its arrays one by one)
     weight ``om`` on the segments ``bnd``; a segment's part starting before ``tf`` takes
     at least the weight ``wf``, one ending after ``tl`` at least ``wl``; an unknown
     segment counts ``xmax + |c|``). Plain float sums inflated by ``(n + 8) 2^-52``
-    relative for rounding (each term three roundings, the sum one per term)."""
+    relative for rounding (each term three roundings, the sum one per term), plus 1e-300
+    for the products that underflow."""
     out = np.empty(a.size)
     nseg = bnd.size - 1
     for w in range(a.size):
@@ -91,7 +92,7 @@ def weighted_abs_dev(  # noqa: PLR0913 (the kernel takes its arrays one by one)
                 acc += wt * v * (s1 - s0)
                 cnt += 1
             k += 1
-        out[w] = acc * (1.0 + (cnt + 8) * 2.3e-16)
+        out[w] = acc * (1.0 + (cnt + 8) * 2.3e-16) + 1e-300  # (+ underflow)
     return out
 
 
