@@ -298,17 +298,25 @@ def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw:
         assert min(gain) < 0.97, gain
 
 
-@pytest.mark.parametrize(
-    "seed,kw",
-    [
-        (50, {}),
-        (51, {"corner_length_m": 20.0, "laps": 3}),
-        (52, {"turn_on_scale": 3.0}),
-        (53, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
-        (54, {"scale_error": 0.002, "misalignment_deg": 0.1}),
-    ],
-    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment"],
-)
+#: the positions-only trips the transport forms are checked on (seed offset, settings)
+POSITIONS_TRIPS = {
+    "paper": (0, {}),
+    "corners": (1, {"corner_length_m": 20.0, "laps": 3}),
+    "turn-on": (2, {"turn_on_scale": 3.0}),
+    "corners-turn-on": (3, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
+    "scale-misalignment": (4, {"scale_error": 0.002, "misalignment_deg": 0.1}),
+}
+
+
+def _positions_trips(first_seed: int, **more: tuple[int, dict]) -> Any:
+    """``pytest.mark.parametrize`` of ``seed, kw`` over :data:`POSITIONS_TRIPS` (seeds
+    from ``first_seed``) and ``more``."""
+    cases = {**POSITIONS_TRIPS, **more}
+    return pytest.mark.parametrize(
+        "seed,kw", [(first_seed + i, kw) for i, kw in cases.values()], ids=list(cases))
+
+
+@_positions_trips(50)
 def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) -> None:
     """Positions + compass: accel_y's transport term over blocks of fix gaps
     (``aided.transport_fixes.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
@@ -385,19 +393,11 @@ def test_u_deviation_from_the_signed_accel_integral_encloses_the_truth(
         assert min(narrower) > 0.5, narrower
 
 
-@pytest.mark.parametrize(
-    "seed,kw",
-    [
-        (60, {}),
-        (61, {"corner_length_m": 20.0, "laps": 3}),
-        (62, {"turn_on_scale": 3.0}),
-        (63, {"corner_length_m": 20.0, "laps": 3, "turn_on_scale": 3.0}),
-        (64, {"scale_error": 0.002, "misalignment_deg": 0.1}),
-        (67, {"biases_at_bound": True}),
-        (68, {"corner_length_m": 20.0, "laps": 3, "biases_at_bound": True}),
-    ],
-    ids=["paper", "corners", "turn-on", "corners-turn-on", "scale-misalignment",
-         "biases-at-bound", "corners-biases-at-bound"],
+@_positions_trips(
+    60,
+    **{"biases-at-bound": (7, {"biases_at_bound": True}),
+       "corners-biases-at-bound": (8, {"corner_length_m": 20.0, "laps": 3,
+                                       "biases_at_bound": True})},
 )
 def test_accel_y_transport_by_gyro_encloses_the_true_mean(seed: int, kw: dict) -> None:
     """Positions + compass: the gyro-shape form of accel_y's transport term
