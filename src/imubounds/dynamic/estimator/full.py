@@ -13,10 +13,13 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.aiding import timing as TM
+from imubounds.dynamic.estimator import attitude as AT
 from imubounds.dynamic.estimator import clock as CK
 from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
+from imubounds.dynamic.estimator.attitude.consumers import attach as attach_attitude
+from imubounds.dynamic.estimator.attitude.report import attitude_checks
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
     DEFAULT_ALPHA,
@@ -46,6 +49,7 @@ from imubounds.dynamic.estimator.inputs import (
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
 from imubounds.dynamic.estimator.window_plan import epochs_near, plan_on_subset
 from imubounds.dynamic.estimator.windows import (
+    CONSTRAINTS,
     EARTH_RATE,
     G_HI,
     G_LO,
@@ -95,6 +99,7 @@ FULL_DEFAULTS: dict[str, Any] = {
     "use_velocity": True,
     "use_attitude": True,
     "use_gnss_altitude": True,
+    "attitude_states": True,
     "reverses": False,
     "tol": 1e-3,
     "max_sweeps": 200,
@@ -181,6 +186,14 @@ class Context:
     violations: list[Any] = field(default_factory=list)
     #: clock offsets of the aiding streams (aiding/timing.py)
     timing: dict[str, Any] = field(default_factory=dict)
+    #: roll/pitch states (attitude/: docs/dynamic-method.md section 3b), the tilt
+    #: functions each channel's margins read, the window ends of gyro_x, gyro_y, accel_z
+    #: without an attitude stream, and the margin builder that holds accel_x's and
+    #: accel_y's kinematic parts
+    attitude: Any = None
+    tilt_for: dict[str, TiltSignals] = field(default_factory=dict)
+    ends_for: dict[str, Any] = field(default_factory=dict)
+    margin_builder: Any = None
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -232,6 +245,9 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     # stated drift bound gives it) gyro_y's per-sample flicker the IMU samples
     use_pitch = PG.applicable(drive, vehicle, o, imu.available, noise_terms)
     n_pitch = PG.interval_events(n_fix, imu.duration) if use_pitch else 0
+    # the attitude states (attitude/): their windows' and links' gyro noise
+    use_att = AT.applicable(o, imu.available)
+    n_att = AT.interval_events(te.size) if use_att else 0
     n_alt = n_fix if use_pitch else 0
     n_fl = imu.n * sum(drift_rule(noise_terms[c]) != "stated"
                        for c in ("gyro_x", "gyro_y", "gyro_z")) if use_pitch else 0
@@ -243,7 +259,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "imu_changes": 1,
             # + the gyro z noise over the heading clock bound at each heading epoch
             "imu_intervals": 7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
-            + n_pitch,
+            + n_pitch + n_att,
             "imu_turn_on": 6,
             "imu_drift": 6 if any_k else 0,
             "gnss_position": n_fix + n_alt,
@@ -263,7 +279,10 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "z noise over that bound at each heading epoch"
             + (" and, for the pitch from GNSS altitude, the gyro noise over each altitude "
                "chord's halves (reflection principle) and its rate-error magnitudes"
-               if n_pitch else ""),
+               if n_pitch else "")
+            + (" and, for the attitude states, the gyro noise from each accelerometer "
+               "window's node to its ends and over each link (reflection principle) with "
+               "the deviation of the rate-error magnitudes" if n_att else ""),
             "imu_turn_on": "the turn-on bias of each channel (prior of the bias state)",
             "imu_drift": "the rate random walk over the trip (reflection principle)",
             "gnss_position": "each fix's position error (Rayleigh radius)"
@@ -301,8 +320,9 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             timing["heading_vs_gnss"] = rel
         te = _epochs(drive, heading, imu.t0, o)[0]
         te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
+        n_att = AT.interval_events(te.size) if use_att else 0
         alpha.counts["imu_intervals"] = (7 * (te.size - 1) + CK.clock_bound_events(heading, timing)
-                                         + joined.get("imu_intervals", 0) + n_pitch)
+                                         + joined.get("imu_intervals", 0) + n_pitch + n_att)
         alpha.counts["heading"] += CK.model_events(heading) - n_model
     k_ps = alpha.k("imu_samples")
     T = imu.duration
@@ -374,7 +394,12 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     if use_pitch:
         _pitch_from_gnss(ctx)
     ctx.tilt = build_tilt(ctx)
-    _plan_windows(ctx)
+    _plan_windows(ctx, use_att)
+    if use_att:
+        mb = MarginBuilder(ctx)
+        attach_attitude(ctx, mb, CONSTRAINTS)
+        ctx.margin_builder = mb
+        attitude_checks(ctx)
     return ctx
 
 
@@ -419,7 +444,7 @@ def _pitch_from_gnss(ctx: Context) -> None:
     )
 
 
-def _plan_windows(ctx: Context) -> None:
+def _plan_windows(ctx: Context, states: bool = False) -> None:
     mb = MarginBuilder(ctx)
     ag = ctx.aiding
     imu = ctx.imu
@@ -463,6 +488,11 @@ def _plan_windows(ctx: Context) -> None:
                 assert ag.att_t is not None
                 plans[ch] = plan_channel(
                     ch, f"attitude ({ag.att_source})", ag.att_t, False, imu.bnd, imu.dt, cap
+                )
+            elif states:
+                plans[ch] = plan_channel(
+                    ch, "attitude states (accelerometers, aiding, gyros)", ctx.te, False,
+                    imu.bnd, imu.dt, cap,
                 )
             else:
                 plans[ch] = ChannelPlan(
@@ -797,7 +827,7 @@ def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> An
 def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
     """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
     ctx = build_context(drive, noise, options)
-    mb = MarginBuilder(ctx)
+    mb = ctx.margin_builder if ctx.margin_builder is not None else MarginBuilder(ctx)
     order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
     margins: dict[str, ChannelMargins] = {}
     notes: list[str] = []

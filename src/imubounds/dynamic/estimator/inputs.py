@@ -503,6 +503,8 @@ class Aiding:
     att_source: str = ""
     #: pitch intervals from GNSS altitude without an attitude stream (pitch_gnss.py)
     pitch: Any = None
+    #: the attitude states (attitude/consumers.py: TiltBoxes), met with every span's tilt
+    tilt_boxes: Any = None
     budget: dict[str, list[Term]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     gnss_rejected: list[tuple[float, float]] = field(default_factory=list)
@@ -546,6 +548,14 @@ class Aiding:
         """
         s0 = np.asarray(s0, dtype=float)
         s1 = np.asarray(s1, dtype=float)
+        if self.tilt_boxes is not None:  # the attitude states narrow every span's tilt
+            boxes, self.tilt_boxes = self.tilt_boxes, None
+            try:
+                prior = self.tilt_range(s0, s1, vehicle)
+            finally:
+                self.tilt_boxes = boxes
+            narrowed: tuple[Any, ...] = boxes.narrow(s0, s1, *prior)
+            return narrowed
         if not self.has_attitude:
             m = vehicle.max_tilt
             z = np.full(s0.shape, m)

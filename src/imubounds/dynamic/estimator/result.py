@@ -138,7 +138,8 @@ class DynamicResult:
     def states_frame(self) -> Any:
         """Mode full: the smoother's state intervals at its epochs (``states.csv``):
         ``time_s`` and ``<state>_lo_<unit>``, ``<state>_hi_<unit>`` for east and north
-        (m), heading (rad), body velocities u, v and speed (m/s)."""
+        (m), heading (rad), body velocities u, v and speed (m/s), and roll, pitch (rad)
+        where the attitude states ran (docs/dynamic-method.md section 3b)."""
         import pandas as pd
 
         from imubounds.errors import AnalysisError
@@ -281,6 +282,11 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         "sources": ctx.vehicle.sources,
         "pitch": _pitch_source(ctx),
     }
+    from imubounds.dynamic.estimator.attitude.report import attitude_summary
+
+    att = attitude_summary(ctx, drive)
+    if att is not None:
+        out["attitude"] = att
     out["margins"] = {}
     out["verdict"] = {}
     out["verdict_detail"] = {}
@@ -461,7 +467,7 @@ def state_intervals(ctx: Any, sm: Any) -> dict[str, Any]:
     from imubounds.interval import sqrt
 
     S = sqrt(S2)
-    return {
+    out: dict[str, Any] = {
         "east": ((X[:, SM.E, 0], X[:, SM.E, 1]), "m"),
         "north": ((X[:, SM.N, 0], X[:, SM.N, 1]), "m"),
         "heading": ((X[:, SM.PSI, 0], X[:, SM.PSI, 1]), "rad"),
@@ -469,6 +475,12 @@ def state_intervals(ctx: Any, sm: Any) -> dict[str, Any]:
         "v": ((v.lo, v.hi), "m/s"),
         "speed": ((S.lo, S.hi), "m/s"),
     }
+    st = getattr(ctx, "attitude", None)
+    if st is not None and st.te.size == sm.te.size:  # the attitude states' nodes
+        for ax in ("roll", "pitch"):
+            x = st.angle(ax, "full").nodes
+            out[ax] = ((x.lo, x.hi), "rad")
+    return out
 
 
 def _enclosure(ctx: Any, sm: Any, drive: Any, states: dict[str, Any], bias: Any) -> dict[str, Any]:

@@ -28,7 +28,7 @@ from imubounds.dynamic.estimator.aided.attitude import accel_z, gyro_x, gyro_y
 from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, G_LO, R_EARTH
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals, build_tilt
-from imubounds.dynamic.estimator.aided.vehicle import vehicle_only
+from imubounds.dynamic.estimator.aided.vehicle import GRAVITY_OF, vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.aided.yaw import gyro_z
 from imubounds.dynamic.estimator.band import change_band, level_band
@@ -92,13 +92,27 @@ class MarginBuilder(WindowContext):
             return veh
         # both enclose the same kernel mean: the tighter of the two at every window (the
         # aided one where they contradict each other)
-        x = CONSTRAINTS[ch](self, plan, lp, tau)
+        kin = self.kin_cache.get((ch, id(lp)))
+        if kin is not None:  # accel_x, accel_y: the kinematic part of the attitude pass
+            x = kin + self.tilt.kmean(GRAVITY_OF[ch], lp, tau)
+        else:
+            x = CONSTRAINTS[ch](self, plan, lp, tau)
         lo, hi = np.maximum(x.lo, veh.lo), np.minimum(x.hi, veh.hi)
         ok = lo <= hi
         return IA(np.where(ok, lo, x.lo), np.where(ok, hi, x.hi))
 
     def evaluate(self, plan: ChannelPlan) -> ChannelMargins:
-        """Every level of a channel: ``[x_W]``, ``[y_W]``, the bands; then the verdict."""
+        """Every level of a channel: ``[x_W]``, ``[y_W]``, the bands; then the verdict
+        (with the tilt functions and window ends of the channel's attitude variant)."""
+        saved = self.tilt, self.ends
+        self.tilt = getattr(self.ctx, "tilt_for", {}).get(plan.channel, self.ctx.tilt)
+        self.ends = getattr(self.ctx, "ends_for", {}).get(plan.channel)
+        try:
+            return self._evaluate(plan)
+        finally:
+            self.tilt, self.ends = saved
+
+    def _evaluate(self, plan: ChannelPlan) -> ChannelMargins:
         ch = plan.channel
         levels: list[LevelResult] = []
         fam = "imu_windows"

@@ -22,7 +22,11 @@ from imubounds.interval import IntervalArray as IA
 
 
 def _ends(w: WindowContext, lp: LevelPlan) -> tuple[IA, IA, IA, IA]:
-    """Roll and pitch intervals at the window's two attitude epochs."""
+    """Roll and pitch intervals at the window's two attitude epochs (the attitude
+    states' nodes where the drive has no attitude stream)."""
+    if w.ends is not None:
+        r1, r2, p1, p2 = w.ends(lp)
+        return r1, r2, p1, p2
     ag = w.ag
     assert ag.att_roll is not None and ag.att_pitch is not None
     h = ag.att_bound

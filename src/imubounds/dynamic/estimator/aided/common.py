@@ -27,6 +27,12 @@ class WindowContext:
         self.cache: dict[str, Any] = {}
         self.fine_r = True  # False once the gyro_z verdict is 'exceeds'
         self.p_window = 1e-6  # per-window probability of the current level
+        #: roll/pitch at the ends of gyro_x's, gyro_y's, accel_z's windows (attitude
+        #: states, ``attitude.consumers.ends_provider``); None: the attitude stream's
+        self.ends: Any = None
+        #: accel_x's and accel_y's kinematic parts per (channel, id(level)) from the
+        #: attitude pass (``attitude.gravity``); the margins add the gravity term
+        self.kin_cache: dict[tuple[str, int], IA] = {}
 
     def mag_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Upper bound of the mean of |true signal| of channel ``ch`` over ``[a, b]``

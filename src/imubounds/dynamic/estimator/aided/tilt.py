@@ -74,7 +74,12 @@ def build_tilt(ctx: Any) -> TiltSignals:
         bnd = np.array([b0, b1])
         m = veh.max_tilt
         rl, rh, pl, ph = (np.array([x]) for x in (-m, m, -m, m))
-    roll, pitch = IA(rl, rh), IA(pl, ph)
+    return signals_of(bnd, IA(rl, rh), IA(pl, ph))
+
+
+def signals_of(bnd: np.ndarray, roll: IA, pitch: IA) -> TiltSignals:
+    """:class:`TiltSignals` of roll/pitch pieces on ``bnd`` with the derived functions the
+    windows need (sin/cos products)."""
     ts = TiltSignals(bnd, roll, pitch)
     g = IA(G_LO, G_HI)
     sr, cr, sp, cp = sin(roll), cos(roll), sin(pitch), cos(pitch)
@@ -93,5 +98,7 @@ def build_tilt(ctx: Any) -> TiltSignals:
         "sec_r_minus_1": lambda: 1.0 / cr - 1.0,
         "abs_tanr_tanp": lambda: abs(sr * sp / (cr * cp)),
         "abs_tanp": lambda: abs(sp / cp),
+        "roll": lambda: roll,
+        "pitch": lambda: pitch,
     }
     return ts

@@ -1,0 +1,44 @@
+"""Roll and pitch as interval states of mode full, from the accelerometers against the
+aiding and the gyros between (docs/dynamic-method.md, section 3b).
+
+* :mod:`.gravity` -- vector matching over each accelerometer window (3b.1)-(3b.2);
+* :mod:`.gyro_terms`, :mod:`.propagate` -- the gyros' increments and their error
+  bounds (3b.3)-(3b.5);
+* :mod:`.kernels` -- the compiled window sums and node chain (3b.6)-(3b.7);
+* :mod:`.solve` -- one angle over the trip: window nodes, chain, pieces (3b.8);
+* :mod:`.states` -- both angles, twice, per independence variant;
+* :mod:`.consumers` -- the tilt functions, the smoother's spans and the window ends
+  that read them;
+* :mod:`.report` -- the summary, the checks and the truth comparison.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: the events (``imu_intervals`` family) per window and angle: the white noise of the
+#: main gyro and of gyro_z from the node to each side by the reflection principle (2
+#: each), and the deviation of the magnitude sums on each side (1 each)
+EVENTS_PER_WINDOW = 10
+#: per link: the white noise of gyro_x, gyro_y and gyro_z over the link (reflection
+#: principle, 2 each) and the magnitudes' deviation of each angle (1 each)
+EVENTS_PER_LINK = 8
+
+
+def applicable(opts: dict[str, Any], available: dict[str, bool]) -> bool:
+    """Whether the attitude states run, from the settings alone (before the alpha plan,
+    so that their events are counted whatever the data): every gyro and accel_x,
+    accel_y available, and not turned off (``attitude_states=False``)."""
+    if not opts.get("attitude_states", True):
+        return False
+    return all(available.get(ch, False)
+               for ch in ("accel_x", "accel_y", "gyro_x", "gyro_y", "gyro_z"))
+
+
+def interval_events(n_epochs: int) -> int:
+    """An upper bound of the events the states add to ``imu_intervals``: the windows of
+    accel_x's and accel_y's plans of at least ``gravity.MIN_PERIODS`` aiding periods
+    (windows every half their length over octave levels: at most ``n_epochs`` per
+    angle) and every link between the epochs."""
+    n = max(int(n_epochs), 1)
+    return EVENTS_PER_WINDOW * 2 * n + EVENTS_PER_LINK * (n - 1)

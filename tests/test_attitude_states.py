@@ -1,0 +1,232 @@
+"""Roll and pitch as interval states (docs/dynamic-method.md, section 3b): the compiled
+loops against their plain references (``tests/attitude_reference.py``), the window
+walk against the exact trajectory, and the states against the simulator's truth on a
+hilly trip with GNSS position + velocity and no compass and no attitude stream (read
+from the simulator's arrays, never from the estimator's own comparison), with the
+bounds scaled down as the control that the check can fail."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from imubounds.dynamic.estimator.attitude import kernels as K
+from tests import attitude_reference as R
+
+DEG = math.pi / 180
+
+
+# ------------------------------------------------------------------------ kernels
+
+
+def _series(seed: int, n: int, rate: float) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    dl = rng.uniform(0.5, 1.5, n) * 0.02
+    bnd = np.concatenate([[0.0], np.cumsum(dl)])
+    out = {"bnd": bnd}
+    for c in ("yp", "yq", "yr"):
+        out[c] = rng.normal(0, rate, n)
+    out["unk"] = rng.uniform(size=n) < 0.05
+    for c, y in (("mp", "yp"), ("mq", "yq"), ("mr", "yr")):
+        out[c] = np.abs(out[y]) + 0.01
+    return out
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), trap=st.booleans(), frac=st.floats(0.1, 0.9))
+def test_window_walk_matches_the_plain_reference(seed: int, trap: bool, frac: float) -> None:
+    s = _series(seed, 120, 0.4)
+    bnd = s["bnd"]
+    a1, b2 = float(bnd[5]) + 0.003, float(bnd[110]) - 0.004
+    mid = a1 + frac * (b2 - a1)
+    b1 = a2 = mid if trap else a1
+    if not trap:
+        a2 = b2
+    tau = 0.5 * (a2 + b2) - 0.5 * (a1 + b1)
+    ker = np.array([a1, b1, a2, b2, tau])
+    t_node = a1 + 0.37 * (b2 - a1)
+    c = np.array([1e-3, 2e-3, 0.01, 0.02, 0.003, 1e-4, 1e-5, 0.5, 5e-4, 0.5])
+    tab = K.step_tables(bnd, s["yr"])
+    args = (s["yp"], s["yq"], s["yr"], s["unk"], s["mp"], s["mq"], s["mr"])
+    for fwd, end in ((True, b2), (False, a1)):
+        acc = np.zeros(6)
+        side = abs(end - t_node)
+        K._walk(bnd, tab, *args, t_node, end, fwd, ker, side, c, 1e-6, acc)
+        ref = R.walk(bnd, *args, t_node, end, fwd, ker, side, c, 1e-6)
+        np.testing.assert_allclose(acc, ref, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), hx=st.floats(-0.15, 0.15), hy=st.floats(-0.15, 0.15))
+def test_window_terms_bound_the_exact_trajectory(seed: int, hx: float, hy: float) -> None:
+    """With no sensor error (coefficients 0), ``mean_K h`` of the exact trajectory
+    through ``h_c`` lies within ``M h_c + V +- (E + eps |h_c|_1)`` per component."""
+    s = _series(seed, 80, 0.6)
+    s["unk"][:] = False
+    bnd = s["bnd"]
+    a1, b2 = float(bnd[3]), float(bnd[75])
+    ker = np.array([[a1, a1, b2, b2, b2 - a1]])
+    t_node = np.array([float(bnd[40])])
+    out = np.zeros((1, 6))
+    c = np.zeros(10)
+    c[9] = np.inf
+    K.window_terms(bnd, K.step_tables(bnd, s["yr"]), s["yp"], s["yq"], s["yr"], s["unk"],
+                   s["mp"], s["mq"], s["mr"], t_node, ker, c, np.zeros(1), out)
+    C, S, Vx, Vy, E, eps = out[0]
+    h0 = np.array([hx, hy])
+    pred = np.array([C * hx + S * hy + Vx, -S * hx + C * hy + Vy])
+    true = R.true_mean_h(bnd, s["yp"], s["yq"], s["yr"], h0, float(t_node[0]), ker[0])
+    tol = E + eps * (abs(hx) + abs(hy)) + 1e-9
+    assert np.all(np.abs(true - pred) <= tol), (true, pred, tol)
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_template_cuts_and_chain_match_the_linear_programs(seed: int) -> None:
+    """The compiled template cuts and chain are never tighter than the exact supports
+    (the LP of the same constraints) and within their widening of them."""
+    rng = np.random.default_rng(seed)
+    n = 6
+    U = np.full((n, K.ND), 2.0 * K.BIG)
+    strips: list[list[tuple[float, float, float, float]]] = [[] for _ in range(n)]
+    flat = []
+    for k in range(n):
+        for _ in range(int(rng.integers(1, 4))):
+            ang = rng.uniform(0, math.pi)
+            a, b = math.cos(ang), math.sin(ang)
+            c0 = rng.uniform(-0.1, 0.1)
+            w = rng.uniform(0.01, 0.2)
+            strips[k].append((a, b, c0 - w, c0 + w))
+            flat.append((k, a, b, c0 - w, c0 + w))
+    m = n - 1
+    D = np.stack([rng.uniform(-0.05, 0, m), rng.uniform(0, 0.05, m),
+                  rng.uniform(-0.05, 0, m), rng.uniform(0, 0.05, m)], 1)
+    ref = R.nodes_chain(U, strips, D)
+    arr = np.array(flat)
+    Uk = U.copy()
+    bad_w = np.zeros(len(flat), bool)
+    bad_n = np.zeros(n, bool)
+    K.nodes_chain(Uk, arr[:, 1].copy(), arr[:, 2].copy(), arr[:, 3].copy(), arr[:, 4].copy(),
+                  arr[:, 0].astype(np.int64), np.ascontiguousarray(D), bad_w, bad_n)
+    ok = ~bad_n
+    assert np.all(Uk[ok] >= ref[ok] - 1e-9)
+    assert np.all(Uk[ok] <= ref[ok] + 1e-6)
+
+
+# ------------------------------------------------------------------ the simulator
+
+
+def _trip(preset: str, seed: int, **kw: Any) -> Any:
+    from imubounds.dynamic.scenario import make_trip
+
+    args: dict[str, Any] = {
+        "duration_s": 300.0, "distance_m": 3600.0, "hill_amplitude_m": 6.0,
+        "imu_preset": preset, "aiding": ("gnss", "gnss-vel"), "rate_hz": 50.0,
+        "truth_rate_hz": 50.0,
+    }
+    args.update(kw)
+    return make_trip("hills", seed=seed, **args)
+
+
+def _inside(run: Any, res: Any) -> dict[str, float]:
+    """Share of the simulator's true roll/pitch inside the states: at the epochs (the
+    nodes) and at every IMU sample (the pieces over the links)."""
+    st_ = run.ctx.attitude
+    t_true = res.truth["t"] - run.ctx.imu.t0
+    out = {}
+    for ax in ("roll", "pitch"):
+        x = np.interp(st_.te, t_true, res.truth[ax])
+        a = st_.angle(ax, "full")
+        out[f"{ax}_nodes"] = float(np.mean((a.nodes.lo <= x) & (x <= a.nodes.hi)))
+        k = np.searchsorted(st_.te, t_true, side="right") - 1
+        ok = (k >= 0) & (k < st_.te.size - 1)
+        kk = np.clip(k[ok], 0, st_.te.size - 2)
+        y = res.truth[ax][ok]
+        out[f"{ax}_pieces"] = float(np.mean((a.pieces.lo[kk] <= y) & (y <= a.pieces.hi[kk])))
+    return out
+
+
+@pytest.fixture(scope="module")
+def industrial() -> tuple[Any, Any, dict[str, Any]]:
+    from imubounds.dynamic.estimator import dynamic_margins
+
+    res = _trip("industrial", 3)
+    out = dynamic_margins(res.drive)
+    return res, out.full, out.to_dict()
+
+
+def test_states_enclose_the_true_roll_and_pitch(industrial: Any) -> None:
+    res, run, d = industrial
+    assert res.clean
+    share = _inside(run, res)
+    assert all(v == 1.0 for v in share.values()), share
+    st_ = run.ctx.attitude
+    for ax in ("roll", "pitch"):
+        hw = 0.5 * (st_.angle(ax, "full").nodes.hi - st_.angle(ax, "full").nodes.lo)
+        prior = 0.5 * (st_.angle(ax, "prior").nodes.hi - st_.angle(ax, "prior").nodes.lo)
+        assert np.median(hw) < 0.5 * np.median(prior), (ax, np.median(hw), np.median(prior))
+    assert d["guaranteed"], d["violations"]
+    a = d["attitude"]
+    assert a["checks"] == {"empty_windows": 0, "chain_conflicts": 0}
+    assert a["variants"]["accel_x"]["uses"] == ["accel_y", "gyro_x", "gyro_y", "gyro_z"]
+
+
+def test_all_six_channels_have_margins_enclosing_the_true_means(industrial: Any) -> None:
+    """gyro_x, gyro_y and accel_z get windows without an attitude stream; the window means
+    of the true signal (the simulator's, in truth.extra) stay inside every channel's."""
+    _, _, d = industrial
+    for ch in ("accel_z", "gyro_x", "gyro_y"):
+        assert d["margins"][ch], ch
+        assert d["verdict"][ch] in ("consistent", "undecided"), d["verdict"]
+    for ch, m in d["margins_truth"].items():
+        assert m["enclosed_fraction"] in (None, 1.0), (ch, m)
+
+
+def test_scaled_down_bounds_leave_the_truth_outside(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The control: with the windows' gravity intervals (aiding, accelerometer budget)
+    and the gyro error bounds of the states shrunk to 2 % of their half-widths, the truth
+    leaves the intervals (so the test above can fail)."""
+    from imubounds.dynamic.estimator import dynamic_margins
+    from imubounds.dynamic.estimator.attitude import solve, states
+    from imubounds.interval import IntervalArray as IA
+
+    windows = states.gravity_windows
+    coef = solve.error_coefficients
+
+    def small_windows(*a: Any, **k: Any) -> Any:
+        gw = windows(*a, **k)
+        m, r = 0.5 * (gw.S.lo + gw.S.hi), 0.5 * (gw.S.hi - gw.S.lo)
+        gw.S = IA(m - 0.02 * r, m + 0.02 * r)
+        return gw
+
+    def small_coef(*a: Any, **k: Any) -> Any:
+        c = coef(*a, **k)
+        c[:9] = c[:9] * 0.02
+        return c
+
+    monkeypatch.setattr(states, "gravity_windows", small_windows)
+    monkeypatch.setattr(solve, "error_coefficients", small_coef)
+    res = _trip("industrial", 3, duration_s=150.0, distance_m=1800.0, hill_amplitude_m=3.0)
+    run = dynamic_margins(res.drive).full
+    share = _inside(run, res)
+    assert min(share.values()) < 1.0, share
+
+
+@pytest.mark.slow
+def test_mtx_grade_imu_gets_decided_gyro_x_and_gyro_y(tmp_path: Any) -> None:
+    """MTx-grade IMU (gyro bias bound ~11 deg/s, accelerometer ~0.23 m/s^2): the states
+    cannot narrow the max tilt (the accelerometer's bias over g and the gyro over a
+    window exceed it), but gyro_x and gyro_y are judged from it (band ~9 deg/s)."""
+    from imubounds.dynamic.estimator import dynamic_margins
+
+    res = _trip("mtx", 5, rate_hz=100.0, truth_rate_hz=10.0)
+    d = dynamic_margins(res.drive).to_dict()
+    assert d["verdict"]["gyro_x"] == "consistent" and d["verdict"]["gyro_y"] == "consistent"
+    assert d["guaranteed"], d["violations"]
+    assert d["attitude"]["pitch"]["median_halfwidth"] == pytest.approx(
+        d["vehicle"]["max_tilt_deg"], rel=1e-6)
