@@ -174,18 +174,36 @@ def accel_x_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
         c = _support_centre(sig, ag, a1, b2)
         trans[w] = vmax * _gyro_abs_dev(sig, a1, b2, kern, c)
         earth[w] = 2 * OMEGA * speed + speed * speed / R_E
-        if ag.pitch is not None:
+        ts = _tilt_of(ctx, "accel_x")
+        if ts is not None:
+            gravity[w] = _pieces_gravity(ts.bnd, ts.pitch.lo, ts.pitch.hi, a1, b2, kern)
+        elif ag.pitch is not None:
             gravity[w] = _pitch_gravity(ag.pitch, a1, b2, kern)
     return {"ends": ends, "transport": trans, "gravity": gravity, "earth": earth}
 
 
-def _pitch_gravity(pb: Any, a: float, b: float, kern: Any) -> float:
-    """Half the kernel mean of ``g_max (sin(hi) - sin(lo))`` over ``[a, b]``, the pitch
-    boxes ``pb`` (piecewise constant on ``pb.bnd``) on a grid of 2000 points."""
+def _tilt_of(ctx: Any, ch: str) -> Any:
+    """The roll/pitch pieces the estimator's input gives the channel's windows: its
+    attitude states' variant (docs/dynamic-method.md section 3b: built without the
+    channel's samples), None without the states. With the attitude known to a
+    half-width delta, the accelerometer's limit takes g delta (its kernel mean)."""
+    return getattr(ctx, "tilt_for", {}).get(ch)
+
+
+def _pieces_gravity(bnd: np.ndarray, lo: np.ndarray, hi: np.ndarray, a: float, b: float,
+                    kern: Any, factor: float = 1.0) -> float:
+    """Half the kernel mean of ``factor g_max (sin(hi) - sin(lo))`` over ``[a, b]`` for an
+    angle piecewise constant on ``bnd``, on a grid of 2000 points (any angle within its
+    pieces is consistent with the inputs)."""
     s = np.linspace(a, b, 2000)
-    k = np.clip(np.searchsorted(pb.bnd, s, side="right") - 1, 0, pb.lo.size - 1)
-    f = kern(s) * (np.sin(pb.hi[k]) - np.sin(pb.lo[k]))
-    return float(0.5 * G_MAX * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
+    k = np.clip(np.searchsorted(bnd, s, side="right") - 1, 0, lo.size - 1)
+    f = kern(s) * (np.sin(hi[k]) - np.sin(lo[k]))
+    return float(0.5 * factor * G_MAX * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
+
+
+def _pitch_gravity(pb: Any, a: float, b: float, kern: Any) -> float:
+    """:func:`_pieces_gravity` of the pitch boxes ``pb`` (piecewise constant on ``pb.bnd``)."""
+    return _pieces_gravity(pb.bnd, pb.lo, pb.hi, a, b, kern)
 
 
 def _level_ratios(ctx: Any, margins: Any, ch: str, limits: Any,
@@ -232,11 +250,18 @@ def gyro_z_limits(ctx: Any, lp: Any) -> dict[str, np.ndarray]:
     n = lp.a1.size
     head = (ag.head_h[lp.i] + ag.head_h[lp.j]) / lp.tau
     tilt = np.zeros(n)
+    ts = _tilt_of(ctx, "gyro_z")
     for w in range(n):
         a, b = lp.a1[w], lp.b2[w]
         lo, hi = sig.integral(np.array([a]), np.array([b]))
         c = 0.5 * (float(lo[0]) + float(hi[0])) / (b - a)
-        tilt[w] = math.tan(veh.max_tilt) * _gyro_abs_dev(
+        tmax = math.tan(veh.max_tilt)
+        if ts is not None:  # the largest |tan(roll)| of the states' pieces over the window
+            k0 = max(int(np.searchsorted(ts.bnd, a, side="right")) - 1, 0)
+            k1 = max(int(np.searchsorted(ts.bnd, b, side="left")), k0 + 1)
+            r = np.maximum(np.abs(ts.roll.lo[k0:k1]), np.abs(ts.roll.hi[k0:k1]))
+            tmax = min(tmax, math.tan(float(np.max(r))))
+        tilt[w] = tmax * _gyro_abs_dev(
             sig, a, b, lambda s, L=b - a: np.full(s.shape, 1.0 / L), c
         )
     return {"heading": head, "tilt": tilt, "earth": np.full(n, OMEGA)}
@@ -286,10 +311,31 @@ def gyro_z_ratios(ctx: Any, margins: Any) -> list[LevelRatio]:
 # excursion inside a gap.
 
 
-def accel_y_gravity(veh: Any) -> float:
-    """Gravity's share of accel_y: any tilt within the bound is consistent with the
-    inputs (kept in one function: the tilt model may change)."""
-    return G_MAX * math.sin(veh.max_tilt)
+def _kernel(a1: float, b1: float, a2: float, b2: float) -> Any:
+    """The window's kernel (boxcar on ``[a1, a2]`` or the trapezoid's ramps)."""
+    tau = 0.5 * (a2 + b2) - 0.5 * (a1 + b1)
+    l1, l2 = b1 - a1, b2 - a2
+
+    def k(s: np.ndarray) -> np.ndarray:
+        up_ = np.clip((s - a1) / l1, 0, 1) if l1 > 0 else (s >= a1).astype(float)
+        dn = np.clip((b2 - s) / l2, 0, 1) if l2 > 0 else (s <= b2).astype(float)
+        return np.minimum(up_, dn) / tau
+
+    return k
+
+
+def accel_y_gravity(veh: Any, ctx: Any = None, w: tuple[float, ...] = ()) -> float:
+    """Gravity's share of accel_y: any tilt within the bound (or within the roll pieces
+    of the channel's attitude variant over the window ``w = (a1, b1, a2, b2)``, times the
+    smallest cos(pitch): on the low side) is consistent with the inputs."""
+    ts = _tilt_of(ctx, "accel_y") if ctx is not None else None
+    if ts is None or not w:
+        return G_MAX * math.sin(veh.max_tilt)
+    a, b = w[0], w[3]
+    k0 = max(int(np.searchsorted(ts.bnd, a, side="right")) - 1, 0)
+    k1 = max(int(np.searchsorted(ts.bnd, b, side="left")), k0 + 1)
+    pm = float(np.max(np.maximum(np.abs(ts.pitch.lo[k0:k1]), np.abs(ts.pitch.hi[k0:k1]))))
+    return _pieces_gravity(ts.bnd, ts.roll.lo, ts.roll.hi, a, b, _kernel(*w), math.cos(pm))
 
 
 def _head_half(ag: Any, t: np.ndarray) -> np.ndarray:
@@ -424,7 +470,9 @@ def accel_y_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
             out["heave"][w] = veh.vertical_bound * _gyro_abs_dev(
                 sx, a, b, lambda s, L=b - a: np.full(s.shape, 1.0 / L), cx
             )
-    out["gravity"] = np.full(n, accel_y_gravity(veh))
+    out["gravity"] = np.array([
+        accel_y_gravity(veh, ctx, (float(lp.a1[w]), float(lp.b1[w]), float(lp.a2[w]),
+                                   float(lp.b2[w]))) for w in range(n)])
     return out
 
 

@@ -19,6 +19,7 @@ from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.attitude.consumers import attach as attach_attitude
+from imubounds.dynamic.estimator.attitude.rates import pair_plan
 from imubounds.dynamic.estimator.attitude.report import attitude_checks
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
@@ -194,6 +195,8 @@ class Context:
     tilt_for: dict[str, TiltSignals] = field(default_factory=dict)
     ends_for: dict[str, Any] = field(default_factory=dict)
     margin_builder: Any = None
+    #: the IMU's pitch against its path from the data (attitude/mount.py)
+    attitude_mount: Any = None
 
 
 def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
@@ -503,6 +506,12 @@ def _plan_windows(ctx: Context, states: bool = False) -> None:
                     reason="no attitude stream: the trip is analysed in the plane "
                     "(accel_z, gyro_x, gyro_y need roll and pitch)",
                 )
+    if states and not ag.has_attitude:
+        # gyro_x, gyro_y from the accelerometers' window pairs (attitude/rates.py)
+        for ch in ("gyro_x", "gyro_y"):
+            pp = pair_plan(plans, ch, ctx.E0["gyro_z"]) if imu.available[ch] else None
+            if pp is not None:
+                plans[ch] = pp
     level_counts = [0] * len(grid)
     for ch, p in plans.items():
         for li, lp in enumerate(p.levels):

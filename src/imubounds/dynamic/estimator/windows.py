@@ -93,8 +93,11 @@ class MarginBuilder(WindowContext):
         # both enclose the same kernel mean: the tighter of the two at every window (the
         # aided one where they contradict each other)
         kin = self.kin_cache.get((ch, id(lp)))
+        own = getattr(plan, "constraint", None)  # a plan with its own constraint
         if kin is not None:  # accel_x, accel_y: the kinematic part of the attitude pass
             x = kin + self.tilt.kmean(GRAVITY_OF[ch], lp, tau)
+        elif own is not None:
+            x = own(self, lp, tau)
         else:
             x = CONSTRAINTS[ch](self, plan, lp, tau)
         lo, hi = np.maximum(x.lo, veh.lo), np.minimum(x.hi, veh.hi)

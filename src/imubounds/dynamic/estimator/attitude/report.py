@@ -40,6 +40,9 @@ def _hw_deg(x: Any) -> np.ndarray:
 def attitude_checks(ctx: Any) -> None:
     """Violations of the states' checks, their budget rows and notes."""
     from imubounds.dynamic.estimator import violations as V
+    from imubounds.dynamic.estimator.attitude.mount import mount_checks
+
+    ctx.attitude_mount = mount_checks(ctx)
 
     st: AttitudeStates = ctx.attitude
     t0 = float(ctx.imu.t0)
@@ -116,6 +119,9 @@ def attitude_summary(ctx: Any, drive: Any) -> dict[str, Any] | None:
         for ch, v in VARIANT_OF.items()
     }
     out["variants"]["others"] = {"roll": "full", "pitch": "full", "uses": list(USES["full"])}
+    mount = getattr(ctx, "attitude_mount", None)
+    if mount is not None:
+        out["mount"] = mount
     out["checks"] = {"empty_windows": len(st.empty),
                      "chain_conflicts": int(sum(int(b.sum()) for b in st.chain_bad.values()))}
     if drive is not None and getattr(drive, "truth", None) is not None:
