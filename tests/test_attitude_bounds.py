@@ -177,7 +177,7 @@ def test_wired_pitch_encloses_the_truth_and_the_run_stays_sound(seed: int) -> No
     assert "altitude" in fam["gnss_position"]["what"]
     assert fam["gnss_position"]["count"] == 2 * r.drive.gnss.t.size
     # joined to existing families: no new one beyond the most the plan has
-    from imubounds.dynamic.aiding.course_check import ALPHA_FAMILIES_MAX
+    from imubounds.dynamic.sensors._course_check import ALPHA_FAMILIES_MAX
 
     assert set(fam) <= {"imu_samples", "imu_windows", "imu_changes", "imu_intervals",
                         "imu_turn_on", "imu_drift", "gnss_position", "gnss_velocity",

@@ -12,8 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import timing as TM
-from imubounds.dynamic.estimator import clock as CK
 from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
@@ -34,12 +32,10 @@ from imubounds.dynamic.estimator.budget import (
     sample_bound,
     wander_of,
 )
-from imubounds.dynamic.estimator.heading_input import HeadingInput
 from imubounds.dynamic.estimator.inputs import (
     Aiding,
     ImuSeries,
     Vehicle,
-    build_aiding,
     check_overlap,
     vehicle_from,
 )
@@ -58,6 +54,9 @@ from imubounds.dynamic.estimator.windows import (
     plan_channel,
     tau_grid,
 )
+from imubounds.dynamic.sensors import build_aiding
+from imubounds.dynamic.sensors import clocks as CK
+from imubounds.dynamic.sensors.heading import HeadingInput
 from imubounds.errors import InputError, OptionError
 from imubounds.units import DEG
 
@@ -179,7 +178,7 @@ class Context:
     level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
     #: failed checks of assumptions found while building the inputs (violations.py)
     violations: list[Any] = field(default_factory=list)
-    #: clock offsets of the aiding streams (aiding/timing.py)
+    #: clock offsets of the aiding streams (sensors/_timing.py)
     timing: dict[str, Any] = field(default_factory=dict)
 
 
@@ -280,16 +279,16 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     # intervals), the applied ones taken off the stamps before the aiding, the
     # windows and the smoother use them, and counted in that family
     def k_of(stream: str, n: int) -> float:
-        fam = TM.ALPHA_FAMILY.get(stream)
+        fam = CK.ALPHA_FAMILY.get(stream)
         if fam is None:
             return float(-ndtri(alpha.share() / 2 / n))
         return k_two_sided(alpha.share(), alpha.counts.get(fam, 0) + n)
 
     n_model = CK.model_events(heading)
-    drive, moved = TM.apply_offsets(drive, timing, k_of)
+    drive, moved = CK.apply_offsets(drive, timing, k_of)
     joined: dict[str, int] = {}
     for name, est in timing.items():
-        fam = TM.ALPHA_FAMILY.get(name)
+        fam = CK.ALPHA_FAMILY.get(name)
         if fam is not None and est.applied and est.method != "drive.yaml":
             joined[fam] = joined.get(fam, 0) + 1 + len(est.parts)
             alpha.counts[fam] = alpha.counts.get(fam, 0) + 1 + len(est.parts)
@@ -339,7 +338,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "the GNSS radius"
         )
     if CK.heading_clock_default(aiding, timing):
-        assumed.append(TM.heading_clock_assumption(timing))
+        assumed.append(CK.heading_clock_assumption(timing))
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,

@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle, build_aiding
+from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle
+from imubounds.dynamic.sensors import build_aiding
 from imubounds.errors import InputError
 from imubounds.units import DEG
 

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding.gps import cep_to_drms
 from imubounds.dynamic.scenario.config import ScenarioConfig
 from imubounds.dynamic.scenario.imu import k_level, truncated_normal
 from imubounds.dynamic.scenario.record import Check, check
 from imubounds.dynamic.scenario.trajectory import body_from_enu
+from imubounds.dynamic.sensors.gnss import cep_to_drms
 from imubounds.frames import model_to_compass, wrap_pi
 from imubounds.io.drive import (
     AttitudeStream,

@@ -1,7 +1,15 @@
-"""The stream clocks of mode ``full`` (docs/dynamic-method.md, section 5b "Clock
-offsets" and "Heading clock"): the offsets stated in drive.yaml or estimated from the
-data (:mod:`imubounds.dynamic.aiding.timing`), the heading's offset relative to the GNSS,
-and the default heading clock bound budgeted into the heading intervals.
+"""The clocks of the aiding streams (docs/dynamic-method.md, section 5b "Clock offsets" and
+"Heading clock"): the offsets stated in drive.yaml or estimated from the data, the
+heading's offset relative to the GNSS, and the default heading clock bound budgeted into
+the heading intervals.
+
+The surface of the stream clocks; the implementation beside it:
+
+* :mod:`._timing` -- a stream's offset against the IMU from its levels (heading, GNSS
+  course) against an integrated IMU reference, :class:`OffsetEstimate`, the heading
+  clock's turn allowance;
+* :mod:`._speed_clock` -- the body-velocity stream's offset against the forward
+  acceleration.
 """
 
 from __future__ import annotations
@@ -11,11 +19,44 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import speed_clock as SC
-from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
-from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import Aiding, Vehicle
+from imubounds.dynamic.sensors import _speed_clock as SC
+from imubounds.dynamic.sensors import _timing as TM
+from imubounds.dynamic.sensors._speed_clock import estimate_velocity
+from imubounds.dynamic.sensors._timing import (
+    ALPHA_FAMILY,
+    DEFAULT_HEADING_CLOCK_BOUND_S,
+    OffsetEstimate,
+    apply_offsets,
+    estimate_gnss,
+    estimate_heading,
+    heading_clock_assumption,
+    heading_clock_bound_s,
+    shifted,
+)
+from imubounds.dynamic.sensors.heading import HeadingInput, heading_input
+
+__all__ = [
+    "ALPHA_FAMILY",
+    "DEFAULT_HEADING_CLOCK_BOUND_S",
+    "OffsetEstimate",
+    "apply_offsets",
+    "budget_timing",
+    "clock_bound_events",
+    "clock_offsets",
+    "estimate_gnss",
+    "estimate_heading",
+    "estimate_velocity",
+    "heading_clock_allowance",
+    "heading_clock_assumption",
+    "heading_clock_bound_s",
+    "heading_clock_default",
+    "heading_stated",
+    "model_events",
+    "relative_offset",
+    "shifted",
+]
 
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.full import Context
@@ -27,7 +68,7 @@ def clock_offsets(
     """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
     ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
     stamps, the heading input, and every stream's offset (stated, or estimated from the
-    data: :mod:`imubounds.dynamic.aiding.timing`, applied by ``TM.apply_offsets``)."""
+    data: :mod:`imubounds.dynamic.sensors._timing`, applied by ``TM.apply_offsets``)."""
     st = drive.settings
     timing: dict[str, Any] = {}
     est: TM.OffsetEstimate | None
@@ -121,15 +162,13 @@ def heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     """The default heading clock bound ``b`` (:data:`TM_HEADING_BOUND_S`) budgeted into
     the heading intervals: the largest true turn within ``b`` of each epoch. With the
     gyro z bias taken from the heading stream over a window of ~20 s around the epoch
-    (:func:`~imubounds.dynamic.aiding.timing.local_swing`): the bias-corrected measured
+    (:func:`~imubounds.dynamic.sensors._timing.local_swing`): the bias-corrected measured
     turn x (1 + scale) + b x the bias's error from the heading's ends + k of the gyro
     noise's kernel (box of b minus its share of the window: the turn-on bias cancels,
     the flicker mostly) + the rate random walk and misalignment over b. Elsewhere (no
     window, gaps): the measured turn corrected by the centre of the windows' bias
     interval ``beta0``, + its half-width x b + k of the noise integrated over b
-    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
-    from imubounds.dynamic.aiding import timing as TM
-
+    (:func:`~imubounds.dynamic.sensors._timing.rate_allowance`). At most b x max rate."""
     ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
     if not heading_clock_default(ag, ctx.timing):
         return

@@ -27,12 +27,12 @@ from imubounds.frames import TWO_PI, wrap_pi
 from imubounds.geodesy import geodetic_to_enu
 
 if TYPE_CHECKING:
-    from imubounds.dynamic.aiding.compass import CompassHeading
+    from imubounds.dynamic.sensors._compass import CompassHeading
 
 #: the stated bound (s) on an undeclared clock offset of the heading stream against the
 #: IMU (drive.yaml heading.time_offset_s / time_offset_bound_s replace it); a larger
 #: offset is what the check against the GNSS course in the turns tests (re-exported by
-#: :mod:`imubounds.dynamic.aiding.timing`)
+#: :mod:`imubounds.dynamic.sensors._timing`)
 DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
 #: the most families mode full's alpha plan has (estimator/full.py: imu_samples,
 #: imu_windows, imu_changes, imu_intervals, imu_turn_on, imu_drift, gnss_position,
@@ -40,7 +40,7 @@ DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
 #: coefficients of :func:`estimate_heading_model` are counted in that family
 ALPHA_FAMILIES_MAX = 9
 #: room for the heading clock estimate's events the heading family also counts (the
-#: estimate and its references' parts, aiding/timing.py)
+#: estimate and its references' parts, sensors/_timing.py)
 HEADING_FAMILY_EXTRA = 4
 
 
