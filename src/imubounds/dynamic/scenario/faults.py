@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.sensors.gnss import cep_to_sigma
+
 
 def _copy(drive: Any) -> Any:
     return copy.deepcopy(drive)
@@ -88,7 +90,7 @@ def student_t(drive: Any, dof: float = 3.0, seed: int = 0) -> Any:
     d = _copy(drive)
     rng = np.random.default_rng(seed)
     n = d.gnss.t.size
-    s = d.settings.gnss.cep_m / math.sqrt(2 * math.log(2.0))
+    s = cep_to_sigma(d.settings.gnss.cep_m)
     scale = s * math.sqrt((dof - 2) / dof) if dof > 2 else s
     d.gnss.lat_deg = d.gnss.lat_deg.copy()
     d.gnss.lon_deg = d.gnss.lon_deg.copy()

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.dynamic.sensors.gnss import cep_to_sigma
 from imubounds.frames import TWO_PI, wrap_pi
 from imubounds.geodesy import geodetic_to_enu
 
@@ -115,7 +116,7 @@ def course_noise(
     t = g.t[ok]
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
     hd = np.where(np.isfinite(hd) & (hd > 0), hd, float(st.default_hdop))
-    s_ax = hd * float(st.cep_m) / math.sqrt(2.0 * math.log(2.0))
+    s_ax = cep_to_sigma(hd * float(st.cep_m))
     # chords of COURSE_CHORD fixes (not overlapping): the chord of an arc points along
     # its tangent at the middle, and its noise is COURSE_CHORD times smaller
     c = COURSE_CHORD

@@ -36,11 +36,63 @@ if TYPE_CHECKING:
 DEFAULT_BOX = "p=0.999"
 
 
+# ------------------------------------------------------------------ the error model
+#
+# The horizontal error of a fix is Gaussian, independent and of equal deviation sigma on
+# each axis; its radius is Rayleigh: P(radius > r) = exp(-r^2 / DRMS^2), DRMS = sqrt(2)
+# sigma, CEP (the median radius) = DRMS sqrt(ln 2). Every radius of the package is
+# rayleigh_factor() x DRMS (or x sigma), every conversion one of the functions below.
+
+
 def cep_to_drms(cep_m: float) -> float:
     """DRMS in m from CEP in m under the Rayleigh model: ``CEP/sqrt(ln 2)`` (= 1.201·CEP)."""
     if not (math.isfinite(cep_m) and cep_m > 0):
         raise OptionError(f"--gps-cep must be a positive number of metres, got {cep_m!r}")
     return cep_m / math.sqrt(math.log(2.0))
+
+
+def cep_to_sigma(cep_m: Any) -> Any:
+    """The 1-sigma error per horizontal axis (m) of a CEP (m, float or array, not checked):
+    ``CEP/sqrt(2 ln 2)`` (= 0.849·CEP)."""
+    return cep_m / math.sqrt(2.0 * math.log(2.0))
+
+
+def drms_to_sigma(drms_m: Any) -> Any:
+    """The 1-sigma error per horizontal axis (m) of a DRMS (m): ``DRMS/sqrt(2)``."""
+    return drms_m / math.sqrt(2.0)
+
+
+def sigma_to_drms(sigma_m: Any) -> Any:
+    """DRMS (m) of a 1-sigma error per horizontal axis (m, e.g. a receiver's ``h_acc_m``):
+    ``sqrt(2) sigma``."""
+    return math.sqrt(2.0) * sigma_m
+
+
+def rayleigh_factor(
+    *,
+    outside: float | None = None,
+    inside: float | None = None,
+    one_in: float | None = None,
+    per: str = "drms",
+) -> float:
+    """The Rayleigh radius exceeded with probability ``P`` over DRMS (``per="drms"``):
+    ``sqrt(-ln P)``; over the per-axis sigma (``per="sigma"``): ``sqrt(-2 ln P)``.
+
+    ``P`` is given as ``outside`` (a small share of alpha), as ``inside = 1 - P`` (a box
+    level such as 0.999: ``log1p`` keeps its digits) or as ``one_in = 1/P`` (a count over
+    alpha), each evaluated in the form exact for it; exactly one of the three."""
+    given = [x is not None for x in (outside, inside, one_in)]
+    if sum(given) != 1 or per not in ("drms", "sigma"):
+        raise ValueError("rayleigh_factor: give one of outside, inside, one_in; per drms|sigma")
+    if outside is not None:
+        if per == "sigma":
+            return math.sqrt(-2.0 * math.log(outside))
+        return math.sqrt(-math.log(outside))
+    if inside is not None:
+        ln_p = math.log1p(-inside)
+        return math.sqrt(-2.0 * ln_p) if per == "sigma" else math.sqrt(-ln_p)
+    assert one_in is not None
+    return math.sqrt(2.0 * math.log(one_in)) if per == "sigma" else math.sqrt(math.log(one_in))
 
 
 def mean_error(drms_m: float | np.ndarray) -> float | np.ndarray:
@@ -52,7 +104,7 @@ def radius_at_probability(drms_m: float | np.ndarray, p: float) -> float | np.nd
     """Radius in m holding the true position with probability ``p``: ``DRMS·sqrt(-ln(1-p))``."""
     if not (0.0 < p < 1.0):
         raise OptionError(f"GPS box probability must lie in (0, 1), got {p!r}")
-    return drms_m * math.sqrt(-math.log1p(-p))
+    return drms_m * rayleigh_factor(inside=p)
 
 
 @dataclass(frozen=True)
@@ -67,7 +119,7 @@ class GpsBoxSpec:
         if self.kind == "mean":
             return 0.5 * math.sqrt(math.pi)
         assert self.p is not None
-        return math.sqrt(-math.log1p(-self.p))
+        return rayleigh_factor(inside=self.p)
 
     def label(self) -> str:
         return "mean" if self.kind == "mean" else f"p={self.p:g}"
@@ -247,13 +299,13 @@ def gnss_position_boxes(
     if g.h_acc_m is not None:
         # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
         ha = g.h_acc_m[ok].astype(float)
-        drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
+        drms = np.where(np.isfinite(ha) & (ha > 0), sigma_to_drms(ha), drms)
     p = alpha.p_radial("gnss_position")
-    fac = math.sqrt(-math.log(p))
+    fac = rayleigh_factor(outside=p)
     lever = getattr(st, "lever_arm_m", None)
     lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
     ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
-    ag.gnss_sig = drms / math.sqrt(2.0)
+    ag.gnss_sig = drms_to_sigma(drms)
     ag.gnss_det = lev
     src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
     ag.budget["gnss_position"] = [
@@ -314,7 +366,7 @@ def gnss_velocity_boxes(
             # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
             # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
             p_v = alpha.p_radial("gnss_velocity")
-            k = math.sqrt(-2.0 * math.log(p_v))
+            k = rayleigh_factor(outside=p_v, per="sigma")
             ag.gvel_ok = good
             ag.gvel_e = np.where(good, ve, np.nan)
             ag.gvel_n = np.where(good, vn, np.nan)
