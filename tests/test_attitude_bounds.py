@@ -257,14 +257,14 @@ def test_comma2k19_pitch_from_gnss_does_not_run(shared_data: Path) -> None:
     from imubounds.cli.dynamic import load_drive
     from imubounds.dynamic.estimator import pitch_gnss as PG
     from imubounds.dynamic.estimator.budget import resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
     from imubounds.dynamic.estimator.inputs import ImuSeries, vehicle_from
+    from imubounds.dynamic.estimator.options import check_options
 
     drive = load_drive([str(shared_data / "dynamic" / "comma2k19_example1")])
     o = check_options({})
     veh, _ = vehicle_from(drive.settings, o)
     noise, _ = resolve_noise(drive.settings, None, o, None)
-    imu = ImuSeries.from_drive(drive, o["imu_stamp"], veh)
+    imu = ImuSeries.from_drive(drive, o.imu_stamp, veh)
     assert drive.gnss is not None and drive.gnss.alt_m is not None
     assert not PG.applicable(drive, veh, o, imu.available, noise)
 

@@ -65,7 +65,7 @@ LAG_TRIP = {"duration_s": 300.0, "distance_m": 3510.0, "rate_hz": 50.0}
 
 def _estimates(drive: object) -> dict[str, object]:
     from imubounds.dynamic.estimator.budget import k_two_sided, resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
+    from imubounds.dynamic.estimator.options import check_options
     from imubounds.dynamic.sensors import _speed_clock as SC
     from imubounds.dynamic.sensors import _timing as TM
     from imubounds.dynamic.sensors.heading import heading_input
@@ -148,7 +148,7 @@ K_SPEED = 3.26
 def _speed_estimate(drive: object, k: float = K_SPEED) -> object:
     """The body velocity's offset as mode full finalizes it (k, against exact stamps)."""
     from imubounds.dynamic.estimator.budget import resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
+    from imubounds.dynamic.estimator.options import check_options
     from imubounds.dynamic.sensors import _speed_clock as SC
     from imubounds.dynamic.sensors import _timing as TM
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from imubounds.interval import IntervalArray as IA
 from imubounds.interval.rounding import down as _dn
 from imubounds.interval.rounding import up as _up
 from imubounds.units import DEG
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 _U = 2.0**-53
 EARTH_RATE = 7.2921159e-5  #: rad/s
@@ -114,7 +117,7 @@ class Vehicle:
         return self.max_jerk if ch.startswith("accel") else self.max_ang_accel
 
 
-def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str]]:
+def vehicle_from(settings: Any, opts: FullOptions) -> tuple[Vehicle, list[str]]:
     """Vehicle bounds: options > drive.yaml (``vehicle``) > defaults (listed as assumed)."""
     vs = getattr(settings, "vehicle", None)
     assumed_in = list(getattr(settings, "assumed", []) or [])
@@ -131,8 +134,8 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         ("vertical_bound", "vertical_speed_bound_mps", 1.0, "vertical_speed_bound_mps"),
     )
     for attr, key, fac, opt in table:
-        if opt is not None and opts.get(opt) is not None:
-            setattr(v, attr, float(opts[opt]) * fac)
+        if opt is not None and getattr(opts, opt) is not None:
+            setattr(v, attr, float(getattr(opts, opt)) * fac)
             v.sources[attr] = "option"
             continue
         val = getattr(vs, key, None) if vs is not None else None
@@ -142,8 +145,8 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
             v.sources[attr] = "default (drive.yaml silent)" if assumed else "drive.yaml"
         else:
             v.sources[attr] = "default"
-    if opts.get("max_ang_accel_dps2") is not None:
-        v.max_ang_accel = float(opts["max_ang_accel_dps2"]) * DEG
+    if opts.max_ang_accel_dps2 is not None:
+        v.max_ang_accel = float(opts.max_ang_accel_dps2) * DEG
         v.sources["max_ang_accel"] = "option"
     else:
         v.sources["max_ang_accel"] = "default"

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,9 @@ from imubounds.dynamic.estimator.budget import Term, k_two_sided
 from imubounds.interval.rounding import down as _dn
 from imubounds.interval.rounding import up as _up
 from imubounds.units import DEG
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: spacing of the reference epochs (GNSS fixes taken as nodes), s
 REF_STEP_S = 1.0
@@ -81,7 +84,7 @@ class PitchBoxes:
 USEFUL_FRACTION = 0.5
 
 
-def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[str, bool],
+def applicable(drive: Any, vehicle: Any, opts: FullOptions, available: dict[str, bool],
                noise: dict[str, Any]) -> bool:
     """Whether the method runs, decided from the settings alone before the alpha plan
     (its events are counted then, whatever the data): a ground vehicle with a stated
@@ -96,11 +99,11 @@ def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[s
     g = drive.gnss
     if vehicle.kind != "ground" or vehicle.lateral_speed_bound_mps is None:
         return False
-    if opts.get("reverses") or not opts.get("use_gnss", True):
+    if opts.reverses or not opts.use_gnss:
         return False
-    if not opts.get("use_gnss_velocity", True) or not opts.get("use_gnss_altitude", True):
+    if not opts.use_gnss_velocity or not opts.use_gnss_altitude:
         return False
-    if drive.attitude is not None and opts.get("use_attitude", True):
+    if drive.attitude is not None and opts.use_attitude:
         return False
     if g is None or g.alt_m is None or g.velocity_ne() is None:
         return False

@@ -336,7 +336,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "epochs": int(sm.te.size),
             "rounds": sm.rounds,
             "sweeps": sm.sweeps,
-            "tolerance": float(ctx.opts["tol"]),
+            "tolerance": float(ctx.opts.tol),
             "links_dropped": int(np.sum(~sm.link)),
             "note": sm.beta_note,
         }

@@ -25,7 +25,7 @@ default stays only where nothing in the data bounds the quantity, and is then li
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,6 +33,9 @@ from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle
 from imubounds.dynamic.sensors import build_aiding
 from imubounds.errors import InputError
 from imubounds.units import DEG
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: an attitude stream beyond this tilt is refused (Euler angles near their singularity)
 TILT_LIMIT = 85.0 * DEG
@@ -170,7 +173,7 @@ def refine_vehicle(
     imu: ImuSeries,
     aiding: Aiding,
     alpha: Any,
-    opts: dict[str, Any],
+    opts: FullOptions,
     heading: Any,
 ) -> tuple[ImuSeries, Aiding, list[str]]:
     """:func:`bound_vehicle` on the built inputs; the IMU series and the aiding (whose

@@ -46,6 +46,7 @@ from imubounds.geodesy import course_over_ground, geodetic_to_enu, haversine_enu
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.budget import AlphaPlan
     from imubounds.dynamic.estimator.inputs import Vehicle
+    from imubounds.dynamic.estimator.options import FullOptions
 
 __all__ = [
     "CompassDeviation",
@@ -73,7 +74,7 @@ def build_aiding(
     t0: float,
     vehicle: Vehicle,
     alpha: AlphaPlan,
-    opts: dict[str, Any],
+    opts: FullOptions,
     heading: Any,
 ) -> Aiding:
     """Aiding intervals (IMU-free) with their budget rows, one builder per sensor.
@@ -82,7 +83,7 @@ def build_aiding(
     st = drive.settings
     ag = Aiding(origin=None)
     g = drive.gnss
-    if g is not None and opts.get("use_gnss", True):
+    if g is not None and opts.use_gnss:
         ok = g.usable()
         if np.any(ok):
             ok, lev = gnss_position_boxes(ag, g, ok, st, vehicle, alpha, opts, t0)

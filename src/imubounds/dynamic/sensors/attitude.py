@@ -15,15 +15,16 @@ from imubounds.units import DEG
 
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.inputs import Aiding, Vehicle
+    from imubounds.dynamic.estimator.options import FullOptions
 
 
 def attitude_bounds(
-    ag: Aiding, drive: Any, st: Any, vehicle: Vehicle, opts: dict[str, Any], t0: float
+    ag: Aiding, drive: Any, st: Any, vehicle: Vehicle, opts: FullOptions, t0: float
 ) -> None:
     """Roll/pitch intervals of an attitude stream, or the vehicle's max tilt."""
     att = drive.attitude
-    if att is not None and opts.get("use_attitude", True):
-        bd = opts.get("attitude_bound_deg")
+    if att is not None and opts.use_attitude:
+        bd = opts.attitude_bound_deg
         ag.att_bound = float(bd if bd is not None else st.attitude.bound_deg) * DEG
         ag.att_t = np.asarray(att.t, dtype=float) - t0
         ag.att_roll = np.asarray(att.roll_rad, dtype=float)

@@ -14,6 +14,7 @@ from imubounds.interval.rounding import up as _up
 
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.inputs import Aiding
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: body-velocity kinds measured at the wheels, and the scale-factor bound they get when
 #: ``velocity.scale`` is not stated: the rolling radius of a road tyre varies by 1-3 %
@@ -23,12 +24,12 @@ WHEEL_SCALE_DEFAULT = 0.03
 
 
 def body_velocity_boxes(
-    ag: Aiding, drive: Any, st: Any, opts: dict[str, Any], t0: float
+    ag: Aiding, drive: Any, st: Any, opts: FullOptions, t0: float
 ) -> None:
     """Body-velocity intervals (DVL, wheel/CAN speed): bound + scale x speed."""
     vel_s = drive.velocity
-    if vel_s is not None and opts.get("use_velocity", True):
-        bound = float(opts.get("velocity_bound") or st.velocity.bound_mps)
+    if vel_s is not None and opts.use_velocity:
+        bound = float(opts.velocity_bound or st.velocity.bound_mps)
         scale = float(st.velocity.scale)
         scale_src = "drive.yaml"
         if "velocity.scale" in drive.settings.defaulted and vel_s.kind in WHEEL_KINDS:
@@ -53,7 +54,7 @@ def body_velocity_boxes(
                 "bound",
                 bound,
                 "m/s",
-                "option" if opts.get("velocity_bound") else "drive.yaml",
+                "option" if opts.velocity_bound else "drive.yaml",
                 f"{vel_s.kind} body-velocity error per component",
             ),
             Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),

@@ -60,10 +60,11 @@ __all__ = [
 
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.full import Context
+    from imubounds.dynamic.estimator.options import FullOptions
 
 
 def clock_offsets(
-    drive: Any, o: dict[str, Any], noise: dict[str, Any] | None = None
+    drive: Any, o: FullOptions, noise: dict[str, Any] | None = None
 ) -> tuple[Any, HeadingInput | None, Any]:
     """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
     ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
@@ -78,26 +79,26 @@ def clock_offsets(
             est = TM.OffsetEstimate.stated(float(st.gnss.time_offset_s), float(b or 0.0))
             drive = TM.shifted(drive, "gnss", est)
         else:
-            est = TM.estimate_gnss(drive, o["imu_stamp"], noise)
+            est = TM.estimate_gnss(drive, o.imu_stamp, noise)
         if est is not None:
             timing["gnss"] = est
     heading = heading_stated(drive, o, timing)
     if heading is not None and heading.t.size:
         if "heading" not in timing:
-            est = TM.estimate_heading(drive, o["imu_stamp"], heading, noise)
+            est = TM.estimate_heading(drive, o.imu_stamp, heading, noise)
             if est is not None:
                 timing["heading"] = est
         rel = relative_offset(heading)
         if rel is not None:
             timing["heading_vs_gnss"] = rel
-    if drive.velocity is not None and o.get("use_velocity", True):
-        est = SC.estimate_velocity(drive, o["imu_stamp"], noise)
+    if drive.velocity is not None and o.use_velocity:
+        est = SC.estimate_velocity(drive, o.imu_stamp, noise)
         if est is not None:
             timing["velocity"] = est
     return drive, heading, timing
 
 
-def heading_stated(drive: Any, o: dict[str, Any], timing: dict[str, Any]) -> Any:
+def heading_stated(drive: Any, o: FullOptions, timing: dict[str, Any]) -> Any:
     """The heading input, with the offset stated in drive.yaml (``heading.time_offset_s``
     / ``time_offset_bound_s``) taken off its stamps and put in ``timing``."""
     heading = heading_input(drive, o)
@@ -179,7 +180,7 @@ def heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     other = gz.misalignment_rad * veh.max_rate * b
     th = ag.head_t + imu.t0
     # the local bias from the heading
-    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts["imu_stamp"])
+    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts.imu_stamp)
     turn, berr, ok = TM.local_swing(th, ag.head_c, ag.head_h, te, G, b, W, veh.max_rate,
                                     gz.scale)
     M = int(round(2 * W / imu.dt))

@@ -31,6 +31,7 @@ from imubounds.io.drive import DEFAULT_CEP_M, DEFAULT_HDOP  # the GNSS defaults,
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.budget import AlphaPlan
     from imubounds.dynamic.estimator.inputs import Aiding, Vehicle
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: Default probability level of the position box.
 DEFAULT_BOX = "p=0.999"
@@ -278,21 +279,21 @@ def miss_of(
 
 def gnss_position_boxes(
     ag: Aiding, g: Any, ok: np.ndarray, st: Any, vehicle: Vehicle, alpha: AlphaPlan,
-    opts: dict[str, Any], t0: float,
+    opts: FullOptions, t0: float,
 ) -> tuple[np.ndarray, float]:
     """GNSS position boxes (Rayleigh radius of each usable fix, plus the lever arm) and
     the GNSS outlier screen; returns the fixes kept and the horizontal lever arm (m)."""
     lat, lon = g.lat_deg[ok], g.lon_deg[ok]
     alt = g.alt_m[ok] if g.alt_m is not None else None
-    e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.get("geodesy", "wgs84"))
+    e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.geodesy)
     ag.origin = origin
     ag.gnss_t = np.asarray(g.t[ok], dtype=float) - t0
     ag.gnss_e, ag.gnss_n = e, n
     ag.gnss_alt = np.asarray(alt, float) if alt is not None else np.full(e.size, np.nan)
     va = getattr(g, "v_acc_m", None)
     ag.gnss_vacc = np.asarray(va[ok], float) if va is not None else np.full(e.size, np.nan)
-    cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
-    dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
+    cep = float(opts.gnss_cep_m or st.gnss.cep_m)
+    dflt = float(opts.default_hdop or st.gnss.default_hdop)
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
     hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
     drms = hd * cep_to_drms(cep)
@@ -307,7 +308,7 @@ def gnss_position_boxes(
     ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
     ag.gnss_sig = drms_to_sigma(drms)
     ag.gnss_det = lev
-    src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
+    src_cep = "option" if opts.gnss_cep_m else "drive.yaml"
     ag.budget["gnss_position"] = [
         Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
         Term(
@@ -354,15 +355,15 @@ def gnss_position_boxes(
 
 def gnss_velocity_boxes(
     ag: Aiding, g: Any, ok: np.ndarray, lev: float, st: Any, vehicle: Vehicle,
-    alpha: AlphaPlan, opts: dict[str, Any],
+    alpha: AlphaPlan, opts: FullOptions,
 ) -> None:
     """GNSS velocity radii of the kept fixes (Rayleigh, plus omega x lever)."""
     vel = g.velocity_ne()
-    if vel is not None and opts.get("use_gnss_velocity", True):
+    if vel is not None and opts.use_gnss_velocity:
         vn, ve = vel[0][ok], vel[1][ok]
         good = np.isfinite(vn) & np.isfinite(ve)
         if np.any(good):
-            sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
+            sig = float(opts.gnss_vel_sigma or st.gnss.vel_sigma_mps)
             # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
             # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
             p_v = alpha.p_radial("gnss_velocity")
@@ -372,7 +373,7 @@ def gnss_velocity_boxes(
             ag.gvel_n = np.where(good, vn, np.nan)
             sig_i = np.full(good.size, sig)
             va = getattr(g, "vel_acc_mps", None)
-            if va is not None and not opts.get("gnss_vel_sigma"):
+            if va is not None and not opts.gnss_vel_sigma:
                 va = np.asarray(va, dtype=float)[ok]
                 sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
             # a lever arm adds omega x lever to the antenna velocity
@@ -386,7 +387,7 @@ def gnss_velocity_boxes(
                     "velocity sigma per component",
                     sig,
                     "m/s",
-                    "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
+                    "option" if opts.gnss_vel_sigma else "drive.yaml",
                     "Gaussian error of north and east velocity",
                 ),
                 Term(

@@ -55,6 +55,7 @@ from imubounds.units import DEG
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.budget import AlphaPlan
     from imubounds.dynamic.estimator.inputs import Aiding, Vehicle
+    from imubounds.dynamic.estimator.options import FullOptions
 
 __all__ = [
     "ALPHA_FAMILIES_MAX",
@@ -110,7 +111,7 @@ class HeadingInput:
     model: dict[str, Any] | None = None
 
 
-def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
+def heading_input(drive: Any, opts: FullOptions) -> HeadingInput | None:
     """The heading source of a drive, through the one compass function
     :func:`imubounds.dynamic.sensors._compass.compass_heading` (calibration, declination
     and deviation bound from ``drive.yaml: heading``; ``--declination``,
@@ -126,7 +127,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
     if drive.heading is None and drive.mag is None and not ahrs_yaw:
         return None
     st = drive.settings.heading
-    cal = opts.get("compass_cal")
+    cal = opts.compass_cal
     if cal is not None:
         from imubounds.io.validate import check_input_path
 
@@ -134,16 +135,16 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
     try:
         ch = compass_heading(
             drive,
-            fit=opts.get("compass_fit"),
+            fit=opts.compass_fit,
             calibration=cal,
-            declination_deg=opts.get("declination_deg"),
-            deviation_deg=opts.get("heading_deviation_deg"),
-            alpha=float(opts.get("alpha") or 0.01),
+            declination_deg=opts.declination_deg,
+            deviation_deg=opts.heading_deviation_deg,
+            alpha=float(opts.alpha),
         )
     except (InputError, AnalysisError) as exc:
         explicit = (
             cal is not None
-            or opts.get("compass_fit") is not None
+            or opts.compass_fit is not None
             or not {"heading.fit", "heading.use"} <= set(drive.settings.defaulted)
         )
         if explicit:
@@ -156,7 +157,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
             source="none",
             notes=[f"heading sensor not used: {exc}"],
         )
-    noise = opts.get("heading_noise_deg")
+    noise = opts.heading_noise_deg
     noise_rad = float(noise) * DEG if noise is not None else float(ch.noise_sigma_rad)
     gain = 1.0
     for key in ("swing", "gnss_course"):
@@ -169,7 +170,7 @@ def heading_input(drive: Any, opts: dict[str, Any]) -> HeadingInput | None:
         # the estimated correction is evaluated at the noisy reading too
         gain *= float(model["noise_gain"])
     dev_src = f"compass_heading() ({ch.calibration})"
-    if opts.get("heading_deviation_deg") is not None:
+    if opts.heading_deviation_deg is not None:
         dev_src = "option"
     elif st.deviation_deg is not None:
         dev_src = "drive.yaml"
@@ -225,7 +226,7 @@ def heading_boxes(ag: Aiding, heading: Any, alpha: AlphaPlan, t0: float) -> None
     ]
 
 
-def course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
+def course_heading(ag: Aiding, vehicle: Vehicle, opts: FullOptions) -> None:
     """Heading from the GNSS course when there is no heading sensor: with the lateral
     velocity bound ``vl`` and a vehicle that does not reverse (the horizontal velocity
     points forward), ``|psi - chi| <= asin(vl / S)``; with the velocity radius ``R``,
@@ -235,7 +236,7 @@ def course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
     if vh is None:
         ag.notes.append("no heading sensor and no lateral velocity bound: no heading")
         return
-    if opts.get("reverses"):
+    if opts.reverses:
         ag.notes.append("the vehicle may reverse (--reverses): no heading from the GNSS course")
         return
     ok = ag.gvel_ok
