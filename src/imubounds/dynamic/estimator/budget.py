@@ -47,6 +47,7 @@ import numpy as np
 from scipy.signal import lfilter
 from scipy.special import ndtri
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.options import FullOptions, check_options
 from imubounds.errors import InputError, OptionError
 from imubounds.units import DEG
@@ -676,7 +677,7 @@ def _gm_row_excess(m: int, a: float) -> float:
     j = (m - 1) // 2
     left = -math.expm1(-a * (j + 1)) / q
     right = -math.expm1(-a * (m - j)) / q
-    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + 1e-12)
+    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + ROUND_REL)
 
 
 def centered_ms_bound(cn: ChannelNoise, m: int, dt: float, p: float) -> float:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.constants import EARTH_RATE, G_HI, G_LO, R_EARTH, ROUND_REL
 from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
@@ -43,10 +44,6 @@ from imubounds.dynamic.estimator.options import FullOptions, check_options
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
 from imubounds.dynamic.estimator.window_plan import epochs_near, plan_on_subset
 from imubounds.dynamic.estimator.windows import (
-    EARTH_RATE,
-    G_HI,
-    G_LO,
-    R_EARTH,
     ChannelMargins,
     ChannelPlan,
     MarginBuilder,
@@ -545,7 +542,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     eq1 = q_left + np.minimum(phi_max, 1.0) * q_fwd + D * (rot + bias_rot + cor)
 
     def widen(x: np.ndarray, e: np.ndarray) -> None:
-        e = np.nextafter(e * (1 + 1e-12), np.inf)
+        e = np.nextafter(e * (1 + ROUND_REL), np.inf)
         x[:, 0] = np.nextafter(x[:, 0] - e, -np.inf)
         x[:, 1] = np.nextafter(x[:, 1] + e, np.inf)
 

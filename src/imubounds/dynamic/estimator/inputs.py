@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import G_HI, ROUND_REL
+from imubounds.constants import UNIT_ROUNDOFF as _U
 from imubounds.dynamic.estimator import series_kernels as SK
 from imubounds.dynamic.estimator.budget import CHANNELS, Term
 from imubounds.errors import InputError, OptionError
@@ -36,8 +38,6 @@ from imubounds.units import DEG
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.options import FullOptions
 
-_U = 2.0**-53
-EARTH_RATE = 7.2921159e-5  #: rad/s
 
 
 class RangeExt:
@@ -105,7 +105,7 @@ class Vehicle:
     def signal_bound(self, ch: str) -> float:
         """|true signal| bound of a channel (for spans with no IMU sample); ``max_accel``
         bounds the horizontal acceleration including the centripetal part."""
-        g = 9.84
+        g = G_HI
         if ch in ("accel_x", "accel_y"):
             return self.max_accel + g * math.sin(self.max_tilt)
         if ch == "accel_z":
@@ -355,7 +355,7 @@ class PiecewiseSignal:
         else:
             AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * np.diff(self.bnd))])
             Ab, Aa = AB[ib + 1], AB[ia]
-        return (Ab - Aa) * (1 + 1e-12) + self.unknown_len(a, b) * self.xmax
+        return (Ab - Aa) * (1 + ROUND_REL) + self.unknown_len(a, b) * self.xmax
 
 
 @dataclass
@@ -597,7 +597,7 @@ class Aiding:
                 hi[has] = np.maximum(hi[has], mx + self.att_bound + dev)
             lo = np.maximum(lo, -cap)
             hi = np.minimum(hi, cap)
-            out += [_dn(lo * (1 + 1e-12) - 1e-15), _up(hi * (1 + 1e-12) + 1e-15)]
+            out += [_dn(lo * (1 + ROUND_REL) - 1e-15), _up(hi * (1 + ROUND_REL) + 1e-15)]
         return out[0], out[1], out[2], out[3]
 
     def tilt(self, t: np.ndarray, vehicle: Vehicle) -> tuple[Any, ...]:

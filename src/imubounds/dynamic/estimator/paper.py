@@ -40,6 +40,7 @@ from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.geodesy import course_over_ground, geodetic_to_enu
 from imubounds.io.drive import DEFAULT_CEP_M, DEFAULT_HDOP  # the GNSS defaults, defined once
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
+from imubounds.units import DEG
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")
 CHANNEL_UNITS = {"accel_x": "m/s^2", "accel_y": "m/s^2", "gyro_z": "rad/s"}
@@ -91,7 +92,7 @@ class EstimatorConfig:
     default_hdop: float = DEFAULT_HDOP
     geodesy: str = "wgs84"
     compass_mode: str = "corrected"
-    compass_floor_rad: float = 0.5 * math.pi / 180.0
+    compass_floor_rad: float = 0.5 * DEG
     compass_margin: float = 1.0
     deviation: CompassDeviation | None = None
     declination_rad: float = 0.0

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import G_HI, ROUND_REL
 from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle
 from imubounds.dynamic.sensors import build_aiding
 from imubounds.errors import InputError
@@ -54,7 +55,7 @@ def tilt_from_attitude(ag: Aiding, veh: Vehicle, span: tuple[float, float]) -> f
     gap = float(np.max(np.diff(at))) if at.size > 1 else 0.0
     far = max(float(at[0]) - span[0], 0.0) + max(span[1] - float(at[-1]), 0.0)
     b = m + ag.att_bound + veh.max_ang_accel * gap * gap / 8.0 + veh.max_rate * far
-    return float(np.nextafter(b * (1 + 1e-12), np.inf))
+    return float(np.nextafter(b * (1 + ROUND_REL), np.inf))
 
 
 def _grown(t: np.ndarray, s: np.ndarray, accel: float, span: tuple[float, float]) -> float:
@@ -102,7 +103,7 @@ def speed_from_aiding(
     if not cands:
         return None
     v, src = min(cands)
-    return float(np.nextafter(v * (1 + 1e-12), np.inf)), src
+    return float(np.nextafter(v * (1 + ROUND_REL), np.inf)), src
 
 
 def bound_vehicle(
@@ -209,7 +210,7 @@ def dominant_default(
     tilt = veh.max_tilt
     if ch == "accel_x" and pitch_halfwidth is not None:
         tilt = min(tilt, pitch_halfwidth)
-    grav = 9.84 * math.sin(tilt)
+    grav = G_HI * math.sin(tilt)
     if grav < 0.5 * halfwidth:
         return None
     if tilt < veh.max_tilt:

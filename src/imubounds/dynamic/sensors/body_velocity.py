@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.budget import Term
 from imubounds.interval.rounding import up as _up
 
@@ -47,7 +48,7 @@ def body_velocity_boxes(
         spd = np.abs(ag.bvel_u)
         if ag.bvel_v is not None:
             spd = np.hypot(spd, np.nan_to_num(ag.bvel_v))
-        ag.bvel_h = _up((bound + scale * spd) * (1 + 1e-12))
+        ag.bvel_h = _up((bound + scale * spd) * (1 + ROUND_REL))
         ag.bvel_kind = vel_s.kind
         ag.budget["velocity"] = [
             Term(

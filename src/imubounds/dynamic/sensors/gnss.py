@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.budget import Term
 from imubounds.errors import OptionError
 from imubounds.geodesy import geodetic_to_enu
@@ -305,7 +306,7 @@ def gnss_position_boxes(
     fac = rayleigh_factor(outside=p)
     lever = getattr(st, "lever_arm_m", None)
     lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
-    ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
+    ag.gnss_h = _up(drms * fac * (1 + ROUND_REL) + lev)
     ag.gnss_sig = drms_to_sigma(drms)
     ag.gnss_det = lev
     src_cep = "option" if opts.gnss_cep_m else "drive.yaml"
@@ -378,8 +379,8 @@ def gnss_velocity_boxes(
                 sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
             # a lever arm adds omega x lever to the antenna velocity
             lv_v = lev * vehicle.max_rate
-            ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
-            ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
+            ag.gvel_h = float(_up(np.float64(k * sig * (1 + ROUND_REL) + lv_v)))
+            ag.gvel_hi = _up(k * sig_i * (1 + ROUND_REL) + lv_v)
             ag.gvel_sig = sig_i
             ag.gvel_det = lv_v
             ag.budget["gnss_velocity"] = [

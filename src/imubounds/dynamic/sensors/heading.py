@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.budget import Term
 from imubounds.dynamic.estimator.inputs import lateral_h_bound
 from imubounds.dynamic.sensors._compass import (
@@ -201,7 +202,7 @@ def heading_boxes(ag: Aiding, heading: Any, alpha: AlphaPlan, t0: float) -> None
     cen = np.unwrap(np.asarray(compass_to_model(heading.heading_rad), dtype=float))
     ag.head_c = cen
     half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
-    ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
+    ag.head_h = _up(np.full(cen.size, half) * (1 + ROUND_REL))
     ag.head_sig = heading.noise_sigma_rad * heading.noise_gain
     ag.head_det = heading.deviation_bound_rad
     ag.head_source = heading.source
@@ -248,7 +249,7 @@ def course_heading(ag: Aiding, vehicle: Vehicle, opts: FullOptions) -> None:
         return
     s_u, R_u = s[use], R[use]
     e_chi = np.arcsin(np.minimum(1.0, R_u / s_u))
-    d = np.arcsin(np.minimum(1.0, vh / ((s_u - R_u) * (1 - 1e-12))))
+    d = np.arcsin(np.minimum(1.0, vh / ((s_u - R_u) * (1 - ROUND_REL))))
     half = _up((e_chi + d) * (1 + 1e-9) + 1e-15)
     chi = np.arctan2(vn[use], ve[use])
     ag.head_t = ag.gnss_t[use]
