@@ -1,4 +1,5 @@
-"""Residual checks of the aiding against the smoothed states (issue 27, items 3 and 5).
+"""Residual checks of the aiding against the smoothed states (docs/dynamic-method.md,
+section 5b).
 
 After the smoother, every aiding measurement ``z_i`` (a GNSS fix's east and north, a
 GNSS velocity's components, a compass heading) is compared with the centre ``c_i`` of

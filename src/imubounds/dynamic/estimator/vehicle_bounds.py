@@ -1,4 +1,5 @@
-"""Vehicle bounds from the aiding sensors' own intervals (issue 24, item 1).
+"""Vehicle bounds from the aiding sensors' own intervals (docs/dynamic-method.md, section 1,
+"Vehicle bounds from the data").
 
 The windows and the smoother need bounds of the vehicle's speed and tilt over the whole
 trip. Where the drive has a sensor that bounds the quantity, the bound comes from that

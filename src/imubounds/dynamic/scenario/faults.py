@@ -1,4 +1,6 @@
-"""Real-sensor faults injected into a simulated drive (issue 27's fault suite).
+"""Real-sensor faults injected into a simulated drive (the fault suite of
+tests/test_dynamic_faults.py and benchmarks/sweep_faults.py; docs/dynamic-method.md,
+section 5b).
 
 Each function returns a copy of the :class:`~imubounds.io.drive.Drive` with one stream
 perturbed the way a real sensor is, as if its file had been edited (``time_s`` shifted,
