@@ -30,10 +30,11 @@ sys.path.insert(0, str(REPO))
 
 
 def one(seed: int, preset: str, rate: float, duration: float) -> dict[str, Any]:
+    from tests.tightness_reference import accel_x_ratios, accel_y_ratios, gyro_z_ratios
+
     from imubounds.dynamic.estimator.full import run_full
     from imubounds.dynamic.estimator.result import full_summary
     from imubounds.dynamic.scenario import make_trip
-    from tests.tightness_reference import accel_x_ratios, accel_y_ratios, gyro_z_ratios
 
     res = make_trip("hills", seed=seed, aiding=("gnss", "gnss-vel"), imu_preset=preset,
                     gps_rate_hz=rate, duration_s=duration, distance_m=duration * 11.87,

@@ -25,11 +25,11 @@ EVENTS_PER_WINDOW = 10
 EVENTS_PER_LINK = 8
 
 
-def applicable(opts: dict[str, Any], available: dict[str, bool]) -> bool:
+def applicable(opts: Any, available: dict[str, bool]) -> bool:
     """Whether the attitude states run, from the settings alone (before the alpha plan,
     so that their events are counted whatever the data): every gyro and accel_x,
     accel_y available, and not turned off (``attitude_states=False``)."""
-    if not opts.get("attitude_states", True):
+    if not getattr(opts, "attitude_states", True):
         return False
     return all(available.get(ch, False)
                for ch in ("accel_x", "accel_y", "gyro_x", "gyro_y", "gyro_z"))

@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import G_HI, G_LO, pm
+from imubounds.constants import G_HI, G_LO
+from imubounds.dynamic.estimator.aided.base import pm
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals
 from imubounds.dynamic.estimator.band import level_band
 from imubounds.interval import IntervalArray as IA

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE
+from imubounds.constants import EARTH_RATE
 
 GYROS = ("gyro_x", "gyro_y", "gyro_z")
 #: a lower bound of the Earth's radius (m): the local level frame turns at most at

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, G_LO, R_EARTH, pm, up
+from imubounds.constants import EARTH_RATE, G_HI, G_LO, R_EARTH
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.band import change_band
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan
 from imubounds.interval import IntervalArray as IA
