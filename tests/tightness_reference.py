@@ -168,7 +168,7 @@ def accel_x_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
                 speed = float(np.max(sp[ia : ib + 1]))
                 vmax = vl if vl is not None else speed
 
-            def kern(s: np.ndarray, tau=tau) -> np.ndarray:
+            def kern(s: np.ndarray, a1=a1, b1=b1, b2=b2, tau=tau) -> np.ndarray:
                 return np.full(s.shape, 1.0 / tau)
 
         c = _support_centre(sig, ag, a1, b2)
