@@ -56,6 +56,25 @@ def one(seed: int, preset: str, rate: float, duration: float) -> dict[str, Any]:
         y = res.truth[ax][ok]
         out[f"{ax}_pieces_inside"] = float(np.mean((a.pieces.lo[kk] <= y) & (y <= a.pieces.hi[kk])))
         out[f"{ax}_median_deg"] = float(np.degrees(np.median(0.5 * (a.nodes.hi - a.nodes.lo))))
+    # heading: the smoother's model heading (ENU, from east counter-clockwise) against the
+    # truth's yaw (the same convention), modulo 2 pi; a node without an interval is a miss
+    sm = run.smoother
+    psi_lo, psi_hi = sm.X[:, 4, 0], sm.X[:, 4, 1]  # smoother.PSI
+    yaw = np.interp(sm.te, t_true, np.unwrap(res.truth["yaw"]))
+    mid = 0.5 * (psi_lo + psi_hi)
+    fin = np.isfinite(mid)
+    yy = yaw + 2 * np.pi * np.round((np.where(fin, mid, yaw) - yaw) / (2 * np.pi))
+    out["heading_finite"] = float(np.mean(fin))
+    out["heading_nodes_inside"] = float(np.mean(fin & (psi_lo <= yy) & (yy <= psi_hi)))
+    hw = 0.5 * (psi_hi - psi_lo)
+    out["heading_median_deg"] = float(np.degrees(np.median(np.where(fin, hw, np.inf))))
+    out["margins_10s"] = {}
+    for ch, m in run.margins.items():
+        lv = [lr for lr in m.levels if lr.tau_s >= 10.0]
+        if lv:
+            lr = lv[0]
+            e = 0.5 * (np.asarray(lr.x_hi) - np.asarray(lr.x_lo))
+            out["margins_10s"][ch] = [round(float(lr.tau_s), 3), float(np.median(e))]
     ratios = {}
     for ch, fn in (("accel_x", accel_x_ratios), ("accel_y", accel_y_ratios)):
         rows = fn(run.ctx, run.margins[ch], min_tau_s=10.0)
@@ -88,7 +107,8 @@ def main() -> None:
             print(json.dumps(r), flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
-    enc = [all(r[k] == 1.0 for k in r if k.endswith("_inside") and k != "windows_inside")
+    enc = [all(r[k] == 1.0 for k in r if k.endswith("_inside") and k != "windows_inside"
+               and not (k == "heading_nodes_inside" and not r["guaranteed"]))
            and all(v in (None, 1.0) for v in r["windows_inside"].values()) for r in rows]
     false_w = sum(1 for r in rows if r["clean"] and not r["guaranteed"])
     worst = max((v for r in rows for ch in r["ratios"].values() for v in ch.values()),
@@ -96,6 +116,7 @@ def main() -> None:
     print(f"trips {len(rows)} enclosed_all {sum(enc)} false_withdrawals {false_w} "
           f"roll_median_deg {np.median([r['roll_median_deg'] for r in rows]):.3g} "
           f"pitch_median_deg {np.median([r['pitch_median_deg'] for r in rows]):.3g} "
+          f"heading_median_deg {np.median([r['heading_median_deg'] for r in rows]):.3g} "
           f"worst_ratio {worst:.3g}")
 
 
