@@ -122,6 +122,24 @@ def imu_stamp_start(drive: Any) -> Any:
     return d
 
 
+def imu_mount_pitch(drive: Any, pitch_deg: float = 1.0) -> Any:
+    """The IMU pitched ``pitch_deg`` nose up on its mount (a fixed rotation about the body
+    y axis: every accelerometer and gyro vector read in the pitched axes), undeclared:
+    drive.yaml's misalignment bound removed, so the estimator's default bound applies
+    (docs/dynamic-method.md section 3b, "Mount")."""
+    import dataclasses
+
+    d = _copy(drive)
+    b = math.radians(pitch_deg)
+    c, s = math.cos(b), math.sin(b)
+    rot = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])  # body -> pitched axes
+    d.imu.accel = np.asarray(d.imu.accel, float) @ rot.T
+    d.imu.gyro = np.asarray(d.imu.gyro, float) @ rot.T
+    imu = dataclasses.replace(d.settings.imu, misalignment_deg=None)
+    d.settings = dataclasses.replace(d.settings, imu=imu)
+    return d
+
+
 #: name -> (function, keyword arguments) of the fault suite's cases
 FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "gnss_lag_0.1": (gnss_lag, {"lag_s": 0.1}),
@@ -148,4 +166,5 @@ FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "student_t": (student_t, {"dof": 3.0}),
     "lever_arm_1.5": (lever_arm, {"length_m": 1.5}),
     "imu_stamp_start": (imu_stamp_start, {}),
+    "imu_mount_pitch_1": (imu_mount_pitch, {"pitch_deg": 1.0}),
 }
