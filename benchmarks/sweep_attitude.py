@@ -30,7 +30,12 @@ sys.path.insert(0, str(REPO))
 
 
 def one(seed: int, preset: str, rate: float, duration: float) -> dict[str, Any]:
-    from tests.tightness_reference import accel_x_ratios, accel_y_ratios, gyro_z_ratios
+    from tests.tightness_reference import (
+        accel_x_ratios,
+        accel_y_ratios,
+        gyro_z_ratios,
+        tilt_floor,
+    )
 
     from imubounds.dynamic.estimator.full import run_full
     from imubounds.dynamic.estimator.result import full_summary
@@ -68,6 +73,14 @@ def one(seed: int, preset: str, rate: float, duration: float) -> dict[str, Any]:
     out["heading_nodes_inside"] = float(np.mean(fin & (psi_lo <= yy) & (yy <= psi_hi)))
     hw = 0.5 * (psi_hi - psi_lo)
     out["heading_median_deg"] = float(np.degrees(np.median(np.where(fin, hw, np.inf))))
+    # the vehicle's jerk bound minus the truth's (the floor's adversary uses the rest)
+    acc = np.asarray(res.truth["acc_enu"], float)
+    jerk = np.linalg.norm(np.diff(acc, axis=0), axis=1) / np.diff(res.truth["t"])
+    slack = run.ctx.vehicle.max_jerk - float(np.max(jerk))
+    out["jerk_slack"] = slack
+    for ax, ch in (("pitch", "accel_x"), ("roll", "accel_y")):
+        fl = tilt_floor(run.ctx, ch, jerk_slack=slack)
+        out[f"{ax}_floor_deg"] = {k: round(float(np.degrees(v)), 3) for k, v in fl.items()}
     out["margins_10s"] = {}
     for ch, m in run.margins.items():
         lv = [lr for lr in m.levels if lr.tau_s >= 10.0]

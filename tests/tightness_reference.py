@@ -479,3 +479,59 @@ def accel_y_limits(ctx: Any, plan: Any, lp: Any) -> dict[str, np.ndarray]:
 def accel_y_ratios(ctx: Any, margins: Any, min_tau_s: float = 0.0) -> list[LevelRatio]:
     """:func:`_level_ratios` of accel_y."""
     return _level_ratios(ctx, margins, "accel_y", accel_y_limits, min_tau_s)
+
+
+# ---------------------------------------------------------------- attitude floor
+# docs/dynamic-method.md section 3b, "What no method can do": an independent lower
+# bound of the roll/pitch half-width any sound method can reach from the stated budget.
+# The adversary: an alternative trajectory whose tilt differs from the true one by a
+# constant e in the level frame (|e| = D/g). In the body frame e turns with the heading,
+# e_b(t) = R(psi(t) - psi_0) e, and the accelerometers read g e_b(t) more: a bias wander
+# of at most |e| g = D per component, which the stated drift bound D (the mean wander over
+# any window of at least its window) allows; the gyros differ by at most r_max |e|
+# (the yaw rate carrying the offset), which the gyros' drift bound allows when it is at
+# least that. Every aiding measurement is unchanged (positions, velocities, course).
+# The wander changes between adjacent windows by at most D |delta psi| (the heading change
+# between them): within the change test's band wherever that is at least so.
+# On a straight span the turn-on bound b_TO adds (a body-fixed constant is then also a
+# level-frame one): asin((b_TO + D) / g) there.
+
+
+def tilt_floor(ctx: Any, ch: str = "accel_x", jerk_slack: float | None = None) -> dict[str, float]:
+    """Lower bounds (rad) of the half-width of the angle the accelerometer ``ch`` sees of
+    gravity (pitch for accel_x, roll for accel_y) that any sound method reaches from the
+    run's budget (``ctx.noise``) and aiding, at every epoch:
+
+    * ``wander``: ``asin(D / g_max)`` (the constant level-frame offset above), 0 where a
+      drift bound is not stated or the gyros' drift bound is below ``r_max |e|``;
+    * ``straight``: ``asin((b_TO + D) / g_max)`` on a span that does not turn;
+    * ``velocity``: ``sqrt(R D_eff / g_max)``: an alternative trajectory that tilts by a
+      triangle wave ``e(t)`` of amplitude A and period P and accelerates by ``g e(t)``
+      horizontally reads the same specific force; its velocity differs by at most
+      ``g A P / 4 <= R`` (R the smallest GNSS velocity radius of the fixes) and its gyro by
+      ``4 A / P <= D_eff`` (the gyros' drift bound, and the jerk slack over g:
+      ``jerk_slack`` the vehicle's jerk bound minus the truth's largest, by default the
+      whole bound), so ``A = sqrt(R D_eff / g)`` at the best P (positions differ by at most
+      ``R P / 8``, below any fix's box here);
+    * ``turning``: ``wander + velocity`` (the two adversaries add, to first order)."""
+    cn = ctx.noise[ch]
+    gy = [ctx.noise[g] for g in ("gyro_x", "gyro_y")]
+    D = cn.drift_bound
+    dg = [g.drift_bound for g in gy]
+    out = {"wander": 0.0, "straight": 0.0, "velocity": 0.0, "turning": 0.0}
+    if D is None or any(x is None for x in dg):
+        return out
+    dmin = min(float(x) for x in dg if x is not None)
+    e = math.asin(min(1.0, D / G_MAX))
+    if dmin >= ctx.vehicle.max_rate * e:
+        b = cn.turn_on_bound(0.0) if cn.turn_on_kind == "bound" else 0.0
+        out["wander"] = e
+        out["straight"] = math.asin(min(1.0, (b + D) / G_MAX))
+    ag = ctx.aiding
+    if ag.has_gvel:
+        R = float(np.min(ag.gvel_hi[ag.gvel_ok]))
+        js = ctx.vehicle.max_jerk if jerk_slack is None else max(0.0, jerk_slack)
+        d_eff = min(dmin, js / G_MAX)
+        out["velocity"] = math.sqrt(R * d_eff / G_MAX)
+    out["turning"] = out["wander"] + out["velocity"]
+    return out
