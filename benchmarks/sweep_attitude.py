@@ -64,6 +64,7 @@ def one(seed: int, preset: str, rate: float, duration: float) -> dict[str, Any]:
     # heading: the smoother's model heading (ENU, from east counter-clockwise) against the
     # truth's yaw (the same convention), modulo 2 pi; a node without an interval is a miss
     sm = run.smoother
+    assert sm is not None
     psi_lo, psi_hi = sm.X[:, 4, 0], sm.X[:, 4, 1]  # smoother.PSI
     yaw = np.interp(sm.te, t_true, np.unwrap(res.truth["yaw"]))
     mid = 0.5 * (psi_lo + psi_hi)

@@ -309,3 +309,50 @@ def test_states_are_not_narrower_than_the_floor(industrial: Any) -> None:
         hw = 0.5 * (a.hi - a.lo)
         assert fl["turning"] > 0.0
         assert float(np.min(hw)) >= fl["turning"], (ax, float(np.min(hw)), fl)
+
+
+#: the control's scale: the realised change uses about 20 % of the half-width here (the
+#: GNSS velocity errors near 1 sigma against their 4.5-sigma radius)
+SCALE = 0.15
+
+
+def test_joint_changes_hold_the_true_change_and_narrow_the_test(industrial: Any) -> None:
+    """(3b.10): the change of the true kernel mean between adjacent windows of accel_x
+    and accel_y (from the simulator's noiseless period means, summed here) lies inside the
+    joint interval at every pair; the joint interval is narrower than the windows'
+    difference at the median, and scaled down to 15 % of its half-width about its centre
+    it leaves the truth outside somewhere (the check can fail)."""
+    res, run, _ = industrial
+    t0 = float(run.ctx.imu.t0)
+    tt = np.asarray(res.truth["t"], float) - t0
+    dt = float(np.median(np.diff(tt)))
+    for j, ch in ((0, "accel_x"), (1, "accel_y")):
+        m = np.asarray(res.truth["accel_mean"], float)[:, j]
+        F = np.concatenate([[0.0], np.cumsum(m * dt)])
+        bnd = np.concatenate([[tt[0] - dt], tt])  # period ends (stamps at the end)
+        used = narrower = missed = 0
+        worst = 0.0
+        for lr in run.margins[ch].levels:
+            if lr.dx_lo.size == 0:
+                continue
+            fin = np.isfinite(lr.dx_lo) & np.isfinite(lr.dx_hi)
+            if not fin.any():
+                continue
+            p1, p2 = lr.p1[fin], lr.p2[fin]
+            a1, b1 = lr.t_start[p1], lr.t_start[p1] + lr.tau[p1]
+            a2, b2 = lr.t_start[p2], lr.t_start[p2] + lr.tau[p2]
+            mean1 = (np.interp(b1, bnd, F) - np.interp(a1, bnd, F)) / (b1 - a1)
+            mean2 = (np.interp(b2, bnd, F) - np.interp(a2, bnd, F)) / (b2 - a2)
+            d = mean2 - mean1
+            lo, hi = lr.dx_lo[fin], lr.dx_hi[fin]
+            tol = 1e-9 * (1 + np.abs(d))
+            assert np.all((lo - tol <= d) & (d <= hi + tol)), (ch, lr.tau_s, d, lo, hi)
+            c, r = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            missed += int(np.sum(np.abs(d - c) > SCALE * r))
+            worst = max(worst, float(np.max(np.abs(d - c) / r)))
+            xw = 0.5 * (lr.x_hi - lr.x_lo)
+            narrower += int(np.sum(r < xw[p1] + xw[p2]))
+            used += int(fin.sum())
+        assert used > 20, (ch, used)
+        assert narrower > 0.5 * used, (ch, narrower, used)
+        assert missed > 0, (ch, worst)

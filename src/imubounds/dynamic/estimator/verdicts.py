@@ -58,15 +58,39 @@ class LevelResult:
     p2: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     c_band: np.ndarray = field(default_factory=lambda: np.zeros(0))
     c_k: float = 0.0
+    #: ``[x_W2 - x_W1]`` over the pairs computed jointly (the tilt change from the gyros,
+    #: docs/dynamic-method.md section 3b, (3b.10)); empty: the difference of the windows'
+    dx_lo: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    dx_hi: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def d_lo(self) -> np.ndarray:
-        """Lower end of ``[E_W2] - [E_W1]`` over the adjacent pairs."""
-        return np.nextafter(self.e_lo[self.p2] - self.e_hi[self.p1], -np.inf)
+        """Lower end of ``[E_W2] - [E_W1]`` over the adjacent pairs (met with the joint
+        change where there is one)."""
+        lo = np.nextafter(self.e_lo[self.p2] - self.e_hi[self.p1], -np.inf)
+        if self.dx_hi.size == lo.size and lo.size:
+            alt = np.nextafter(self.y_lo[self.p2] - self.y_hi[self.p1] - self.dx_hi, -np.inf)
+            lo = np.maximum(lo, np.where(self._joint_ok, alt, -np.inf))
+        return lo
 
     @property
     def d_hi(self) -> np.ndarray:
-        return np.nextafter(self.e_hi[self.p2] - self.e_lo[self.p1], np.inf)
+        hi = np.nextafter(self.e_hi[self.p2] - self.e_lo[self.p1], np.inf)
+        if self.dx_lo.size == hi.size and hi.size:
+            alt = np.nextafter(self.y_hi[self.p2] - self.y_lo[self.p1] - self.dx_lo, np.inf)
+            hi = np.minimum(hi, np.where(self._joint_ok, alt, np.inf))
+        return hi
+
+    @property
+    def _joint_ok(self) -> np.ndarray:
+        """Pairs whose joint change meets the windows' difference (where it does not, the
+        windows' difference is kept: both enclose the same change unless an input bound
+        fails, which the window checks report)."""
+        lo = self.e_lo[self.p2] - self.e_hi[self.p1]
+        hi = self.e_hi[self.p2] - self.e_lo[self.p1]
+        alo = self.y_lo[self.p2] - self.y_hi[self.p1] - self.dx_hi
+        ahi = self.y_hi[self.p2] - self.y_lo[self.p1] - self.dx_lo
+        return np.asarray((np.maximum(lo, alo) <= np.minimum(hi, ahi)), dtype=bool)
 
     @property
     def c_exceeds(self) -> np.ndarray:
@@ -75,7 +99,10 @@ class LevelResult:
     @property
     def c_decidable(self) -> np.ndarray:
         xw = 0.5 * (self.x_hi - self.x_lo)
-        return xw[self.p1] + xw[self.p2] <= self.c_band
+        w = xw[self.p1] + xw[self.p2]
+        if self.dx_lo.size == w.size and w.size:
+            w = np.minimum(w, np.where(self._joint_ok, 0.5 * (self.dx_hi - self.dx_lo), np.inf))
+        return w <= self.c_band
 
     @property
     def e_lo(self) -> np.ndarray:

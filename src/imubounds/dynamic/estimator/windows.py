@@ -30,6 +30,7 @@ from imubounds.dynamic.estimator.aided.tilt import TiltSignals, build_tilt
 from imubounds.dynamic.estimator.aided.vehicle import GRAVITY_OF, vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.aided.yaw import gyro_z
+from imubounds.dynamic.estimator.attitude.changes import pair_change
 from imubounds.dynamic.estimator.band import change_band, level_band
 from imubounds.dynamic.estimator.budget import UNITS, k_two_sided
 from imubounds.dynamic.estimator.vehicle_bounds import (
@@ -132,10 +133,14 @@ class MarginBuilder(WindowContext):
             xh = np.where(np.isfinite(x.hi), x.hi, np.inf)
             c_band = np.zeros(0)
             c_k = 0.0
+            dx = None
             if lp.n_pairs and lp.kind == "aided":
                 gc = self.ctx.level_index_changes[(ch, li)]
                 c_k = self.ctx.alpha.k_level("imu_changes", gc)
                 c_band = change_band(self, ch, lp, tau, c_k)
+                kin = self.kin_cache.get((ch, id(lp)))
+                if kin is not None:  # the tilt change from the gyros (attitude/changes.py)
+                    dx = pair_change(self, ch, lp, tau, kin)
             levels.append(
                 LevelResult(
                     tau_s=lp.tau_s,
@@ -153,6 +158,7 @@ class MarginBuilder(WindowContext):
                     p2=lp.p2 if c_band.size else np.zeros(0, np.int64),
                     c_band=c_band,
                     c_k=c_k,
+                    **({} if dx is None else {"dx_lo": dx.lo, "dx_hi": dx.hi}),
                 )
             )
         verdict, reason, exc, n_exc = verdict_of(levels)

@@ -39,6 +39,9 @@ def interval_events(n_epochs: int) -> int:
     """An upper bound of the events the states add to ``imu_intervals``: the windows of
     accel_x's and accel_y's plans of at least ``gravity.MIN_PERIODS`` aiding periods
     (windows every half their length over octave levels: at most ``n_epochs`` per
-    angle) and every link between the epochs."""
+    angle), every link between the epochs and the change pairs of :mod:`.changes`."""
     n = max(int(n_epochs), 1)
-    return EVENTS_PER_WINDOW * 2 * n + EVENTS_PER_LINK * (n - 1)
+    # + the change pairs of accel_x and accel_y (attitude/changes.py: at most one per epoch
+    # and channel over the levels, plus one per level)
+    pairs = 2 * (n + 64)
+    return EVENTS_PER_WINDOW * (2 * n + pairs) + EVENTS_PER_LINK * (n - 1)

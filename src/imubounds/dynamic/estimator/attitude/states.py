@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.estimator.attitude import kernels as K
 from imubounds.dynamic.estimator.attitude.gravity import GravityWindows, gravity_windows
 from imubounds.dynamic.estimator.attitude.gyro_terms import GyroTerms, edge_error, gyro_terms
 from imubounds.dynamic.estimator.attitude.solve import (
@@ -52,6 +53,18 @@ SOLVED = {"full": ("pitch", "roll"), "nox": ("roll",), "noy": ("pitch",)}
 
 
 @dataclass
+class GyroWalk:
+    """The gyro terms, gyro_z's step tables, the error coefficients, the largest sin(tilt)
+    and the edge error: what :func:`.kernels.window_terms` needs for any window."""
+
+    g: GyroTerms
+    tab: np.ndarray
+    coef: np.ndarray
+    s_inf: float
+    edge: Any
+
+
+@dataclass
 class AttitudeStates:
     """Node intervals at the epochs ``te`` and pieces on the links, per variant."""
 
@@ -63,6 +76,8 @@ class AttitudeStates:
     windows: dict[str, GravityWindows]
     empty: list[tuple[str, float, float]] = field(default_factory=list)
     chain_bad: dict[str, np.ndarray] = field(default_factory=dict)
+    #: what walks the gyros from a node over a window (:mod:`.changes`)
+    walk: Any = None
 
     def angle(self, axis: str, variant: str) -> AngleResult:
         return (self.roll if axis == "roll" else self.pitch)[variant]
@@ -126,6 +141,7 @@ def build_states(ctx: Any, mb: Any, constraints: dict[str, Any]) -> AttitudeStat
         pitch={**{v: s.pitch for v, s in sols.items()}, "prior": AngleResult(p_n, p_l),
                "prior_no_gnss": AngleResult(pg_n, pg_l)},
         windows=gw,
+        walk=GyroWalk(g, K.step_tables(g.bnd, g.y["gyro_z"]), coef, s_inf, edge),
     )
     full = sols["full"]
     for wid in np.unique(full.bad_windows):
