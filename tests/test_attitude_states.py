@@ -317,7 +317,7 @@ SCALE = 0.15
 
 
 def test_joint_changes_hold_the_true_change_and_narrow_the_test(industrial: Any) -> None:
-    """(3b.10): the change of the true kernel mean between adjacent windows of accel_x
+    """(3b.9): the change of the true kernel mean between adjacent windows of accel_x
     and accel_y (from the simulator's noiseless period means, summed here) lies inside the
     joint interval at every pair; the joint interval is narrower than the windows'
     difference at the median, and scaled down to 15 % of its half-width about its centre

@@ -59,7 +59,7 @@ class LevelResult:
     c_band: np.ndarray = field(default_factory=lambda: np.zeros(0))
     c_k: float = 0.0
     #: ``[x_W2 - x_W1]`` over the pairs computed jointly (the tilt change from the gyros,
-    #: docs/dynamic-method.md section 3b, (3b.10)); empty: the difference of the windows'
+    #: docs/dynamic-method.md section 3b, (3b.9)); empty: the difference of the windows'
     dx_lo: np.ndarray = field(default_factory=lambda: np.zeros(0))
     dx_hi: np.ndarray = field(default_factory=lambda: np.zeros(0))
 

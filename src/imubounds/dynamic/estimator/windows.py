@@ -193,4 +193,12 @@ class MarginBuilder(WindowContext):
             note = heave_note(ch, self.veh, levels)
             if note:
                 out.notes.append(note)
+        acc = getattr(plan, "accel", "")
+        if acc and aided:  # gyro_x / gyro_y from an accelerometer's window pairs
+            out.notes.append(
+                f"{ch} is judged from {acc}'s window changes (docs/dynamic-method.md section "
+                f"3b, (3b.8)) with {acc}'s change band as stated: a bias step of {acc} reads "
+                f"as an error of {ch}, so `exceeds` here names {ch} or {acc} (the change "
+                f"test of {acc}, (3b.9), tells them apart where it decides)"
+            )
         return out

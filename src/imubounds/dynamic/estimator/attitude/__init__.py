@@ -2,13 +2,17 @@
 aiding and the gyros between (docs/dynamic-method.md, section 3b).
 
 * :mod:`.gravity` -- vector matching over each accelerometer window (3b.1)-(3b.2);
-* :mod:`.gyro_terms`, :mod:`.propagate` -- the gyros' increments and their error
-  bounds (3b.3)-(3b.5);
-* :mod:`.kernels` -- the compiled window sums and node chain (3b.6)-(3b.7);
-* :mod:`.solve` -- one angle over the trip: window nodes, chain, pieces (3b.8);
+* :mod:`.gyro_terms` -- the gyros' increments and their error bounds (3b.4);
+* :mod:`.kernels` -- the compiled window sums and node chain (3b.3)-(3b.6);
+* :mod:`.solve` -- one angle over the trip: window nodes, chain, pieces (3b.5)-(3b.7);
 * :mod:`.states` -- both angles, twice, per independence variant;
 * :mod:`.consumers` -- the tilt functions, the smoother's spans and the window ends
   that read them;
+* :mod:`.rates` -- gyro_x and gyro_y from the accelerometers' window pairs (3b.8);
+* :mod:`.changes` -- the accelerometers' change test with the tilt change from the
+  gyros (3b.9);
+* :mod:`.mount` -- the IMU's pitch against its path (mount) from the states and GNSS
+  altitude;
 * :mod:`.report` -- the summary, the checks and the truth comparison.
 """
 

@@ -1,5 +1,5 @@
 """The change of an accelerometer's true mean between adjacent windows with the tilt
-change from the gyros (docs/dynamic-method.md, section 3b, "Changes", (3b.10)).
+change from the gyros (docs/dynamic-method.md, section 3b, "Changes", (3b.9)).
 
 The change test of section 4 judges ``[E_W2] - [E_W1]`` against the change band (the
 turn-on bias cancels). Taken window by window, each ``[E_W]`` holds the whole tilt
@@ -13,7 +13,7 @@ boundary ``b`` (an epoch) the gyros carry ``h`` to every time of both windows (3
 with ``h_b`` in the node of the channel's own variant (built without its samples: accel_x
 reads pitch and roll without accel_x's windows), so
 
-    [x_W2 - x_W1] = ([k_W2] - [k_W1]) + [g] (row of the difference above)        (3b.10)
+    [x_W2 - x_W1] = ([k_W2] - [k_W1]) + [g] (row of the difference above)        (3b.9)
 
 (``k`` the kinematic parts of the margins, ``[g] = [G_LO, G_HI]``). The change of the
 channel's error is then ``[y_W2 - y_W1] - [x_W2 - x_W1]``, intersected with the
@@ -56,7 +56,7 @@ def _thin(b: np.ndarray, tau_s: float) -> np.ndarray:
 
 
 def pair_change(w: Any, ch: str, lp: LevelPlan, tau: np.ndarray, kin: IA) -> IA | None:
-    """``[x_W2 - x_W1]`` over the level's adjacent pairs ``(lp.p1, lp.p2)`` by (3b.10), or
+    """``[x_W2 - x_W1]`` over the level's adjacent pairs ``(lp.p1, lp.p2)`` by (3b.9), or
     None (no attitude states, not an accelerometer with a gyro walk, no pairs)."""
     ctx = w.ctx
     st = getattr(ctx, "attitude", None)

@@ -202,7 +202,7 @@ def window_terms(bnd: np.ndarray, tab: np.ndarray, yp: np.ndarray, yq: np.ndarra
                  t_node: np.ndarray, ker: np.ndarray, c: np.ndarray, edge: np.ndarray,
                  out: np.ndarray) -> None:
     """Per window: ``out[w] = (C, S, V_x, V_y, E, eps_M)`` with ``mean_K h = M h_c +
-    V +- E`` per component, ``M = [[C, S], [-S, C]] +- eps_M`` (3b.6); ``edge[w]`` the
+    V +- E`` per component, ``M = [[C, S], [-S, C]] +- eps_M`` (3b.3); ``edge[w]`` the
     sample-model error where the node or an end cuts a sample."""
     acc = np.zeros(6)
     for w in range(t_node.size):

@@ -1,5 +1,5 @@
 """gyro_x and gyro_y from pairs of accelerometer windows (docs/dynamic-method.md,
-section 3b, (3b.9)): with ``h = (sin theta, sin phi cos theta)`` (what accel_x and
+section 3b, (3b.8)): with ``h = (sin theta, sin phi cos theta)`` (what accel_x and
 accel_y measure of gravity, over g) and ``h' = r J h + (-q, p) u_z``,
 
     p = (h_y' + r h_x) / u_z,     q = (r h_y - h_x') / u_z,

@@ -84,8 +84,12 @@ def attitude_checks(ctx: Any) -> None:
         "attitude states: accel_x's and accel_y's windows bound roll and pitch with their "
         "stationary bands (their budgets as stated) and the gyros carry the angles between "
         "(their budgets): the margins of accel_z, gyro_x, gyro_y and gyro_z and the "
-        "smoother rest on those budgets; accel_x's own pitch and accel_y's own roll are "
-        "never taken from themselves (a constant bias and a constant tilt are confounded)"
+        "smoother rest on those budgets, and so do the roll and pitch printed (states.csv, "
+        "dynamic.json attitude: the full variant); accel_x's own pitch and accel_y's own "
+        "roll are never taken from themselves (a constant bias and a constant tilt are "
+        "confounded). The data check those budgets through accel_x's and accel_y's "
+        "verdicts and change tests (3b.9) only: a bias step smaller than their change "
+        "intervals moves the printed roll/pitch unseen"
     )
 
 
@@ -119,6 +123,12 @@ def attitude_summary(ctx: Any, drive: Any) -> dict[str, Any] | None:
         for ch, v in VARIANT_OF.items()
     }
     out["variants"]["others"] = {"roll": "full", "pitch": "full", "uses": list(USES["full"])}
+    out["assumes"] = [
+        "accel_x and accel_y within their stated budgets (their windows' bands): checked "
+        "only by their verdicts and change tests",
+        "gyro_x, gyro_y and gyro_z within their stated budgets between the epochs",
+        "the prior: the vehicle's max tilt, the pitch from GNSS altitude where used",
+    ]
     mount = getattr(ctx, "attitude_mount", None)
     if mount is not None:
         out["mount"] = mount

@@ -1,5 +1,5 @@
 """Roll and pitch over the trip from the window strips, the prior and the chain
-(docs/dynamic-method.md, section 3b, (3b.5)-(3b.8)).
+(docs/dynamic-method.md, section 3b, (3b.5)-(3b.7)).
 
 * **Window strips** (3b.5): a window with node ``c`` gives ``mean_K h = M h_c + V +- E``
   (:func:`.kernels.window_terms`), so each of its accelerometer rows is a strip on the
@@ -8,9 +8,9 @@
   ``w_c = R(psi_c) h_c`` the strip's direction turns by ``psi_c``.
 * **Prior strips**: ``h_x in sin(pitch prior)``, ``h_y in sin(roll prior) cos(pitch
   prior)`` at every node.
-* **Chain** (3b.7): ``w_k+1 - w_k in R(psi_k+1) (v_k +- e_k)``
+* **Chain** (3b.6): ``w_k+1 - w_k in R(psi_k+1) (v_k +- e_k)``
   (:func:`.kernels.link_terms`), forward and backward over the template polygons.
-* **Pieces** (3b.8): over link ``k`` the node's ``h`` box turned by at most the link's
+* **Pieces** (3b.7): over link ``k`` the node's ``h`` box turned by at most the link's
   measured turn, plus the hull of ``v`` there and the error, met with the next node's
   box widened the same way; roll and pitch from ``h``: ``theta = asin(h_x)``, ``phi =
   asin(h_y / cos(theta))``, met with the prior.
