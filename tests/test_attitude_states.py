@@ -356,3 +356,28 @@ def test_joint_changes_hold_the_true_change_and_narrow_the_test(industrial: Any)
         assert used > 20, (ch, used)
         assert narrower > 0.5 * used, (ch, narrower, used)
         assert missed > 0, (ch, worst)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("ch", "step"), [("gyro_z", 0.5 * DEG), ("accel_x", 0.6)])
+def test_a_bias_step_exceeds_on_its_channel_only(industrial: Any, ch: str, step: float) -> None:
+    """Detection (docs/dynamic-method.md section 4, "Which channel"): a bias step at mid-
+    trip of the hilly GNSS-only trip (industrial IMU, no compass, no attitude stream)
+    beyond the channel's stationary change band gives ``exceeds`` on that channel and on
+    no other (accel_z and gyro_y, whose windows rest on accel_x's budget, exceed too
+    without the attribution: their verdict then says so); the same trip without the step
+    gives none."""
+    from imubounds.dynamic.estimator import dynamic_margins
+    from imubounds.dynamic.scenario import Fault
+
+    _, _, clean = industrial
+    assert "exceeds" not in clean["verdict"].values(), clean["verdict"]
+    res = _trip("industrial", 3, faults=(Fault(ch, "bias", step, 150.0),))
+    d = dynamic_margins(res.drive).to_dict()
+    assert d["verdict"][ch] == "exceeds", d["verdict"]
+    assert [c for c, v in d["verdict"].items() if v == "exceeds"] == [ch], d["verdict"]
+    assert not d["guaranteed"]
+    if ch == "accel_x":
+        moved = [c for c in ("accel_z", "gyro_y")
+                 if any("attributed to accel_x" in n for n in d["verdict_detail"][c]["notes"])]
+        assert moved, d["verdict"]

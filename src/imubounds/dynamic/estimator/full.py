@@ -46,6 +46,7 @@ from imubounds.dynamic.estimator.inputs import (
 )
 from imubounds.dynamic.estimator.options import FullOptions, check_options
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
+from imubounds.dynamic.estimator.verdicts import attribute_exceeds
 from imubounds.dynamic.estimator.window_plan import epochs_near, plan_on_subset
 from imubounds.dynamic.estimator.windows import (
     CONSTRAINTS,
@@ -757,6 +758,7 @@ def run_full(
                 "the gyro's per-sample error bound, not its window-centred bound"
             )
     margins = {ch: margins[ch] for ch in ctx.plans}
+    notes += attribute_exceeds(margins, AT.rests_on(ctx))
     bv = mb.body_velocity()
     if bv is not None and bv["dropped"]:
         msg = (

@@ -265,3 +265,35 @@ def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str,
         exc,
         0,
     )
+
+
+def attribute_exceeds(margins: dict[str, ChannelMargins],
+                      rests_on: dict[str, tuple[str, ...]]) -> list[str]:
+    """Name the channel a fault is in (docs/dynamic-method.md section 4, "Which channel").
+
+    A channel whose margins rest on another channel's budget (``rests_on``: gyro_x,
+    gyro_y judged from an accelerometer's window pairs; accel_z with the roll and pitch
+    of the full attitude states, built from accel_x's and accel_y's windows) cannot tell
+    its own fault from that channel's: when a channel it rests on ``exceeds`` by its own
+    test, its ``exceeds`` becomes ``undecided`` (the reason names the channel; the
+    windows outside the band stay listed). The channels rested on are never changed
+    here, so the order does not matter. Returns the notes (one per changed channel)."""
+    notes = []
+    for ch, srcs in rests_on.items():
+        m = margins.get(ch)
+        if m is None or m.verdict != "exceeds":
+            continue
+        hit = [s for s in srcs if s != ch and s not in rests_on
+               and getattr(margins.get(s), "verdict", None) == "exceeds"]
+        if not hit:
+            continue
+        who = " and ".join(hit)
+        m.verdict = "undecided"
+        m.reason = (
+            f"{m.reason}; but {ch}'s windows rest on {who}'s budget and {who} exceeds its "
+            f"own stationary band: the excess is {who}'s or {ch}'s, not decided"
+        )
+        notes.append(f"{ch}: `exceeds` attributed to {who} (its windows rest on {who}'s "
+                     "budget, which fails by its own test)")
+        m.notes.append(notes[-1])
+    return notes

@@ -49,3 +49,19 @@ def interval_events(n_epochs: int) -> int:
     # and channel over the levels, plus one per level)
     pairs = 2 * (n + 64)
     return EVENTS_PER_WINDOW * (2 * n + pairs) + EVENTS_PER_LINK * (n - 1)
+
+
+def rests_on(ctx: Any) -> dict[str, tuple[str, ...]]:
+    """The channels whose margins rest on another channel's budget through the states
+    (docs/dynamic-method.md section 3b, design decision (b)): gyro_x and gyro_y judged
+    from an accelerometer's window pairs (3b.8) rest on that accelerometer; accel_z reads
+    the full variant's roll and pitch, built from accel_x's and accel_y's windows.
+    Empty without the states."""
+    if getattr(ctx, "attitude", None) is None:
+        return {}
+    out: dict[str, tuple[str, ...]] = {"accel_z": ("accel_x", "accel_y")}
+    for ch in ("gyro_x", "gyro_y"):
+        acc = getattr(ctx.plans.get(ch), "accel", "") if ch in ctx.plans else ""
+        if acc:
+            out[ch] = (str(acc),)
+    return out
