@@ -721,35 +721,35 @@ def _summary_section(
 
 def _filter_block(noise: dict[str, Any], motion: dict[str, Any] | None) -> str:
     """Kalibr's four densities, stationary and in motion (the worst axis of each sensor)."""
-    import yaml
-
     from imubounds.errors import ImuboundsError
-    from imubounds.export import export_noise
+    from imubounds.export import KALIBR_KEYS, filter_noise, kalibr_values
 
     try:
-        stat = yaml.safe_load(export_noise(noise, "kalibr"))
-        mot_text = export_noise(noise, "kalibr", motion=motion) if motion else ""
-        mot = yaml.safe_load(mot_text) if motion else None
+        stat = kalibr_values(filter_noise(noise))
+        mot = kalibr_values(filter_noise(noise, motion=motion)) if motion else None
     except ImuboundsError as err:
         return f"<h3>Filter parameters</h3><p class='muted'>not exported: {_e(err)}</p>"
     units = {
         "gyroscope_noise_density": "rad/s/√Hz", "gyroscope_random_walk": "rad/s²/√Hz",
         "accelerometer_noise_density": "m/s²/√Hz", "accelerometer_random_walk": "m/s³/√Hz",
     }
-    # an axis the trip gave no in-motion factor keeps its stationary figure: say so
-    no_factor = {ln.split(":", 1)[0] for ln in mot_text.splitlines() if "NO FACTOR" in ln}
 
     def moving(k: str) -> str:
-        if not mot:
+        if mot is None or k not in mot:
             return "—"
-        note = " <span class='muted'>(no in-motion factor)</span>" if k in no_factor else ""
-        return _num(mot.get(k)) + note
+        v, ax = mot[k]
+        # an axis the trip gave no in-motion factor keeps its stationary figure: say so
+        note = (" <span class='muted'>(no in-motion factor)</span>"
+                if ax.motion_F is None else "")
+        return _num(v) + note
 
-    rows = [[_e(k), _num(stat.get(k)), moving(k), _e(u)] for k, u in units.items()]
+    rows = [[_e(k), _num(stat[k][0]) if k in stat else "—", moving(k), _e(units[k])]
+            for k, *_ in KALIBR_KEYS]
+    rate = (noise.get("input") or {}).get("sample_rate_hz")
     return (
         "<h3>Filter parameters (Kalibr / OpenVINS, continuous time, worst axis)</h3>"
         + _table(["key", "stationary", "in motion", "unit"], rows)
-        + f"<p class='muted'>update_rate {_num(stat.get('update_rate'))} Hz. Every format "
+        + f"<p class='muted'>update_rate {_num(rate)} Hz. Every format "
         "(kalibr, openvins, vins, gtsam, ros) with its units and conversions: "
         "<code>imubounds export STATIC_DIR --format F [--motion DYNAMIC_DIR] -o FILE</code>"
         " (the demo wrote them to filter/).</p>"

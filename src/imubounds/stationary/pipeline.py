@@ -344,32 +344,14 @@ class StaticResult:
         out["notes"] = notes
         return out
 
-    def kalibr_yaml(self) -> str:
-        """Text of ``imu.yaml`` in Kalibr's format, with comments saying which axis was taken."""
-        k = self.kalibr()
-        lines = [
-            "# IMU noise model for Kalibr, written by imubounds "
-            f"{__version__} from {self.log.source}",
-            "# Each value is the worst (largest) axis of its sensor's selected terms "
-            "(noise.json: channels.<ch>.noise.selected); units as Kalibr expects.",
-        ]
-        units = {
-            "accelerometer_noise_density": "m/s^2/sqrt(Hz)",
-            "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
-            "gyroscope_noise_density": "rad/s/sqrt(Hz)",
-            "gyroscope_random_walk": "rad/s^2/sqrt(Hz)",
-        }
-        for key, unit in units.items():
-            if key in k:
-                lines.append(
-                    f"{key}: {k[key]:.6e}  # {unit}, axis {k[key + '_axis']}, "
-                    f"{k[key + '_status'].replace('_', ' ')}"
-                )
-        lines.append("rostopic: /imu0")
-        lines.append(f"update_rate: {k['update_rate']:.6g}  # Hz")
-        for note in k["notes"]:
-            lines.append(f"# note: {note}")
-        return "\n".join(lines) + "\n"
+    def kalibr_yaml(self, doc: Mapping[str, Any] | None = None) -> str:
+        """Text of ``imu.yaml`` in Kalibr's format (``imubounds export --format kalibr``'s
+        text; a key no channel gives is named in a comment). ``doc``: this result's
+        :meth:`to_json`, when already made."""
+        from imubounds.export import filter_noise, kalibr_text
+
+        return kalibr_text(filter_noise(doc if doc is not None else self.to_json()),
+                           strict=False)
 
 
 STATISTIC = {
