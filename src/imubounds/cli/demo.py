@@ -43,8 +43,7 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
     steps: list[tuple[str, list[str]]] = [
         (
             "characterising the bundled ADIS16405 static log (45 min at 100 Hz)",
-            ["static", str(bundled_static_log()), "-o", static, "--tau", "points:40",
-             "--no-report"],
+            ["static", str(bundled_static_log()), "-o", static, "--no-report"],
         ),
         (
             "simulating the paper's 9.4 km / 792 s trip with that IMU's measured noise "

@@ -35,7 +35,7 @@ MODELS = ("gm", "ar")
 
 
 def register(sub: Any) -> None:
-    from imubounds.stationary.allan_grammar import ESTIMATORS, TAU_GRAMMAR
+    from imubounds.stationary.allan_grammar import DEFAULT_TAU_GRID, ESTIMATORS, TAU_GRAMMAR
 
     p = sub.add_parser(
         "static",
@@ -57,9 +57,9 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--tau",
         type=tau_grid,
-        default="octave",
+        default=DEFAULT_TAU_GRID,
         metavar="GRID",
-        help=f"tau grid: {TAU_GRAMMAR} (default: octave)",
+        help=f"tau grid: {TAU_GRAMMAR} (default: {DEFAULT_TAU_GRID})",
     )
     p.add_argument(
         "--estimator",
