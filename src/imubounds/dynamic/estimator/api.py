@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,6 +21,7 @@ def dynamic_margins(
     *,
     noise: str | Path | dict[str, Any] | StaticResult | None = None,
     mode: str = "full",
+    progress: Callable[[str, int, int], None] | None = None,
     **options: Any,
 ) -> DynamicResult:
     """Dynamic error margins of a drive's IMU.
@@ -42,6 +44,9 @@ def dynamic_margins(
         :data:`imubounds.dynamic.estimator.full.FULL_DEFAULTS` (``alpha``,
         ``imu_spec``, ``max_tilt_deg``, ``lateral_speed_bound_mps``, ...); for ``paper`` see
         :class:`imubounds.dynamic.estimator.paper.PaperConfig`.
+    progress:
+        Called as ``progress(stage, done, total)`` while mode full advances (its windows
+        channel by channel, then the smoother); the library never prints.
 
     Returns
     -------
@@ -79,7 +84,7 @@ def dynamic_margins(
             from imubounds.dynamic.estimator.full import run_full
             from imubounds.dynamic.estimator.result import full_summary
 
-            run = run_full(drive, noise, **options)
+            run = run_full(drive, noise, progress=progress, **options)
             return DynamicResult("full", full_summary(run, drive), full=run)
         from imubounds.dynamic.estimator.paper import run_paper
 
