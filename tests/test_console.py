@@ -155,8 +155,9 @@ def test_verbose_prints_the_notes(tmp_path: Path, verbose: bool,
                                   capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     from imubounds.cli import main
 
-    argv = ["static", str(_small_log(tmp_path / "log.csv")), "-o", str(tmp_path / "o"), "--no-plot", "--no-report",
-            "--models", "none", *(["--verbose"] if verbose else [])]  # fmt: skip
+    argv = ["static", str(_small_log(tmp_path / "log.csv")), "-o", str(tmp_path / "o"),
+            "--no-plot", "--no-report", "--models", "none",
+            *(["--verbose"] if verbose else [])]  # fmt: skip
     assert main(argv) == 0
     err = capsys.readouterr().err
     assert ("gyro_z: Q:" in err) is verbose
