@@ -43,6 +43,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.cli._common import Reporter
     from imubounds.io.drive.layout import (
         CALIBRATION_FILE,
         FILES,
@@ -55,7 +56,9 @@ def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
     opts = drive_read_options(args)
-    drive = read_drive(list(args.input), **opts)
+    with Reporter(args.quiet).steps("imubounds convert", 1) as steps:
+        steps.step("reading the drive")
+        drive = read_drive(list(args.input), **opts)
     from imubounds.dynamic.imu_mount import mount_warning
 
     if (w := mount_warning(drive)) is not None:

@@ -22,6 +22,7 @@ from imubounds.cli._common import (
     positive_int,
     probability,
 )
+from imubounds.stationary.allan_grammar import DEFAULT_TAU_GRID
 
 #: Exit code when some units failed (the rest were analysed and written).
 EXIT_UNITS_FAILED = 1
@@ -57,7 +58,8 @@ def register(sub: Any) -> None:
         "--spec", metavar="YAML",
         help="datasheet limits (max Q, N, B, K, R per kind; format in docs/fleet.md)",
     )  # fmt: skip
-    p.add_argument("--tau", default="octave", help="tau grid (as for static)")
+    p.add_argument("--tau", default=DEFAULT_TAU_GRID,
+                   help=f"tau grid (as for static; default {DEFAULT_TAU_GRID})")
     p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping")
     p.add_argument(
         "--confidence", type=probability, default=0.683,

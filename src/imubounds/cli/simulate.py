@@ -288,14 +288,19 @@ def config_from_args(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.cli._common import Reporter
     from imubounds.dynamic.scenario import OUTPUT_FILES, simulate, write_scenario
     from imubounds.io.outputs import OutputSet
 
     cfg = config_from_args(args)
     cfg.check()
-    with OutputSet(args.out, force=args.force) as outset:
+    with OutputSet(args.out, force=args.force) as outset, Reporter(args.quiet).steps(
+        "imubounds simulate", 2
+    ) as steps:
         outset.check(OUTPUT_FILES)
+        steps.step(f"simulating the {cfg.variant} trip")
         res = simulate(cfg)
+        steps.step("writing the drive")
         write_scenario(res, outset.staging)
         outset.record(getattr(args, "argv", None), command_name="simulate")
     if not args.quiet:

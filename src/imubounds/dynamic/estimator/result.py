@@ -302,6 +302,8 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         ]
         out["verdict"][ch] = m.verdict
         out["verdict_detail"][ch] = m.to_dict()
+    # verdicts resting on a margin within 5 % of the band (verdicts.fragility): not decided
+    out["fragile_verdicts"] = [ch for ch, d in out["verdict_detail"].items() if d.get("fragile")]
     # bias intervals
     k_to = ctx.alpha.k("imu_turn_on")
     bias: dict[str, Any] = {}
