@@ -64,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
         raise OptionError("--topic applies to ROS bags only")
     inputs = [*args.input, *([args.settings] if args.settings else [])]
     suffix = FORMATS[args.format]
-    with OutputSet(args.out, force=args.force, inputs=inputs) as out:
+    with OutputSet(args.out, force=args.force, inputs=inputs, command="convert",
+                   source=args.input) as out:
         extra = [CALIBRATION_FILE] if drive.settings.heading.calibration is not None else []
         extra += [NOISE_FILE] if drive.settings.imu.noise_json is not None else []
         out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE, *extra])

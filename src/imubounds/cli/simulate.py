@@ -293,7 +293,8 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(args)
     cfg.check()
-    with OutputSet(args.out, force=args.force) as outset:
+    with OutputSet(args.out, force=args.force, command="simulate",
+                   inputs=[x for x in (args.imu_noise,) if x]) as outset:
         outset.check(OUTPUT_FILES)
         res = simulate(cfg)
         write_scenario(res, outset.staging)

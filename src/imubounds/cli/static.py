@@ -412,7 +412,7 @@ def run(args: argparse.Namespace) -> int:
 
     # The output directory is locked and checked before the analysis, not after it;
     # the results land in it complete or not at all.
-    with OutputSet(args.out, force=args.force, inputs=[args.log]) as outset:
+    with OutputSet(args.out, force=args.force, inputs=[args.log], command="static") as outset:
         outset.check(["noise.json", "imu.yaml", "allan.png", "allan.svg", "report.html"])
         written = _run(args, outset)
     Reporter(args.quiet).info(f"wrote {', '.join(written)} to {args.out}")

@@ -69,6 +69,13 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "imu.bias_drift_window_s": (0.0, False, None),
 }
 _CHOICES["imu.sample_time"] = ("end", "centre", "start")
+
+
+def setting_range(key: str) -> tuple[float, bool, float | None]:
+    """(lower bound, lower bound inclusive, upper bound or None) of a numeric drive.yaml
+    setting (``"heading.deviation_deg"``): the one range a command-line option that
+    overrides it is checked against too."""
+    return _RANGES.get(key, (-math.inf, True, None))
 #: Settings that are texts: file names (resolved against drive.yaml's folder) and names.
 _PATH_KEYS = ("imu.noise_json", "heading.calibration")
 _TEXT_KEYS = ("imu.preset",)
