@@ -71,9 +71,10 @@ def run(args: argparse.Namespace) -> int:
         out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE, *extra])
         write_layout(drive, out.staging, fmt=args.format)
         out.record(getattr(args, "argv", None), command_name="convert")
-    if not args.quiet:
-        for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
-            print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
+    for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
+        if args.quiet and not line.startswith("imubounds: warning:"):
+            continue  # the warnings about the input even with --quiet
+        print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
     return 0
 
 

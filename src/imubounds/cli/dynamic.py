@@ -176,6 +176,15 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()
+    from imubounds.io.drive.validate_imu import CORRUPT_SAMPLES
+
+    corrupt = drive.meta.get(CORRUPT_SAMPLES) or []
+    if corrupt:
+        more = f" (and {len(corrupt) - 1} more channel(s))" if len(corrupt) > 1 else ""
+        raise InputError(
+            f"{corrupt[0]}{more}: corrupt samples, which no error bound holds over; repair "
+            "or remove these rows (imubounds convert keeps them, with a warning)"
+        )
     from imubounds.dynamic.imu_mount import mount_warning
 
     if (w := mount_warning(drive)) is not None:
@@ -248,11 +257,14 @@ def run(args: argparse.Namespace) -> int:
         outset.check(["dynamic.json", "motion.json", "margins.csv", "states.csv", "steps.csv",
                       "report.html"])
         messages = _run(args, outset)
-    if not args.quiet:
-        # the summary on stdout (as static's); notes on stderr
-        for m in messages:
-            note = m.startswith("imubounds: note:")
-            print(m, file=sys.stderr if note or args.json else sys.stdout)
+    for m in messages:
+        # the summary on stdout (as static's); notes and warnings on stderr, the warnings
+        # about the input even with --quiet
+        warning = m.startswith("imubounds: warning:")
+        if args.quiet and not warning:
+            continue
+        note = warning or m.startswith("imubounds: note:")
+        print(m, file=sys.stderr if note or args.json else sys.stdout)
     return 0
 
 
@@ -332,7 +344,7 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     if args.json:
         print(json.dumps(to_jsonable(doc), indent=2))
     for w in drive.warnings:
-        say(f"imubounds: note: {w}")
+        say(f"imubounds: warning: {w}")
     say(f"dynamic ({', '.join(results)}) -> {args.out}")
     _summary(results, say)
     del np

@@ -388,8 +388,15 @@ def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
         for k in _INFO_KEYS:
             if k in data:
                 info[k] = data.pop(k)
-        if "notes" in info and not isinstance(info["notes"], list):
-            raise InputError(f"{p}: notes must be a list of texts")
+        notes = info.get("notes")
+        if isinstance(notes, str):  # one note written as a text
+            info["notes"] = [notes] if notes.strip() else []
+        elif notes is None:
+            info.pop("notes", None)
+        elif not isinstance(notes, list) or any(
+            isinstance(n, dict | list) for n in notes
+        ):
+            raise InputError(f"{p}: notes must be a text or a list of texts, got {notes!r:.60}")
     return parse_settings(data, str(p), base_dir=d), info
 
 
