@@ -144,7 +144,8 @@ SIM = ["simulate-noise", "--preset", "xsens-mtx", "--rate", "50", "--duration", 
 
 OUTPUT_CASES = [
     Case("simulate-noise -o a file imubounds did not write",
-         lambda d: [*SIM, "-o", str(_user_file(d, "mine.csv"))], 2, ("did not write", "--force")),
+         lambda d: [*SIM, "-o", str(_user_file(d, "mine.csv"))], 2,
+         ("did not write", "--overwrite")),
     Case("simulate-noise -o a directory",
          lambda d: [*SIM, "-o", str(d) + "/"], 2, ("does not end in .csv",)),
     Case("simulate-noise -o an existing directory named like a CSV",
@@ -164,13 +165,13 @@ OUTPUT_CASES = [
          2, ("did not write",)),
     Case("static: a log named noise.json with -o its own folder",
          lambda d: ["static", str(_log(d, "noise.json")), "-o", str(d), *FAST],
-         2, ("input of this run",)),
+         2, ("noise.json (an input of this run)",)),
     Case("static -o an existing file",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "res")), *FAST],
          2, ("not a directory",)),
     Case("static -o a folder holding the user's noise.json",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "o/noise.json").parent),
-                    *FAST], 2, ("did not write", "--force")),
+                    *FAST], 2, ("did not write: noise.json", "--overwrite")),
     Case("static -o under a file",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "f") / "sub"), *FAST],
          2, ("cannot write to",)),
@@ -178,7 +179,7 @@ OUTPUT_CASES = [
          lambda d: ["static", str(_log(d)), "-o", str(d / ("x" * 300)), *FAST],
          2, ("too long",)),
     Case("report over a report.html imubounds did not write",
-         lambda d: _report_dir(d, user_report=True), 2, ("did not write", "--force")),
+         lambda d: _report_dir(d, user_report=True), 2, ("did not write", "--overwrite")),
 ]
 
 

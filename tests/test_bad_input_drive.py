@@ -490,10 +490,13 @@ def test_13_a_later_run_replaces_the_earlier_runs_report_and_figures(
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.md").write_text("the user's notes")
-    assert _run(["static", str(p), "-o", str(out), "-q", "--models", "none"], capsys)[0] == 0
+    code, err = _run(["static", str(p), "-o", str(out), "-q", "--models", "none"], capsys)
+    assert code == 2 and "did not write: notes.md" in err and "--overwrite" in err
+    assert _run(["static", str(p), "-o", str(out), "-q", "--models", "none", "--overwrite"],
+                capsys)[0] == 0  # beside the user's notes, as they said
     first = {q.name for q in out.iterdir()}
     assert "report.html" in first and any(n.endswith(".png") for n in first)
-    assert _run(["static", str(p), "-o", str(out), *FAST_STATIC], capsys)[0] == 0
+    assert _run(["static", str(p), "-o", str(out), *FAST_STATIC, "--force"], capsys)[0] == 0
     now = {q.name for q in out.iterdir()}
     assert "report.html" not in now and not any(n.endswith((".png", ".svg")) for n in now)
     assert "noise.json" in now and (out / "notes.md").read_text() == "the user's notes"
@@ -646,7 +649,11 @@ def test_12_vn100_nan_yaw_and_frozen_fixes_are_counted(
     g["latitude"], g["longitude"] = g["latitude"].iloc[0], g["longitude"].iloc[0]
     g.to_csv(gps, index=False)
     drive = read_drive([imu, gps])
-    assert drive.counts["attitude_nan"] == df.shape[0] and drive.attitude is None
+    # the yaw is named and left out; the roll and pitch of every sentence are kept
+    assert drive.counts["attitude_yaw_nan"] == df.shape[0] and "attitude_nan" not in drive.counts
+    assert drive.attitude is not None and drive.attitude.yaw_rad is None
+    assert drive.attitude.t.size == df.shape[0]
+    assert any("yaw has no finite value" in w and imu.name in w for w in drive.warnings)
     assert drive.counts["gnss_one_spot"] == g.shape[0] - drive.counts.get("gnss_no_fix", 0)
     assert any("one spot" in w and gps.name in w for w in drive.warnings)
 

@@ -466,13 +466,13 @@ def test_a_set_is_refused_beside_other_files_other_commands_and_other_inputs(
     run("static", log_a, ["noise.json"])  # a re-run: fig.png superseded, no question
     assert sorted(p.name for p in out.iterdir()) == ["noise.json", "run.json"]
     before = _tree(out)
-    with pytest.raises(OutputError, match=r"imubounds static on this input: noise.json"):
+    with pytest.raises(OutputError, match=r"other results: noise.json \(the results of .imub"):
         run("static", log_b, ["noise.json"])  # another log's results
-    with pytest.raises(OutputError, match=r"imubounds simulate on this input: noise.json"):
+    with pytest.raises(OutputError, match=r"holds other results: noise.json"):
         run("simulate", log_a, ["imu.csv"])  # another command's results
     (out / "noise.json").write_text("edited by the user")
     before = _tree(out)
-    with pytest.raises(OutputError, match=r"noise.json.*--overwrite"):
+    with pytest.raises(OutputError, match=r"changed since imubounds wrote them: noise.json"):
         run("static", log_a, ["noise.json"])  # a result the user edited is the user's
     assert _tree(out) == before
     run("static", log_b, ["noise.json", "x.txt"], force=True)

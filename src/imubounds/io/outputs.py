@@ -64,7 +64,8 @@ from imubounds.io.locks import acquire_lock, lock_owner, pid_alive, signals_held
 
 __all__ = [
     "BOOKKEEPING", "COMMIT_RECORD", "FILES_RECORD", "LOCK_NAME", "RUN_RECORD", "OutputSet",
-    "atomic_open", "atomic_path", "check_output_file", "committed_outputs", "ensure_dir",
+    "atomic_open", "atomic_path", "check_output_file", "check_output_folder",
+    "committed_outputs", "ensure_dir",
     "listed_files", "output_file", "record_written_files", "recorded_files",
     "reset_committed_outputs", "to_jsonable", "write_json", "write_run_record", "write_text",
     "write_with", "written_by_imubounds",
@@ -618,18 +619,27 @@ class OutputSet:
         if not others:
             return
         rec = _read_json(self.target / RUN_RECORD)
-        listed = _written_by_imubounds(self.target)
+        listed = _written_by_imubounds(self.target) | set(_files_record(self.target))
+        changed = [n for n in others if n in listed and not written_by_imubounds(
+            self.target / n)]
+        theirs = [n for n in others if n in listed and n not in changed]
+        kinds = [k for k, there in (
+            ("files imubounds did not write", len(theirs) + len(changed) < len(others)),
+            ("files changed since imubounds wrote them", bool(changed)),
+            ("other results", bool(theirs))) if there]
         run = ""
-        if any(n in listed for n in others) and isinstance(rec, dict):
-            cmd = str(rec.get("command", "an imubounds run"))
-            run = f" (results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
-        shown = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
-        what = (f"other files than the earlier results of imubounds {self.command} on this "
-                "input" if self.command else "files imubounds did not write")
+        if theirs and isinstance(rec, dict) and rec.get("command"):
+            cmd = str(rec["command"])
+            run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
+        shown = ", ".join(
+            n + (" (an input of this run)" if _is_input(self.target / n, self.inputs) else "")
+            for n in others[:3]) + (", ..." if len(others) > 3 else "")
         raise OutputError(
-            f"output directory {self.target} holds {what}: {shown}{run}; choose a new or "
-            "empty -o, or pass --overwrite to write beside them (they are kept; files of "
-            "the names this run writes are replaced)"
+            f"output directory {self.target} holds {' and '.join(kinds)}: {shown}{run}; "
+            "imubounds writes its results only into a new or empty folder or over its own "
+            "earlier results of the same command and input: choose another -o, or pass "
+            "--overwrite (the files there are kept; those of the names this run writes are "
+            "replaced)"
         )
 
     def _conflicts(self, names: list[str]) -> list[str]:
@@ -785,6 +795,24 @@ class OutputSet:
         for d in t.glob(glob.escape(BACKUP_PREFIX) + "*"):
             if d.is_dir() and not d.is_symlink():
                 shutil.rmtree(d, ignore_errors=True)
+
+
+def check_output_folder(
+    target: str | os.PathLike[str],
+    *,
+    command: str,
+    force: bool = False,
+    inputs: Iterable[str | os.PathLike[str]] = (),
+    source: Iterable[str | os.PathLike[str]] | None = None,
+    subsets: Iterable[str] = (),
+) -> None:
+    """The rule of :class:`OutputSet` for a command that writes its files in place
+    (``fleet``): :class:`OutputError` if ``target`` holds anything but that command's own
+    earlier results of ``source``, unless ``force``."""
+    if force or not Path(target).is_dir():
+        return
+    OutputSet(target, inputs=inputs, command=command, source=source,
+              subsets=subsets)._refuse_others()  # fmt: skip
 
 
 def _remove_tree(p: Path) -> None:
