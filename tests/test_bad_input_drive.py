@@ -319,6 +319,32 @@ def _fixes_outside(d: Path) -> None:
     _csv(d, "gnss.csv", f)
 
 
+def _imu_col(col: str, value: float, rows: slice | int = slice(None)) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        def f(df: pd.DataFrame) -> None:
+            df.loc[rows, col] = value if not isinstance(rows, slice) else df[col] * 0 + value
+        _csv(d, "imu.csv", f)
+    return spoil
+
+
+def _scale_cols(cols: tuple[str, ...], k: float) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        def f(df: pd.DataFrame) -> None:
+            for c in cols:
+                df[c] = df[c] * k
+        _csv(d, "imu.csv", f)
+    return spoil
+
+
+def _one_fix_inside(d: Path) -> None:
+    def f(g: pd.DataFrame) -> pd.DataFrame:
+        last = g.iloc[-1:].copy()
+        late = last.copy()
+        late["time_s"] = late["time_s"] + 100.0
+        return pd.concat([last, late], ignore_index=True)
+    _csv(d, "gnss.csv", f)
+
+
 ODD = [
     Odd("04-gps-csv-ignored", _gps, "layout_ignored_files", ("gps.csv", "ignored")),
     Odd("12-fixes-on-one-spot", _one_spot, "gnss_one_spot", ("gnss.csv", "one spot")),
@@ -330,6 +356,12 @@ ODD = [
         ("imu.csv", "gyro_x", "t=60.000", "2000 deg/s")),
     Odd("14-gyro-stuck-while-turning", _stuck, "gyro_stuck",
         ("imu.csv", "gyro_z", "t=20.000 to t=60.000", "turns")),
+    Odd("36-accel-y-in-g", _scale_cols(("accel_y_mps2",), 1 / 9.80665), "accel_axis_units",
+        ("imu.csv", "accel_y", "1/10 of accel_z", "to be in g while read as m/s^2")),
+    Odd("36-accel-x-all-nan", _imu_col("accel_x_mps2", np.nan), "imu_column_empty",
+        ("imu.csv", "accel_x_mps2", "no value", "accel_x is treated as absent")),
+    Odd("36-two-fixes-one-in-the-imu", _one_fix_inside, "gnss_single_epoch",
+        ("gnss.csv", "only one fix", "t=150.000")),
 ]
 
 
@@ -674,3 +706,192 @@ def test_a_drive_yaml_in_a_log_directory_is_read(
     assert drive.settings.vehicle.max_tilt_deg == 4.0
     assert not any("no drive.yaml" in a for a in drive.settings.assumed)
     assert "vehicle.max_tilt_deg" not in drive.settings.defaulted
+
+
+# ----------------------------------------------------------------------------- issue 36
+# `imubounds dynamic` on spoiled drives, from the command line: an error names the file or
+# option and the problem (exit 2, nothing written), a suspicious input is a warning naming
+# it (exit 0, even with -q), dynamic.json is strict JSON (no NaN, no Infinity), and no file
+# outside the run's output folder changes.
+DYN = ["--mode", "full", "--no-plot", "--no-report", "-q"]
+
+
+def _strict_json(p: Path) -> object:
+    def refuse(name: str) -> object:
+        raise AssertionError(f"{p.name} holds {name}")
+    return json.loads(p.read_text(), parse_constant=refuse)
+
+
+def _truth_lines(edit: Callable[[list[str]], None]) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        lines = (d / "truth.csv").read_text().splitlines()
+        edit(lines)
+        (d / "truth.csv").write_text("\n".join(lines) + "\n")
+    return spoil
+
+
+def _swap_rows(lines: list[str]) -> None:
+    lines[20], lines[21] = lines[21], lines[20]
+
+
+def _repeat_row(lines: list[str]) -> None:
+    lines.insert(21, lines[20])
+
+
+def _cut_after_position(lines: list[str]) -> None:
+    """Data row 20 cut after east_m, north_m (a short row: the rest of it empty)."""
+    lines[20] = ",".join(lines[20].split(",")[:3])
+
+
+def _one_fix_beside_velocity(d: Path) -> None:
+    _csv(d, "gnss.csv", lambda g: g.iloc[:1])
+    t = pd.read_csv(d / "truth.csv")
+    pd.DataFrame({"time_s": t["time_s"], "u_mps": t["u_mps"], "v_mps": t["v_mps"]}).to_csv(
+        d / "velocity.csv", index=False)
+
+
+DYN_BAD = [
+    Bad("36-heading-deviation-1000", lambda d: None, ("--heading-deviation", "at most 180"),
+        command="dynamic", extra=("--heading-deviation", "1000")),
+    Bad("36-max-tilt-100", lambda d: None, ("--max-tilt", "at most 90"),
+        command="dynamic", extra=("--max-tilt", "100")),
+    Bad("36-gnss-velocity-sigma-0", lambda d: None, ("--gnss-vel-sigma", "> 0"),
+        command="dynamic", extra=("--gnss-vel-sigma", "0")),
+    Bad("36-truth-rows-out-of-order", _truth_lines(_swap_rows),
+        ("truth.csv", "not strictly increasing", "data row 21", "sort"), command="dynamic"),
+    Bad("36-truth-row-repeated", _truth_lines(_repeat_row),
+        ("truth.csv", "not strictly increasing", "data row 21"), command="dynamic"),
+    Bad("36-one-gyro-sample-1e300", _imu_col("gyro_x_rads", 1e300, 3000),
+        ("imu.csv", "gyro_x", "t=60.000", "data row 3001", "corrupt"), command="dynamic"),
+    Bad("36-one-accel-sample-1e300", _imu_col("accel_y_mps2", -1e300, 3000),
+        ("imu.csv", "accel_y", "400 g", "corrupt"), command="dynamic"),
+    Bad("36-gyro-x-y-in-deg-s", _scale_cols(("gyro_x_rads", "gyro_y_rads"), 180 / np.pi),
+        ("imu.csv", "gyro_x", "deg/s while read as rad/s", "convert gyro_x to rad/s"),
+        command="dynamic"),
+    Bad("36-gyro-x-in-deg-s", _scale_cols(("gyro_x_rads",), 180 / np.pi),
+        ("imu.csv", "gyro_x", "deg/s"), command="dynamic"),
+    Bad("36-gnss-all-nan", lambda d: _csv(d, "gnss.csv", lambda g: g.assign(lat_deg=np.nan)),
+        ("gnss.csv", "lat_deg", "no finite value"), command="dynamic"),
+    Bad("36-heading-stream-empty", lambda d: _csv(d, "heading.csv", lambda h: h.iloc[:0]),
+        ("heading.csv", "no data rows"), command="dynamic"),
+    Bad("36-drive-yaml-notes-mapping",
+        lambda d: (d / "drive.yaml").write_text((d / "drive.yaml").read_text()
+                                                + "notes: {a: 1}\n"),
+        ("drive.yaml", "notes must be a text or a list"), command="dynamic"),
+]
+
+
+@pytest.mark.parametrize("case", DYN_BAD, ids=[c.name for c in DYN_BAD])
+def test_36_dynamic_refuses_bad_drives_naming_file_and_problem(
+    case: Bad, sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = _copy(sim, tmp_path / "drive")
+    case.spoil(d)
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out"
+    code, err = _run(["dynamic", str(d), "-o", str(out), *DYN, *case.extra], capsys)
+    assert code == 2, f"{case.name}: exit {code}: {err}"
+    line = _one_error(err)
+    for needle in case.needles:
+        assert needle in line, f"{case.name}: {needle!r} not in {line!r}"
+    assert _snapshot(tmp_path) == before, "a file changed, or the refused run wrote one"
+
+
+@dataclass
+class Warned:
+    name: str
+    spoil: Callable[[Path], None]
+    needles: tuple[str, ...]
+    check: Callable[[dict[str, object]], None] | None = None
+
+
+def _heading_share_survives(doc: dict[str, object]) -> None:
+    enc = doc["modes"]["full"]["enclosure"]  # type: ignore[index]
+    assert enc.get("heading") is not None and enc["heading"] > 0.9, enc  # was dropped
+
+
+DYN_WARNED = [
+    Warned("36-gyro-z-all-nan", _imu_col("gyro_z_rads", np.nan),
+           ("imu.csv", "gyro_z_rads", "no value in any of its 7501 rows", "absent")),
+    Warned("36-one-gnss-fix-beside-heading-and-velocity", _one_fix_beside_velocity,
+           ("gnss.csv", "only one fix", "t=0.000")),
+    Warned("36-truth-short-row", _truth_lines(_cut_after_position),
+           ("truth.csv", "data row 20", "heading_deg", "short row"), _heading_share_survives),
+]
+
+
+@pytest.mark.parametrize("case", DYN_WARNED, ids=[c.name for c in DYN_WARNED])
+def test_36_dynamic_warns_naming_file_and_problem(
+    case: Warned, sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = _copy(sim, tmp_path / "drive")
+    case.spoil(d)
+    before = _snapshot(d)
+    out = tmp_path / "out"
+    code, err = _run(["dynamic", str(d), "-o", str(out), *DYN], capsys)
+    assert code == 0, f"{case.name}: exit {code}: {err}"
+    warned = [ln for ln in err.splitlines() if ln.startswith("imubounds: warning:")]
+    assert any(all(n in ln for n in case.needles) for ln in warned), (case.needles, err)
+    assert _snapshot(d) == before, "an input was changed"
+    doc = _strict_json(out / "dynamic.json")
+    assert any(all(n in w for n in case.needles)
+               for w in doc["input"]["warnings"])  # type: ignore[index]
+    if case.check is not None:
+        case.check(doc)  # type: ignore[arg-type]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive", "out"]
+
+
+def test_36_vn100_log_with_nan_yaw_on_every_row_is_named_by_dynamic(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = shared_data / "dynamic" / "vn100_bu353_circle"
+    d = tmp_path / "vn"
+    d.mkdir()
+    df = pd.read_csv(src / "circle_data_0_imu.csv")
+    df["raw_vnymr"] = df["raw_vnymr"].str.replace(
+        r"^\$VNYMR,[+-][0-9.]+,", "$VNYMR,nan,", regex=True)
+    df.to_csv(d / "circle_data_0_imu.csv", index=False)
+    shutil.copy(src / "circle_data_0_gps.csv", d)
+    before = _snapshot(d)
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    assert any("circle_data_0_imu.csv" in ln and "yaw has no finite value in 2530 row(s)" in ln
+               for ln in err.splitlines() if ln.startswith("imubounds: warning:")), err
+    assert _snapshot(d) == before
+    _strict_json(tmp_path / "out" / "dynamic.json")
+
+
+def test_36_the_truth_check_projects_at_the_truths_altitude() -> None:
+    """A truth in lat/lon/alt_m at 1,600 m and an estimator origin 2 km away at 1,610 m:
+    truth_at gives the ENU the GNSS frame has (pymap3d, independently), to a millimetre.
+    Projected at h = 0, as before, it was 0.5 m off at 2 km (the 49.9 % of the issue on
+    a longer trip)."""
+    import pymap3d
+
+    from imubounds.dynamic.estimator.result import truth_at
+    from imubounds.io.drive import Drive
+    from imubounds.io.drive.layout import truth_from_table
+
+    t = np.arange(0.0, 300.0, 1.0)
+    ang = 2 * np.pi * t / 300.0
+    e, n, u = 3000 * np.cos(ang), 3000 * np.sin(ang), 20 * np.sin(3 * ang)
+    org = (45.0, 7.0, 1600.0)
+    lat, lon, alt = pymap3d.enu2geodetic(e, n, u, *org)
+    heading = np.degrees(ang) % 360
+    heading[40] = np.nan  # one NaN heading row: the rest keeps its share
+    df = pd.DataFrame({"time_s": t, "lat_deg": lat, "lon_deg": lon, "alt_m": alt,
+                       "heading_deg": heading})
+    drive = Drive(truth=truth_from_table(df, "truth.csv"))
+    gnss_org = pymap3d.enu2geodetic(2000.0, 0.0, 10.0, *org)
+    tr = truth_at(drive, t[5:-5] + 0.5, gnss_org)
+    ee, nn, _ = pymap3d.geodetic2enu(lat, lon, alt, *gnss_org)
+    assert np.max(np.abs(tr["east"] - np.interp(t[5:-5] + 0.5, t, ee))) < 1e-3
+    assert np.max(np.abs(tr["north"] - np.interp(t[5:-5] + 0.5, t, nn))) < 1e-3
+    psi = tr["psi"]
+    assert np.isnan(psi[34]) and np.isnan(psi[35]) and np.isfinite(psi).sum() == psi.size - 2
+
+
+def test_36_drive_yaml_notes_may_be_one_text(sim: Path, tmp_path: Path) -> None:
+    d = _copy(sim, tmp_path / "drive")
+    (d / "drive.yaml").write_text((d / "drive.yaml").read_text() + "notes: logged by Ana\n")
+    assert "logged by Ana" in read_drive(d).notes

@@ -187,11 +187,13 @@ def _check_gyro_spikes(drive: Drive, f: str) -> None:
             drive.meta.setdefault(CORRUPT_SAMPLES, []).append(what)
 
 
-#: Unit factors between which one axis can be mislabelled: deg/s named rad/s (57.3) and
-#: g named m/s^2 (9.81), and the window of noise ratios that says so.
+#: Units between which one axis can be mislabelled: (ratio of their numbers, the unit of
+#: the larger numbers, of the smaller, the conversion to the SI one) and the p99 of
+#: |value - median| in SI beyond which a vehicle's roll and pitch (a horizontal
+#: acceleration) cannot go: 100 deg/s, 30 m/s^2.
 _AXIS_UNITS = {
     "gyro": (180.0 / math.pi, "deg/s", "rad/s", "x pi/180", 100.0 * RAD_PER_DEG),
-    "accel": (9.80665, "g", "m/s^2", "x 9.80665", 30.0),
+    "accel": (9.80665, "m/s^2", "g", "x 9.80665", 30.0),
 }
 
 
@@ -205,22 +207,34 @@ def _noise_floor(x: np.ndarray) -> float:
         return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def _axis_unit_words(kind: str, larger: bool, read_as: str) -> tuple[str, bool]:
+    """What an axis whose numbers are ``factor`` x too large (``larger``) or too small
+    against the z axis is likely in, and whether that is a unit (else a conversion made
+    twice)."""
+    factor, big, small, _, _ = _AXIS_UNITS[kind]
+    real = big if larger else small
+    if real != read_as:
+        return f"to be in {real} while read as {read_as}", True
+    how = "too large" if larger else "too small"
+    return f"{factor:.3g}x {how} for {read_as} (converted twice?)", False
+
+
 def _check_axis_units(drive: Drive, f: str) -> None:
     """Each x and y axis against the z axis of the same sensor (checked against the heading
     for the gyro): one IMU's axes have noise floors within a few times of each other (real
-    drives: up to 9x, from vibration), so a floor about 57x (9.8x) the z axis's says the axis
-    is in deg/s (g) while its name says rad/s (m/s^2); with magnitudes beyond what a
-    vehicle's roll and pitch do (p99 of |rate| over 100 deg/s, of |accel| over 30 m/s^2) it
-    is an error, else a counted warning. A floor 1/57 (1/9.8) of z's: the reverse, a
-    warning."""
+    drives: up to 9x, from vibration), so a floor about 57x (1/57) the z axis's says the
+    axis's numbers are deg/s (rad/s), 9.8x (1/9.8) m/s^2 (g), against what the z axis
+    and the column names say. With values beyond what a vehicle's roll and pitch (its
+    horizontal acceleration) do, it is an error; else a counted warning."""
     imu = drive.imu
     assert imu is not None
     for kind, arr in (("gyro", imu.gyro), ("accel", imu.accel)):
-        factor, big_unit, unit, fix, beyond = _AXIS_UNITS[kind]
+        factor, big, small, _, beyond = _AXIS_UNITS[kind]
+        read_as = {"rad/s": "rad/s", "deg/s": "deg/s", "g": "g"}.get(
+            imu.input_units.get(kind, ""), "rad/s" if kind == "gyro" else "m/s^2")
+        si = "rad/s" if kind == "gyro" else "m/s^2"
         z = arr[:, 2]
-        if not np.isfinite(z).all():
-            continue
-        fz = _noise_floor(z)
+        fz = _noise_floor(z) if np.isfinite(z).all() else 0.0
         if not fz > 0:
             continue
         for j, ax in enumerate("xy"):
@@ -228,27 +242,21 @@ def _check_axis_units(drive: Drive, f: str) -> None:
             if not np.isfinite(col).all():
                 continue
             r = _noise_floor(col) / fz
-            if factor / 3.0 <= r <= factor * 3.0:
-                p99 = float(np.percentile(np.abs(col - np.median(col)), 99))
-                msg = (f"{f}: {kind}_{ax}'s sample-to-sample noise is {r:.0f}x {kind}_z's "
-                       f"(one IMU's axes differ a few times at most; {big_unit} read as "
-                       f"{unit} gives {factor:.3g}x)")
-                if p99 > beyond:
-                    raise UnitsError(
-                        f"{msg} and its values reach far beyond what a vehicle does: "
-                        f"{kind}_{ax} is in {big_unit} while its name says {unit}; convert it "
-                        f"to {unit} ({fix}) like {kind}_z"
-                    )
-                drive.warn(f"{kind}_axis_units", 1, f"{msg}: is {kind}_{ax} in {big_unit}? "
-                           f"convert it to {unit} ({fix}) if so")
-            elif 1.0 / (factor * 3.0) <= r <= 3.0 / factor:
-                drive.warn(
-                    f"{kind}_axis_units", 1,
-                    f"{f}: {kind}_{ax}'s sample-to-sample noise is 1/{1 / r:.0f} of "
-                    f"{kind}_z's (one IMU's axes differ a few times at most; {unit} read as "
-                    f"{big_unit} gives 1/{factor:.3g}): is {kind}_{ax} in {unit} while its "
-                    f"name says {big_unit}? convert it if so",
+            larger = factor / 3.0 <= r <= factor * 3.0
+            if not (larger or 1.0 / (factor * 3.0) <= r <= 3.0 / factor):
+                continue
+            words, is_unit = _axis_unit_words(kind, larger, read_as)
+            shown = f"{r:.0f}x" if larger else f"1/{1 / r:.0f} of"
+            msg = (f"{f}: {kind}_{ax}'s sample-to-sample noise is {shown} {kind}_z's (one "
+                   f"IMU's axes differ a few times at most; {big} against {small} gives "
+                   f"{factor:.3g}x): {kind}_{ax} looks {words}")
+            p99 = float(np.percentile(np.abs(col - np.median(col)), 99))
+            if larger and is_unit and p99 > beyond:
+                raise UnitsError(
+                    f"{msg}, and its values go far beyond what a vehicle does; convert "
+                    f"{kind}_{ax} to {si} like {kind}_z"
                 )
+            drive.warn(f"{kind}_axis_units", 1, f"{msg}; convert it to {si} if so")
 
 
 def _check_stuck(drive: Drive, f: str) -> None:
