@@ -630,7 +630,14 @@ class OutputSet:
         run = ""
         if theirs and isinstance(rec, dict) and rec.get("command"):
             cmd = str(rec["command"])
-            run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
+            ins = rec.get("inputs")
+            if rec.get("command_name") and isinstance(ins, list):
+                on = ", ".join(Path(str(x)).name for x in ins[:2]) + (", ..." if len(ins) > 2
+                                                                      else "")
+                run = f" (the results of 'imubounds {rec['command_name']}'" + (
+                    f" on {on})" if on else ")")
+            else:
+                run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
         shown = ", ".join(
             n + (" (an input of this run)" if _is_input(self.target / n, self.inputs) else "")
             for n in others[:3]) + (", ..." if len(others) > 3 else "")
