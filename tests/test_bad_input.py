@@ -463,6 +463,12 @@ WARNING_CASES = [
     Case("a truncated ULog",
          lambda d: ["static", str(_cut_ulog(d)), "-o", str(d / "o"), *FAST], 0,
          ("truncated",), warning=True),
+    *(Case(f"a units row under the header{' (out of core)' if ooc else ''}",
+           lambda d, ooc=ooc: ["static", str(_log(d, header="time,gyro_x,accel_z", rows=[
+               "s,rad/s,m/s^2", *_rows()])), "-o", str(d / "o"), *FAST, *(OOC if ooc else [])],
+           0, ("log.csv", "line 2 under the header is a row of units (s, rad/s, m/s^2)",
+               "not as data"), warning=True, extra=_noise_rate(Path("o")))
+      for ooc in (False, True)),
 ]
 
 

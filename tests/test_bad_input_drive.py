@@ -584,11 +584,21 @@ _VALUES = st.one_of(
 )
 _TABLE_SPOILS = st.sampled_from([
     "none", "text-cell", "bool-column", "nan-time", "drop-time", "one-row", "huge", "dup-time",
+    # issue 36
+    "all-nan", "one-1e300", "swap-rows", "short-row",
 ])
+#: What the output folder holds before the run (issue 36: only "new", "empty" and the
+#: same command's results of the same input are written without --overwrite).
+_OUT_STATES = st.sampled_from(["new", "empty", "user-file", "other-results", "own-results"])
 
 
 def _spoil_table(d: Path, how: str, table: str) -> None:
     p = d / f"{table}.csv"
+    if how == "short-row":  # a row cut after its second field
+        lines = p.read_text().splitlines()
+        lines[5] = ",".join(lines[5].split(",")[:2])
+        p.write_text("\n".join(lines) + "\n")
+        return
     df = pd.read_csv(p)
     col = df.columns[1]
     if how == "text-cell":
@@ -606,24 +616,58 @@ def _spoil_table(d: Path, how: str, table: str) -> None:
         df[col] = df[col] * 1e300
     elif how == "dup-time":
         df.loc[5, "time_s"] = df.loc[4, "time_s"]
+    elif how == "all-nan":
+        df[col] = np.nan
+    elif how == "one-1e300":
+        df.loc[7, col] = 1e300
+    elif how == "swap-rows":
+        df.iloc[[3, 4]] = df.iloc[[4, 3]].to_numpy()
     df.to_csv(p, index=False)
+
+
+def _prepare_out(out: Path, state: str, d: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    if state == "new":
+        return
+    out.mkdir()
+    if state == "user-file":
+        (out / "mine.txt").write_text("the user's file")
+    elif state == "other-results":
+        (out / "noise.json").write_text("{}")
+        (out / "run.json").write_text(json.dumps({"command": "imubounds static x.csv",
+                                                  "command_name": "static",
+                                                  "files": ["noise.json"]}))
+    elif state == "own-results":  # an earlier convert of the same input
+        clean = Path(str(d) + "_clean")
+        _run(["convert", str(clean), "-o", str(out), "-q"], capsys)
+        rec = json.loads((out / "run.json").read_text())
+        rec["inputs"] = [str(d.resolve())]  # as if converted from this folder
+        (out / "run.json").write_text(json.dumps(rec))
+
+
+#: dynamic options that override a drive.yaml setting, with its range (issue 36)
+_DYN_OPTIONS = ["--heading-deviation", "--heading-noise", "--attitude-bound", "--max-tilt",
+                "--misalignment", "--scale", "--gnss-vel-sigma", "--declination"]
 
 
 @settings(max_examples=40, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     edits=st.dictionaries(st.sampled_from(_KEYS), _VALUES, max_size=3),
-    table=st.sampled_from(["imu", "gnss", "heading"]),
+    table=st.sampled_from(["imu", "gnss", "heading", "truth"]),
     how=_TABLE_SPOILS,
+    state=_OUT_STATES,
+    overwrite=st.booleans(),
 )
 def test_property_no_traceback_and_nothing_written_on_refusal(
     sim: Path, capsys: pytest.CaptureFixture[str],
-    edits: dict[str, object], table: str, how: str,
+    edits: dict[str, object], table: str, how: str, state: str, overwrite: bool,
 ) -> None:
     import yaml
 
     with tempfile.TemporaryDirectory() as tmp:
         d = _copy(sim, Path(tmp) / "drive")
+        if state == "own-results":
+            _copy(sim, Path(tmp) / "drive_clean")
         data = yaml.safe_load((d / "drive.yaml").read_text())
         for key, value in edits.items():
             section, _, name = key.partition(".")
@@ -636,18 +680,54 @@ def test_property_no_traceback_and_nothing_written_on_refusal(
         (d / "drive.yaml").write_text(yaml.safe_dump(data))
         _spoil_table(d, how, table)
         out = Path(tmp) / "out"
-        out.mkdir()
-        (out / "mine.txt").write_text("the user's file")
-        before, before_out = _snapshot(d), _snapshot(out)
-        code, err = _run(["convert", str(d), "-o", str(out), "-q"], capsys)
+        _prepare_out(out, state, d, capsys)
+        before = _snapshot(d)
+        before_out = _snapshot(out) if out.exists() else None
+        argv = ["convert", str(d), "-o", str(out), "-q", *(["--overwrite"] if overwrite else [])]
+        code, err = _run(argv, capsys)
         assert code in (0, 2), err
         assert _snapshot(d) == before
         if code == 2:
-            _one_error(err)
-            assert _snapshot(out) == before_out, "a refused run wrote into the output folder"
+            line = _one_error(err)
+            if str(out) in line:  # the folder, not an input, is refused: naming its files
+                assert "mine.txt" in line or "noise.json" in line, line
+            if before_out is None:
+                assert not out.exists(), "a refused run left its output folder"
+            else:
+                assert _snapshot(out) == before_out, "a refused run wrote into the output folder"
         else:
-            assert (out / "mine.txt").read_text() == "the user's file"
+            assert state not in ("user-file", "other-results") or overwrite, "not refused"
             assert (out / "drive.yaml").is_file()
+            if state == "user-file":
+                assert (out / "mine.txt").read_text() == "the user's file"
+            for w in (ln for ln in err.splitlines() if "warning:" in ln):
+                assert str(d) in w or "drive.yaml" in w, f"a warning naming no file: {w}"
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(opts=st.lists(st.tuples(st.sampled_from(_DYN_OPTIONS), st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.sampled_from(["", "abc", "1e999", "-0", "1000", "-1", "90", "180", "0.5"]))),
+    min_size=1, max_size=3))
+def test_property_dynamic_options_out_of_range_are_refused_when_parsed(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    opts: list[tuple[str, str]],
+) -> None:
+    """Whatever the values, an option is refused at parse time naming it, or taken; the
+    run is stopped at parse time by an invalid --max-windows after them, so that nothing
+    is computed: exit 2, one line naming one of the options, nothing written."""
+    out = tmp_path / "out"
+    flat = [x for o, v in opts for x in (o, f"={v}")]
+    argv = ["dynamic", str(sim), "-o", str(out), *[a + b if b.startswith("=") else a
+                                                     for a, b in zip(flat[::2], flat[1::2],
+                                                                     strict=True)],
+            "--max-windows", "0"]
+    code, err = _run(argv, capsys)
+    assert code == 2, err
+    line = _one_error(err)
+    assert any(f"argument {o}" in line for o, _ in opts) or "argument --max-windows" in line
+    assert not out.exists()
 
 
 # ----------------------------------------------------------------------------- real formats
