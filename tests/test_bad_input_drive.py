@@ -975,3 +975,33 @@ def test_36_drive_yaml_notes_may_be_one_text(sim: Path, tmp_path: Path) -> None:
     d = _copy(sim, tmp_path / "drive")
     (d / "drive.yaml").write_text((d / "drive.yaml").read_text() + "notes: logged by Ana\n")
     assert "logged by Ana" in read_drive(d).notes
+
+
+def test_36_the_budget_says_where_each_number_came_from(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """GNSS velocities with the receiver's accuracy at every other fix: the budget row of
+    the velocity sigma names the receiver for those and drive.yaml's 0.1 m/s for the rest
+    (it said "0.1, drive.yaml" while the per-fix accuracies were used); a setting the
+    drive.yaml leaves out is "default (drive.yaml silent)", never "drive.yaml"."""
+    d = _copy(sim, tmp_path / "drive")
+    tr = pd.read_csv(d / "truth.csv")
+
+    def f(g: pd.DataFrame) -> None:
+        g["vel_e_mps"] = np.interp(g["time_s"], tr["time_s"], tr["vel_e_mps"])
+        g["vel_n_mps"] = np.interp(g["time_s"], tr["time_s"], tr["vel_n_mps"])
+        g["vel_acc_mps"] = np.where(np.arange(len(g)) % 2 == 0, 0.05, np.nan)
+    _csv(d, "gnss.csv", f)
+    _yaml(d, "  cep_m: 3.0\n", "")
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    doc = _strict_json(tmp_path / "out" / "dynamic.json")
+    budget = doc["modes"]["full"]["aiding_budget"]  # type: ignore[index]
+    rows = {t["term"]: t for t in budget["gnss_velocity"]}
+    sigma = rows["velocity sigma per component"]
+    n = len(pd.read_csv(d / "gnss.csv"))
+    assert sigma["source"] == (f"receiver's vel_acc_mps at {(n + 1) // 2} of {n} fixes "
+                               "(median); drive.yaml 0.1 m/s at the others"), sigma
+    assert sigma["value"] == pytest.approx(0.05 if n % 2 else 0.075)
+    cep = {t["term"]: t for t in budget["gnss_position"]}["CEP at HDOP 1"]
+    assert cep["source"] == "default (drive.yaml silent)", cep

@@ -149,7 +149,9 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     summ = res.summary()
     if args.json:
-        json.dump(summ, sys.stdout, indent=2, default=float)
+        from imubounds.io.outputs import to_jsonable
+
+        json.dump(to_jsonable(summ), sys.stdout, indent=2, allow_nan=False)
         print()
     elif not args.quiet:
         print(

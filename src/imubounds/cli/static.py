@@ -514,7 +514,9 @@ def _analyse_and_write(args: argparse.Namespace, outset: Any) -> list[str]:
             for note in getattr(ch.models, "notes", []):
                 rep.info(f"{name}: {note}")
     if args.json:
-        json.dump(summary(result), sys.stdout, indent=2, default=float)
+        from imubounds.io.outputs import to_jsonable
+
+        json.dump(to_jsonable(summary(result)), sys.stdout, indent=2, allow_nan=False)
         print()
     elif not args.quiet:
         print_table(result)

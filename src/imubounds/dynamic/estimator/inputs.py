@@ -710,7 +710,9 @@ def _gnss_positions(
     ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
     ag.gnss_sig = drms / math.sqrt(2.0)
     ag.gnss_det = lev
-    src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
+    src_cep = "option" if opts.get("gnss_cep_m") else (
+        "default (drive.yaml silent)" if "gnss.cep_m" in getattr(st, "defaulted", [])
+        else "drive.yaml")
     ag.budget["gnss_position"] = [
         Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
         Term(
@@ -784,12 +786,24 @@ def _gnss_velocity(
             ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
             ag.gvel_sig = sig_i
             ag.gvel_det = lv_v
+            # where each number came from: the receiver's per-fix accuracies where it gave
+            # them, else the option, drive.yaml or the default (drive.yaml silent)
+            src = "option" if opts.get("gnss_vel_sigma") else (
+                "default (drive.yaml silent)"
+                if "gnss.vel_sigma_mps" in getattr(st, "defaulted", []) else "drive.yaml")
+            n_rx = int(np.sum(good & (sig_i != sig))) if va is not None else 0
+            if n_rx:
+                src = (f"receiver's vel_acc_mps at {n_rx} of {int(good.sum())} fixes (median)"
+                       + (f"; {src} {sig:g} m/s at the others" if n_rx < good.sum() else ""))
+                sig_shown = float(np.median(sig_i[good]))
+            else:
+                sig_shown = sig
             ag.budget["gnss_velocity"] = [
                 Term(
                     "velocity sigma per component",
-                    sig,
+                    sig_shown,
                     "m/s",
-                    "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
+                    src,
                     "Gaussian error of north and east velocity",
                 ),
                 Term(
@@ -802,9 +816,9 @@ def _gnss_velocity(
                 ),
                 Term(
                     "radius",
-                    ag.gvel_h,
+                    float(np.median(ag.gvel_hi[good])) if n_rx else ag.gvel_h,
                     "m/s",
-                    "computed",
+                    "computed" + (" (median over the fixes)" if n_rx else ""),
                     "bounds the 2-D velocity error, hence each component, the speed "
                     "and (asin(radius / speed)) the course",
                 ),
@@ -853,7 +867,8 @@ def _body_velocity(
     if vel_s is not None and opts.get("use_velocity", True):
         bound = float(opts.get("velocity_bound") or st.velocity.bound_mps)
         scale = float(st.velocity.scale)
-        scale_src = "drive.yaml"
+        scale_src = ("default (drive.yaml silent)"
+                     if "velocity.scale" in drive.settings.defaulted else "drive.yaml")
         if "velocity.scale" in drive.settings.defaulted and vel_s.kind in WHEEL_KINDS:
             # a wheel speed scales with the tyre's rolling radius (pressure, wear, load)
             scale = WHEEL_SCALE_DEFAULT
@@ -876,7 +891,9 @@ def _body_velocity(
                 "bound",
                 bound,
                 "m/s",
-                "option" if opts.get("velocity_bound") else "drive.yaml",
+                "option" if opts.get("velocity_bound") else (
+                    "default (drive.yaml silent)"
+                    if "velocity.bound_mps" in getattr(st, "defaulted", []) else "drive.yaml"),
                 f"{vel_s.kind} body-velocity error per component",
             ),
             Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),
