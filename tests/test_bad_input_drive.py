@@ -1005,3 +1005,17 @@ def test_36_the_budget_says_where_each_number_came_from(
     assert sigma["value"] == pytest.approx(0.05 if n % 2 else 0.075)
     cep = {t["term"]: t for t in budget["gnss_position"]}["CEP at HDOP 1"]
     assert cep["source"] == "default (drive.yaml silent)", cep
+
+
+def test_36_simulate_refuses_options_that_make_an_unreadable_drive_yaml(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--misalignment 100 (a sigma: the bound written is 334 deg) used to write a layout
+    that every reader refused; now the option is named and nothing is written."""
+    out = tmp_path / "sim"
+    code, err = _run(["simulate", "--duration", "150", "--distance", "1500", "--rate", "20",
+                      "-o", str(out), "--misalignment", "100", "-q"], capsys)
+    assert code == 2
+    line = _one_error(err)
+    assert "--misalignment" in line and "imu.misalignment_deg must be at most 90" in line
+    assert list(tmp_path.iterdir()) == []
