@@ -614,7 +614,7 @@ class OutputSet:
         for name in _files_under(self.target, skip=self.subsets):
             if name not in own:
                 others.append(name)
-                if len(others) > 3:
+                if len(others) >= 200:  # enough to say what is there
                     break
         if not others:
             return
@@ -638,9 +638,10 @@ class OutputSet:
                     f" on {on})" if on else ")")
             else:
                 run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
+        first = [n for n in others if n not in listed] + changed + theirs  # the user's first
         shown = ", ".join(
             n + (" (an input of this run)" if _is_input(self.target / n, self.inputs) else "")
-            for n in others[:3]) + (", ..." if len(others) > 3 else "")
+            for n in first[:3]) + (", ..." if len(first) > 3 else "")
         raise OutputError(
             f"output directory {self.target} holds {' and '.join(kinds)}: {shown}{run}; "
             "imubounds writes its results only into a new or empty folder or over its own "
