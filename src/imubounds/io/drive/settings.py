@@ -76,6 +76,8 @@ def setting_range(key: str) -> tuple[float, bool, float | None]:
     setting (``"heading.deviation_deg"``): the one range a command-line option that
     overrides it is checked against too."""
     return _RANGES.get(key, (-math.inf, True, None))
+
+
 #: Settings that are texts: file names (resolved against drive.yaml's folder) and names.
 _PATH_KEYS = ("imu.noise_json", "heading.calibration")
 _TEXT_KEYS = ("imu.preset",)

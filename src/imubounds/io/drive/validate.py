@@ -46,7 +46,6 @@ from imubounds.errors import InputError, UnitsError
 from imubounds.io.drive import Drive
 from imubounds.io.drive.validate_imu import (
     GYRO_FULL_SCALE_RADS,
-    RAD_PER_DEG,
     TIME_SCALES,
     check_imu,
     local_en,
@@ -57,7 +56,7 @@ from imubounds.io.drive.validate_imu import data_row as _where
 from imubounds.io.drive.validate_imu import file_label as _file
 from imubounds.io.validate import check_input_path
 
-__all__ = ["GYRO_FULL_SCALE_RADS", "RAD_PER_DEG", "existing_file", "validate_drive"]
+__all__ = ["GYRO_FULL_SCALE_RADS", "existing_file", "validate_drive"]
 
 
 # ----------------------------------------------------------------------------- paths

@@ -14,12 +14,12 @@ import numpy as np
 
 from imubounds.errors import InputError, UnitsError
 from imubounds.io.drive import Drive
+from imubounds.units import DEG, G0
 
 #: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
-GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
-RAD_PER_DEG = math.pi / 180.0
+GYRO_FULL_SCALE_RADS = 2000.0 * DEG
 #: Largest full-scale range of MEMS accelerometers (400 g, impact sensors), m/s^2.
-ACCEL_FULL_SCALE_MPS2 = 400.0 * 9.80665
+ACCEL_FULL_SCALE_MPS2 = 400.0 * G0
 #: ``drive.meta`` key of the messages about samples beyond any MEMS range (corrupt
 #: samples): ``convert`` keeps them with the warning, ``dynamic`` refuses them.
 CORRUPT_SAMPLES = "corrupt_samples"
@@ -192,8 +192,8 @@ def _check_gyro_spikes(drive: Drive, f: str) -> None:
 #: |value - median| in SI beyond which a vehicle's roll and pitch (a horizontal
 #: acceleration) cannot go: 100 deg/s, 30 m/s^2.
 _AXIS_UNITS = {
-    "gyro": (180.0 / math.pi, "deg/s", "rad/s", "x pi/180", 100.0 * RAD_PER_DEG),
-    "accel": (9.80665, "m/s^2", "g", "x 9.80665", 30.0),
+    "gyro": (180.0 / math.pi, "deg/s", "rad/s", "x pi/180", 100.0 * DEG),
+    "accel": (G0, "m/s^2", "g", "x 9.80665", 30.0),
 }
 
 
