@@ -102,6 +102,9 @@ def _run_case(case: Case, tmp: Path, capsys: pytest.CaptureFixture[str]) -> str:
     after = _snapshot(tmp)
     changed = [k for k, v in before.items() if after.get(k) != v and v != "dir"]
     assert not changed, f"{case.name}: pre-existing {changed} changed or removed"
+    if case.code:  # a refused run writes nothing, not even a hidden file or a lock
+        added = sorted(set(after) - set(before))
+        assert not added, f"{case.name}: a refused run left {added}"
     lines = [ln for ln in err.splitlines() if ln.strip()]
     if case.code:
         # counted warnings (e.g. a term the short log does not resolve) may precede the error

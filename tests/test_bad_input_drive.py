@@ -358,6 +358,11 @@ ODD = [
         ("imu.csv", "gyro_z", "t=20.000 to t=60.000", "turns")),
     Odd("36-accel-y-in-g", _scale_cols(("accel_y_mps2",), 1 / 9.80665), "accel_axis_units",
         ("imu.csv", "accel_y", "1/10 of accel_z", "to be in g while read as m/s^2")),
+    Odd("36-one-1e300-accel-sample", _imu_col("accel_y_mps2", -1e300, 3000), "accel_spikes",
+        ("imu.csv", "accel_y", "t=60.000", "400 g", "data row 3001", "corrupt")),
+    Odd("36-gyro-y-converted-twice", _scale_cols(("gyro_y_rads",), np.pi / 180), "gyro_axis_units",
+        ("imu.csv", "gyro_y", "of gyro_z's", "57.3x too small for rad/s (converted twice?)",
+         "undo the second conversion")),
     Odd("36-accel-x-all-nan", _imu_col("accel_x_mps2", np.nan), "imu_column_empty",
         ("imu.csv", "accel_x_mps2", "no value", "accel_x is treated as absent")),
     Odd("36-two-fixes-one-in-the-imu", _one_fix_inside, "gnss_single_epoch",
@@ -897,6 +902,16 @@ DYN_WARNED = [
            ("gnss.csv", "only one fix", "t=0.000")),
     Warned("36-truth-short-row", _truth_lines(_cut_after_position),
            ("truth.csv", "data row 20", "heading_deg", "short row"), _heading_share_survives),
+    # the neighbours: another gyro axis, an accelerometer axis, one NaN truth heading
+    Warned("36-gyro-x-all-nan", _imu_col("gyro_x_rads", np.nan),
+           ("imu.csv", "gyro_x_rads", "no value in any of its 7501 rows", "absent")),
+    Warned("36-accel-z-all-nan", _imu_col("accel_z_mps2", np.nan),
+           ("imu.csv", "accel_z_mps2", "no value in any of its 7501 rows", "absent")),
+    Warned("36-truth-one-nan-heading",
+           lambda d: _csv(d, "truth.csv", lambda t: t.assign(
+               heading_deg=t["heading_deg"].where(t.index != 300))),
+           ("truth.csv", "data row 301", "heading_deg", "left out of the truth check"),
+           _heading_share_survives),
 ]
 
 
@@ -971,10 +986,63 @@ def test_36_the_truth_check_projects_at_the_truths_altitude() -> None:
     assert np.isnan(psi[34]) and np.isnan(psi[35]) and np.isfinite(psi).sum() == psi.size - 2
 
 
-def test_36_drive_yaml_notes_may_be_one_text(sim: Path, tmp_path: Path) -> None:
+def _truth_at_1600_m_rtk(d: Path) -> None:
+    """The drive moved to 1,600 m, its truth written as lat_deg, lon_deg, alt_m and its GNSS
+    replaced by 2 cm fixes of the truth (h_acc_m 0.02): boxes of about 0.1 m."""
+    import pymap3d
+
+    tr = pd.read_csv(d / "truth.csv")
+    org = (float(tr["origin_lat_deg"][0]), float(tr["origin_lon_deg"][0]), 1600.0)
+    lat, lon, alt = pymap3d.enu2geodetic(tr["east_m"], tr["north_m"], tr["up_m"], *org)
+    out = tr.drop(columns=["east_m", "north_m", "origin_lat_deg", "origin_lon_deg",
+                           "origin_alt_m", "up_m"])
+    out.insert(1, "lat_deg", lat)
+    out.insert(2, "lon_deg", lon)
+    out.insert(3, "alt_m", alt)
+    out.to_csv(d / "truth.csv", index=False)
+    rng = np.random.default_rng(4)
+
+    def f(g: pd.DataFrame) -> None:
+        e = np.interp(g["time_s"], tr["time_s"], tr["east_m"]) + rng.normal(0, 0.02, len(g))
+        n = np.interp(g["time_s"], tr["time_s"], tr["north_m"]) + rng.normal(0, 0.02, len(g))
+        u = np.interp(g["time_s"], tr["time_s"], tr["up_m"])
+        g["lat_deg"], g["lon_deg"], g["alt_m"] = pymap3d.enu2geodetic(e, n, u, *org)
+        g["h_acc_m"] = 0.02
+    _csv(d, "gnss.csv", f)
+
+
+def test_36_the_truth_check_of_dynamic_at_1600_m(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """From the command line: 2 cm GNSS boxes at 1,600 m, truth in lat/lon/alt_m. The check
+    projected the truth at h = 0 and printed "truth inside: position 87.4%" (the boxes
+    hold the truth: the check was wrong); at the truth's own height it is 100 %."""
+    d = _copy(sim, tmp_path / "drive")
+    _truth_at_1600_m_rtk(d)
+    before = _snapshot(d)
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    enc = _strict_json(tmp_path / "out" / "dynamic.json")["modes"]["full"]["enclosure"]  # type: ignore[index]
+    assert enc["position"] == 1.0, enc
+    assert _snapshot(d) == before
+
+
+def test_36_drive_yaml_notes_may_be_one_text(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """notes as one text (the docs do not forbid it) was refused; now read as one note, from
+    the command line too (convert writes it back, the input untouched)."""
+    import yaml
+
     d = _copy(sim, tmp_path / "drive")
     (d / "drive.yaml").write_text((d / "drive.yaml").read_text() + "notes: logged by Ana\n")
     assert "logged by Ana" in read_drive(d).notes
+    before = _snapshot(d)
+    code, err = _run(["convert", str(d), "-o", str(tmp_path / "out"), "-q"], capsys)
+    assert code == 0, err
+    assert "logged by Ana" in yaml.safe_load((tmp_path / "out" / "drive.yaml").read_text())[
+        "notes"]
+    assert _snapshot(d) == before
 
 
 def test_36_the_budget_says_where_each_number_came_from(

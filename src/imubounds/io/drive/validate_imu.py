@@ -256,7 +256,8 @@ def _check_axis_units(drive: Drive, f: str) -> None:
                     f"{msg}, and its values go far beyond what a vehicle does; convert "
                     f"{kind}_{ax} to {si} like {kind}_z"
                 )
-            drive.warn(f"{kind}_axis_units", 1, f"{msg}; convert it to {si} if so")
+            fix = f"convert it to {si}" if is_unit else "undo the second conversion"
+            drive.warn(f"{kind}_axis_units", 1, f"{msg}; {fix} if so")
 
 
 def _check_stuck(drive: Drive, f: str) -> None:
