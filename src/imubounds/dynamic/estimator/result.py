@@ -77,7 +77,11 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
             from imubounds.geodesy import enu_to_geodetic_3d, geodetic_to_enu
 
             up = tr.extra.get("up_m")
-            up = np.zeros_like(e) if up is None else np.nan_to_num(np.asarray(up, float))
+            up = np.zeros_like(e) if up is None else np.asarray(up, float)
+            fin_up = np.isfinite(up)
+            if fin_up.any() and not fin_up.all():  # a row without a height (a short row):
+                up = np.interp(tt, tt[fin_up], up[fin_up])  # its neighbours' (mm horizontally)
+            up = np.nan_to_num(up)
             lat, lon, alt = enu_to_geodetic_3d(e, n, up, t_org)
             e, n, _ = geodetic_to_enu(lat, lon, alt, origin=(origin[0], origin[1], origin[2]))
     elif origin is None:
