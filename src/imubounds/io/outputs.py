@@ -4,7 +4,8 @@ Every file is first written next to its destination under a temporary name and
 then moved into place with :func:`os.replace` (:mod:`imubounds.io.atomic`), so an
 interrupted run never leaves a half-written ``noise.json`` or figure behind.
 
-How imubounds recognises the files it wrote (and so may overwrite):
+How imubounds recognises the files it wrote (and so may overwrite; the records are read in
+:mod:`imubounds.io.records`):
 
 * a **result set** (:class:`OutputSet`: ``static``, ``dynamic``, ``simulate``,
   ``convert``, ``demo``) is staged beside its directory, moved in at the end and
@@ -40,7 +41,6 @@ truthfully what was written.
 from __future__ import annotations
 
 import glob
-import json
 import os
 import shutil
 import tempfile
@@ -61,6 +61,30 @@ from imubounds.io.atomic import (
     write_with,
 )
 from imubounds.io.locks import acquire_lock, lock_owner, pid_alive, signals_held
+from imubounds.io.records import (
+    BACKUP_PREFIX,
+    BOOKKEEPING,
+    COMMIT_RECORD,
+    FILES_LOCK,
+    FILES_RECORD,
+    LOCK_NAME,
+    RUN_RECORD,
+    committed_outputs,
+    files_record,
+    files_under,
+    fingerprint,
+    fingerprints,
+    is_input,
+    journal,
+    listed_files,
+    names_written,
+    read_json,
+    recorded_files,
+    remove_stale_parts,
+    reset_committed_outputs,
+    unchanged,
+    written_by_imubounds,
+)
 
 __all__ = [
     "BOOKKEEPING", "COMMIT_RECORD", "FILES_RECORD", "LOCK_NAME", "RUN_RECORD", "OutputSet",
@@ -93,18 +117,6 @@ def write_run_record(outdir: str | os.PathLike[str], argv: list[str] | None, **e
     return write_json(Path(outdir) / "run.json", record)
 
 
-def listed_files(target: str | os.PathLike[str]) -> set[str]:
-    """Relative names of the files the last imubounds run in ``target`` listed as its own
-    (its ``run.json``, and an interrupted commit's record)."""
-    return _written_by_imubounds(Path(target))
-
-
-def recorded_files(folder: str | os.PathLike[str]) -> set[str]:
-    """Names of the files an imubounds run recorded in ``folder`` as its own (its
-    ``run.json`` and the single-file record), whether or not they still exist."""
-    return _written_by_imubounds(Path(folder)) | set(_files_record(Path(folder)))
-
-
 def record_written_files(
     target: str | os.PathLike[str],
     argv: Sequence[str] | None,
@@ -126,157 +138,6 @@ def record_written_files(
     return write_run_record(t, list(argv) if argv is not None else None, files=names,
                             complete=complete, **({"earlier_files": old} if old else {}),
                             **extra)  # fmt: skip
-
-
-# ----------------------------------------------------------------------------- records
-RUN_RECORD = "run.json"
-LOCK_NAME = ".imubounds.lock"
-#: Written before a result set is moved in, removed after its run.json is written.
-COMMIT_RECORD = ".imubounds-commit.json"
-#: Single files imubounds wrote in a folder, with their size and modification time.
-FILES_RECORD = ".imubounds-files.json"
-FILES_LOCK = ".imubounds-files.lock"
-#: Prefix of the folder (inside the target) that holds the old set during a commit.
-BACKUP_PREFIX = ".imubounds-old-"
-#: imubounds' own bookkeeping, and files an operating system puts in any folder: never
-#: counted as the user's files of an output folder.
-BOOKKEEPING = frozenset({RUN_RECORD, LOCK_NAME, COMMIT_RECORD, FILES_RECORD, FILES_LOCK})
-OS_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
-
-_JOURNAL: list[str] = []
-
-
-def committed_outputs() -> list[str]:
-    """What this process has written completely so far (directories and files)."""
-    return list(_JOURNAL)
-
-
-def reset_committed_outputs() -> None:
-    """Forget :func:`committed_outputs` (the CLI does this at the start of a command)."""
-    _JOURNAL.clear()
-
-
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-
-
-def _written_by_imubounds(target: Path) -> set[str]:
-    """Relative names that the last imubounds run in ``target`` wrote: those its run.json
-    lists, and those of a commit that was interrupted (``.imubounds-commit.json``)."""
-    names: set[str] = set()
-    rec = _read_json(target / RUN_RECORD)
-    for key in ("files", "earlier_files"):
-        files = rec.get(key) if isinstance(rec, dict) else None
-        if isinstance(files, list):
-            names |= {str(f) for f in files}
-    intent = _read_json(target / COMMIT_RECORD)
-    if isinstance(intent, dict):
-        for key in ("old", "new"):
-            if isinstance(intent.get(key), list):
-                names |= {str(f) for f in intent[key]}
-    return names | {RUN_RECORD} if names else names
-
-
-def _fingerprint(path: Path) -> list[int]:
-    st = path.lstat()
-    return [int(st.st_size), int(st.st_mtime_ns)]
-
-
-def _fingerprints(folder: Path, names: Iterable[str]) -> dict[str, list[int]]:
-    out = {}
-    for n in names:
-        try:
-            out[n] = _fingerprint(folder / n)
-        except OSError:
-            continue
-    return out
-
-
-def _files_record(folder: Path) -> dict[str, list[int]]:
-    rec = _read_json(folder / FILES_RECORD)
-    files = rec.get("files") if isinstance(rec, dict) else None
-    if not isinstance(files, dict):
-        return {}
-    return {
-        str(k): [int(x) for x in v]
-        for k, v in files.items()
-        if isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) for x in v)
-    }
-
-
-def _unchanged(folder: Path, name: str, rec: Any) -> bool:
-    """``folder/name`` is as imubounds left it: its fingerprint in ``rec`` (a run.json)
-    or in the folder's single-file record matches (a run.json without fingerprints,
-    written by an older version, is taken at its word)."""
-    prints = rec.get("fingerprints") if isinstance(rec, dict) else None
-    try:
-        now = _fingerprint(folder / name)
-    except OSError:
-        return False
-    if not isinstance(prints, dict) or name not in prints:
-        return not isinstance(prints, dict) or _files_record(folder).get(name) == now
-    return prints[name] == now or _files_record(folder).get(name) == now
-
-
-def written_by_imubounds(path: str | os.PathLike[str]) -> bool:
-    """True when ``path`` is a file imubounds wrote and nobody changed since (see the
-    module docstring)."""
-    p = Path(path)
-    if not p.is_file():
-        return False
-    if p.name in _written_by_imubounds(p.parent):
-        return _unchanged(p.parent, p.name, _read_json(p.parent / RUN_RECORD))
-    rec = _files_record(p.parent).get(p.name)
-    try:
-        return rec is not None and rec == _fingerprint(p)
-    except OSError:
-        return False
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return a.resolve() == b.resolve()
-
-
-def _is_input(path: Path, inputs: Iterable[Path]) -> bool:
-    return any(_same_file(path, i) for i in inputs)
-
-
-def _remove_stale_parts(folder: Path, names: Iterable[str]) -> None:
-    """Temporary files of ``names`` (``.NAME.XXXX.part``) left by a killed run; only
-    called while holding the lock under which they are written."""
-    for name in names:
-        for p in folder.glob(glob.escape(f".{name}.") + "*.part"):
-            p.unlink(missing_ok=True)
-
-
-def _files_under(root: Path, skip: Iterable[str] = ()) -> Iterator[str]:
-    """Relative names of the files (and links, special files) under ``root``, without
-    following links, leaving out imubounds' bookkeeping, operating-system files and the
-    top-level entries ``skip``."""
-    skipped = set(skip)
-    stack = [(root, "")]
-    while stack:
-        folder, rel = stack.pop()
-        try:
-            entries = sorted(os.scandir(folder), key=lambda e: e.name)
-        except OSError:
-            continue
-        for e in entries:
-            name = f"{rel}{e.name}"
-            if (not rel and e.name in skipped) or e.name in BOOKKEEPING or e.name in OS_FILES:
-                continue
-            if e.name.startswith(BACKUP_PREFIX):
-                continue
-            if e.is_dir(follow_symlinks=False):
-                stack.append((Path(e.path), f"{name}/"))
-            else:
-                yield name
 
 
 # ----------------------------------------------------------------------------- single files
@@ -316,7 +177,7 @@ def check_output_file(
             raise OutputError(f"{who}: folder {parent} {what}; create it or {advice}")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise OutputError(f"{who}: folder {parent} is not writable; {advice}")
-        if _is_input(d, [Path(i) for i in inputs if os.fspath(i)]):
+        if is_input(d, [Path(i) for i in inputs if os.fspath(i)]):
             raise OutputError(
                 f"{who} is an input of this run; imubounds will not overwrite it ({advice})"
             )
@@ -374,11 +235,11 @@ def output_file(
         with signals_held():  # taken and removed with Ctrl-C held back: never left behind
             acquire_lock(lock, folder, wait_s=10.0)
         try:
-            _remove_stale_parts(folder, (FILES_RECORD,))
+            remove_stale_parts(folder, (FILES_RECORD,))
             check_output_file(d, force=force, inputs=inputs, option=option, advice=advice)
             with signals_held():
                 _replace_recorded(tmp_path, d)
-                _JOURNAL.append(str(d))
+                journal(str(d))
         except OSError as err:
             raise OutputError(f"{who}: cannot be written ({err.strerror or err})") from err
         finally:
@@ -405,8 +266,8 @@ def _replace_recorded(tmp: Path, d: Path) -> None:
             aside = True
         os.replace(tmp, d)
         placed = True
-        rec = {k: v for k, v in _files_record(folder).items() if (folder / k).is_file()}
-        rec[d.name] = _fingerprint(d)
+        rec = {k: v for k, v in files_record(folder).items() if (folder / k).is_file()}
+        rec[d.name] = fingerprint(d)
         write_json(folder / FILES_RECORD, {"format": "imubounds.files/1", "files": rec})
     except BaseException:
         if placed:
@@ -495,7 +356,7 @@ class OutputSet:
                 raise OutputError(
                     f"output path {t} exists and is not a directory; choose another -o"
                 )
-            if t.exists() and _is_input(t, self.inputs):
+            if t.exists() and is_input(t, self.inputs):
                 raise OutputError(
                     f"output directory {t} is an input of this run; choose another -o"
                 )
@@ -507,7 +368,7 @@ class OutputSet:
                 self._lock = t / LOCK_NAME
             self._restore_interrupted_commit()
             self._remove_stale_staging()
-            _remove_stale_parts(t, (RUN_RECORD, COMMIT_RECORD))
+            remove_stale_parts(t, (RUN_RECORD, COMMIT_RECORD))
             if not self.force:
                 self._refuse_others()
             self._staging = Path(
@@ -595,31 +456,31 @@ class OutputSet:
         """Files in ``target`` that the earlier run of this command on this source wrote
         and nobody changed since (all files imubounds listed, for a set without a
         ``command``)."""
-        rec = _read_json(self.target / RUN_RECORD)
+        rec = read_json(self.target / RUN_RECORD)
         if self.command is None:
-            return _written_by_imubounds(self.target) | set(_files_record(self.target))
+            return names_written(self.target) | set(files_record(self.target))
         if not isinstance(rec, dict) or rec.get("command_name") != self.command:
             return set()
         if isinstance(rec.get("inputs"), list) and sorted(map(str, rec["inputs"])) != self.source:
             return set()
         files = rec.get("files")
         names = [str(f) for f in files] if isinstance(files, list) else []
-        return {n for n in names if _unchanged(self.target, n, rec)}
+        return {n for n in names if unchanged(self.target, n, rec)}
 
     def _refuse_others(self) -> None:
         """:class:`OutputError` if ``target`` holds anything but this command's own earlier
         results (see the class docstring)."""
         own = self._own_files()
         others: list[str] = []
-        for name in _files_under(self.target, skip=self.subsets):
+        for name in files_under(self.target, skip=self.subsets):
             if name not in own:
                 others.append(name)
                 if len(others) >= 200:  # enough to say what is there
                     break
         if not others:
             return
-        rec = _read_json(self.target / RUN_RECORD)
-        listed = _written_by_imubounds(self.target) | set(_files_record(self.target))
+        rec = read_json(self.target / RUN_RECORD)
+        listed = names_written(self.target) | set(files_record(self.target))
         changed = [n for n in others if n in listed and not written_by_imubounds(
             self.target / n)]
         theirs = [n for n in others if n in listed and n not in changed]
@@ -640,7 +501,7 @@ class OutputSet:
                 run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
         first = [n for n in others if n not in listed] + changed + theirs  # the user's first
         shown = ", ".join(
-            n + (" (an input of this run)" if _is_input(self.target / n, self.inputs) else "")
+            n + (" (an input of this run)" if is_input(self.target / n, self.inputs) else "")
             for n in first[:3]) + (", ..." if len(first) > 3 else "")
         raise OutputError(
             f"output directory {self.target} holds {' and '.join(kinds)}: {shown}{run}; "
@@ -651,13 +512,13 @@ class OutputSet:
         )
 
     def _conflicts(self, names: list[str]) -> list[str]:
-        listed = bool(_written_by_imubounds(self.target))
+        listed = bool(names_written(self.target))
         out: list[str] = []
         for name in names:
             dest = self.target / name
             if not (dest.exists() or dest.is_symlink()):
                 continue
-            if _is_input(dest, self.inputs):
+            if is_input(dest, self.inputs):
                 out.append(
                     f"{dest} is an input of this run; imubounds will not overwrite it "
                     "(choose another -o)"
@@ -678,7 +539,7 @@ class OutputSet:
         run's results) and that nobody changed since: removed at the commit, so that the
         folder holds one run's results. Files of another command or source, changed
         files, inputs of this run and files not listed are never removed."""
-        rec = _read_json(self.target / RUN_RECORD)
+        rec = read_json(self.target / RUN_RECORD)
         mine = (self._record or {}).get("command_name", self.command)
         if not isinstance(rec, dict) or mine is None or rec.get("command_name") != mine:
             return []
@@ -698,8 +559,8 @@ class OutputSet:
                 or ".." in Path(name).parts
                 or not dest.is_file()
                 or dest.is_symlink()
-                or _is_input(dest, self.inputs)
-                or not _unchanged(self.target, name, rec)
+                or is_input(dest, self.inputs)
+                or not unchanged(self.target, name, rec)
             ):
                 continue
             out.append(name)
@@ -713,7 +574,7 @@ class OutputSet:
         problems = self._conflicts(names_all)
         if problems:
             raise OutputError(problems[0])
-        old = sorted(_written_by_imubounds(self.target))
+        old = sorted(names_written(self.target))
         superseded = self._superseded(names_all)
         # Ctrl-C is held back for the renames of the commit, and any exception undoes
         # them, so that the set is either the old one or the new one, and the message
@@ -751,14 +612,14 @@ class OutputSet:
                 # (overwritable later) without being part of this complete set
                 earlier = sorted(n for n in old if n not in names_all and (t / n).is_file())
                 write_run_record(t, argv, files=names, complete=True,
-                                 fingerprints=_fingerprints(t, [*names, *earlier]),
+                                 fingerprints=fingerprints(t, [*names, *earlier]),
                                  **({"earlier_files": earlier} if earlier else {}), **extra)
             (t / COMMIT_RECORD).unlink()
         except BaseException:
             self._undo(backup, moved_in, moved_out)
             raise
         self.committed = True
-        _JOURNAL.append(str(t))
+        journal(str(t))
         _remove_tree(backup)
 
     def _undo(self, backup: Path, moved_in: list[str], moved_out: list[str]) -> None:
@@ -786,7 +647,7 @@ class OutputSet:
         files out and put the old set back from the backup. A backup folder without a
         commit record is what a killed run left after its commit: removed."""
         t = self.target
-        intent = _read_json(t / COMMIT_RECORD)
+        intent = read_json(t / COMMIT_RECORD)
         backup = t / str(intent.get("backup", "")) if isinstance(intent, dict) else None
         if backup is not None and backup.name.startswith(BACKUP_PREFIX) and backup.is_dir():
             for name in (intent or {}).get("new") or []:
