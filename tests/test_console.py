@@ -115,7 +115,7 @@ def _hour_trip(d: Path) -> Path:
     return d
 
 
-def test_dynamic_on_a_one_hour_trip_shows_progress_within_two_seconds(tmp_path: Path) -> None:
+def test_dynamic_on_a_one_hour_trip_shows_progress_first(tmp_path: Path) -> None:
     trip = _hour_trip(tmp_path / "trip")
 
     def into_mode_full(out: bytes) -> bool:
@@ -125,7 +125,12 @@ def test_dynamic_on_a_one_hour_trip_shows_progress_within_two_seconds(tmp_path: 
                             stop=into_mode_full, timeout=120.0)  # fmt: skip
     progress = [(t, c) for t, c in chunks if b"imubounds dynamic: " in c]
     assert progress, b"".join(c for _, c in chunks)[-2000:]
-    assert progress[0][0] < 2.0, progress[0]
+    # the progress line is the first thing on the terminal and is there before the drive
+    # has been read (no wall-clock threshold: a loaded CI machine takes seconds to import;
+    # on an idle machine the first line comes within about 1 s)
+    assert chunks[0][1].strip().startswith(b"imubounds dynamic: "), chunks[0]
+    t_full = next(t for t, c in chunks if b"2/6 mode full" in c)
+    assert progress[0][0] < t_full, (progress[0], t_full)
     # it moves: the steps (reading, then mode full) and its clock, twice a second
     raw = b"".join(c for _, c in chunks)
     assert b"1/6 reading the drive" in raw and b"2/6 mode full" in raw

@@ -97,6 +97,30 @@ def declination(text: str) -> float:
     return x
 
 
+def setting_value(key: str, unit: str) -> Callable[[str], float]:
+    """An option that overrides the drive.yaml setting ``key``: a finite number in that
+    setting's range (``--heading-deviation 1000`` is refused as ``heading.deviation_deg``
+    would be)."""
+    from imubounds.io.drive.settings import setting_range
+
+    lo, inclusive, hi = setting_range(key)
+
+    def parse(text: str) -> float:
+        x = _number(text)
+        if x < lo or (x == lo and not inclusive):
+            rel = ">=" if inclusive else ">"
+            raise argparse.ArgumentTypeError(f"must be {rel} {lo:g} {unit} ({key}), got {text}")
+        if hi is not None and x > hi:
+            raise argparse.ArgumentTypeError(
+                f"must be at most {hi:g} {unit} ({key} in drive.yaml has the same range), "
+                f"got {text}"
+            )
+        return x
+
+    parse.__name__ = key.replace(".", "_")
+    return parse
+
+
 def imu_spec(text: str) -> str:
     """``--imu-spec``: a preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``,
     checked when parsed (not empty; datasheet figures not all zero)."""
@@ -197,11 +221,17 @@ def existing_dir(text: str) -> str:
 
 
 def add_force_option(p: argparse.ArgumentParser) -> None:
-    """``--force``: allow overwriting files in the output directory that imubounds did not write."""
+    """``--overwrite`` (``--force``, the same option): write into an output folder that
+    holds other files, and replace files there that imubounds did not write (never an
+    input of the run); ``args.force``."""
     p.add_argument(
+        "--overwrite",
         "--force",
+        dest="force",
         action="store_true",
-        help="overwrite files in the output directory that imubounds did not write",
+        help="write into an output folder that holds other files (they are kept) and "
+        "replace files of the same names that imubounds did not write (never an input); "
+        "--force is the same option",
     )
 
 

@@ -67,15 +67,17 @@ def run(args: argparse.Namespace) -> int:
         raise OptionError("--topic applies to ROS bags only")
     inputs = [*args.input, *([args.settings] if args.settings else [])]
     suffix = FORMATS[args.format]
-    with OutputSet(args.out, force=args.force, inputs=inputs) as out:
+    with OutputSet(args.out, force=args.force, inputs=inputs, command="convert",
+                   source=args.input) as out:
         extra = [CALIBRATION_FILE] if drive.settings.heading.calibration is not None else []
         extra += [NOISE_FILE] if drive.settings.imu.noise_json is not None else []
         out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE, *extra])
         write_layout(drive, out.staging, fmt=args.format)
         out.record(getattr(args, "argv", None), command_name="convert")
-    if not args.quiet:
-        for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
-            print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
+    for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
+        if args.quiet and not line.startswith("imubounds: warning:"):
+            continue  # the warnings about the input even with --quiet
+        print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
     return 0
 
 

@@ -30,7 +30,8 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
-    with OutputSet(args.out, force=args.force) as outset:
+    with OutputSet(args.out, force=args.force, command="demo",
+                   subsets=("static", "sim", "dynamic", "filter")) as outset:
         outset.check(["report.html"])
         return _run(args, Path(args.out), outset)
 
@@ -80,7 +81,7 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
             print(f"[{shown.index(what) + 1}/{len(shown)}] {what}")
         # errors and Ctrl-C propagate, so the message names what was written
         quiet_step = quiet if argv[0] != "export" else ["--quiet"]
-        full = [*argv, *quiet_step, *(["--force"] if args.force else [])]
+        full = [*argv, *quiet_step, *(["--overwrite"] if args.force else [])]
         ran.append("imubounds " + shlex.join(full))
         code = run_command(full)
         if code:

@@ -25,6 +25,7 @@ from imubounds.cli._common import (
     positive_float,
     positive_int,
     probability,
+    setting_value,
 )
 from imubounds.errors import InputError
 
@@ -79,13 +80,15 @@ def register(sub: Any) -> None:
                    help="turn-on bias bound of the accelerometers")
     f.add_argument("--turn-on-gyro", type=nonneg_float, metavar="DEG/S",
                    help="turn-on bias bound of the gyros")
-    f.add_argument("--scale", type=nonneg_float, metavar="FRACTION",
+    f.add_argument("--scale", type=setting_value("imu.scale_factor", ""), metavar="FRACTION",
                    help="scale-factor error bound (0.005 = 0.5 %%)")
-    f.add_argument("--misalignment", type=nonneg_float, metavar="DEG",
+    f.add_argument("--misalignment", type=setting_value("imu.misalignment_deg", "deg"),
+                   metavar="DEG",
                    help="axis misalignment bound")
     f.add_argument("--imu-stamp", choices=("end", "start", "centre"),
                    help="where in its period an IMU sample is time-stamped (end)")
-    f.add_argument("--max-tilt", type=nonneg_float, metavar="DEG",
+    f.add_argument("--max-tilt", type=setting_value("vehicle.max_tilt_deg", "deg"),
+                   metavar="DEG",
                    help="roll/pitch bound when there is no attitude stream (vehicle.max_tilt_deg)")
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
                    help="non-holonomic |lateral velocity| bound of a wheeled vehicle "
@@ -105,15 +108,19 @@ def register(sub: Any) -> None:
     f.add_argument("--max-ang-accel", type=positive_float, metavar="DEG/S2",
                    help="angular-acceleration bound (360)")
     f.add_argument("--gnss-cep", type=positive_float, metavar="M", help="CEP at HDOP 1")
-    f.add_argument("--gnss-vel-sigma", type=nonneg_float, metavar="M/S",
+    f.add_argument("--gnss-vel-sigma", type=setting_value("gnss.vel_sigma_mps", "m/s"),
+                   metavar="M/S",
                    help="1-sigma GNSS velocity error per component")
     f.add_argument("--velocity-bound", type=nonneg_float, metavar="M/S",
                    help="body-velocity sensor error bound")
-    f.add_argument("--attitude-bound", type=nonneg_float, metavar="DEG",
+    f.add_argument("--attitude-bound", type=setting_value("attitude.bound_deg", "deg"),
+                   metavar="DEG",
                    help="roll/pitch error bound of the attitude stream")
-    f.add_argument("--heading-noise", type=nonneg_float, metavar="DEG",
+    f.add_argument("--heading-noise", type=setting_value("heading.noise_deg", "deg"),
+                   metavar="DEG",
                    help="1-sigma compass noise")
-    f.add_argument("--heading-deviation", type=nonneg_float, metavar="DEG",
+    f.add_argument("--heading-deviation", type=setting_value("heading.deviation_deg", "deg"),
+                   metavar="DEG",
                    help="compass deviation bound after correction")
     f.add_argument("--declination", type=declination, metavar="DEG",
                    help="magnetic declination, east positive")
@@ -172,6 +179,15 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()
+    from imubounds.io.drive.validate_imu import CORRUPT_SAMPLES
+
+    corrupt = drive.meta.get(CORRUPT_SAMPLES) or []
+    if corrupt:
+        more = f" (and {len(corrupt) - 1} more channel(s))" if len(corrupt) > 1 else ""
+        raise InputError(
+            f"{corrupt[0]}{more}: corrupt samples, which no error bound holds over; repair "
+            "or remove these rows (imubounds convert keeps them, with a warning)"
+        )
     from imubounds.dynamic.imu_mount import mount_warning
 
     if (w := mount_warning(drive)) is not None:
@@ -243,15 +259,19 @@ def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
     inputs = [*args.log, *(x for x in (args.static,) if x)]
-    with OutputSet(args.out, force=args.force, inputs=inputs) as outset:
+    with OutputSet(args.out, force=args.force, inputs=inputs, command="dynamic",
+                   source=args.log) as outset:
         outset.check(["dynamic.json", "motion.json", "margins.csv", "states.csv", "steps.csv",
                       "report.html"])
         messages = _run(args, outset)
-    if not args.quiet:
-        # the answer on stdout (as static's; on stderr with --json), notes on stderr
-        for m in messages:
-            note = m.startswith("imubounds: note:")
-            print(m, file=sys.stderr if note or args.json else sys.stdout)
+    for m in messages:
+        # the summary on stdout (as static's); notes and warnings on stderr, the warnings
+        # about the input even with --quiet
+        warning = m.startswith("imubounds: warning:")
+        if args.quiet and not warning:
+            continue
+        note = warning or m.startswith("imubounds: note:")
+        print(m, file=sys.stderr if note or args.json else sys.stdout)
     return 0
 
 
@@ -347,7 +367,7 @@ def _analyse(args: argparse.Namespace, outset: Any, steps: Any) -> list[str]:
         print(json.dumps(to_jsonable(doc), indent=2))
     _summary(results, motion, say)
     for w in drive.warnings:
-        say(f"imubounds: note: {w}")
+        say(f"imubounds: warning: {w}")
     messages += skipped
     files = ["dynamic.json", *(["motion.json", "margins.csv", "states.csv"] if full else []),
              *(["steps.csv"] if "paper" in results else [])]

@@ -47,7 +47,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from imubounds.io.outputs import output_file
 
-    inputs = [args.results, *([args.motion] if args.motion else [])]
+    # the files read are inputs too (never overwritten): a folder's noise.json, motion.json
+    inputs = [args.results, str(Path(args.results) / "noise.json")]
+    if args.motion:
+        inputs += [args.motion, str(Path(args.motion) / "motion.json")]
     with output_file(args.out, force=args.force, inputs=inputs) as tmp:
         tmp.write_text(text, encoding="utf-8")
     if not args.quiet:

@@ -501,7 +501,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         # The output directory is locked and checked before the analysis, not after it;
         # the results land in it complete or not at all.
-        with OutputSet(args.out, force=args.force, inputs=[args.log]) as outset:
+        with OutputSet(args.out, force=args.force, inputs=[args.log], command="static") as outset:
             outset.check(["noise.json", "imu.yaml", "allan.png", "allan.svg", "report.html"])
             written = _run(args, outset, con)
     finally:
@@ -581,11 +581,11 @@ def _analyse_and_write(
             f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
             f" data buffers <= {format_bytes(parse_memory(args.max_memory))}"
         )
-        con.warnings += list(big.warnings)
         result = analyse_static_outofcore(
             big, settings, channels=channels, memory_limit=args.max_memory,
             tmpdir=args.tmpdir, progress=steps.sub,
         )  # fmt: skip
+        con.warnings += list(big.warnings)  # after the pass: the stream's checks add to them
         con.notes += list(result.notes)
     else:
         assert log is not None
@@ -617,7 +617,9 @@ def _analyse_and_write(
             con.notes += [f"{name}: {n}" for n in getattr(ch.models, "notes", [])]
     flagged |= {n for n in result.channels for w in con.warnings if w.startswith(f"{n}:")}
     if args.json:
-        json.dump(summary(result), sys.stdout, indent=2, default=float)
+        from imubounds.io.outputs import to_jsonable
+
+        json.dump(to_jsonable(summary(result)), sys.stdout, indent=2, allow_nan=False)
         print()
     else:
         con.answer = answer_lines(result, doc, flagged)
