@@ -18,9 +18,10 @@ reads pitch and roll without accel_x's windows), so
 (``k`` the kinematic parts of the margins, ``[g] = [G_LO, G_HI]``). The change of the
 channel's error is then ``[y_W2 - y_W1] - [x_W2 - x_W1]``, intersected with the
 window-by-window difference (both enclose it). On a straight span ``M_2 - M_1`` is
-near 0 and the interval is the velocity ends' ``4R/tau`` plus the transport terms: a
-0.3 m/s^2 step of an industrial accel_x is judged `exceeds` at tau of 20-40 s where each
-window alone holds +-0.7 m/s^2.
+near 0 and the interval is the velocity ends' ``4R/tau`` plus the transport terms. On the
+hilly GNSS-only industrial trip a 0.6 m/s^2 accel_x step is judged `exceeds`; a 0.3 m/s^2
+one is not (the joint change at the step is +-0.37 m/s^2 at tau = 10 s, 0.22 of it the
+velocity ends; docs section 4, "Which channel").
 """
 
 from __future__ import annotations
