@@ -1,19 +1,14 @@
-"""Physical constants and outward rounding helpers of the true-signal constraints."""
+"""Outward rounding helpers of the true-signal constraints (the physical constants are in
+:mod:`imubounds.constants`)."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from imubounds.interval import IntervalArray as IA
 from imubounds.interval.rounding import up
-
-G_LO, G_HI = 9.76, 9.84  #: local gravity magnitude range, m/s^2 (latitude, height)
-R_EARTH = 6.371e6  #: Earth radius, m
-EARTH_RATE = 7.2921159e-5  #: Earth rotation rate, rad/s
-TWO_PI = 2.0 * math.pi
 
 
 def pm(r: Any) -> IA:

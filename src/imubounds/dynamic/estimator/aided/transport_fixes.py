@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from imubounds.constants import EARTH_RATE, R_EARTH
+from imubounds.constants import EPS_UP as _EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     c_extremes,
     error_rates,
@@ -17,7 +19,7 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
     other_rate,
     sample_model,
 )
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.positions import body_u_mean_parts, gap_units
@@ -25,7 +27,6 @@ from imubounds.dynamic.estimator.aided.transport import r_abs
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
-_EPS = 2.3e-16
 #: the levels d0 of the speed part: quantiles of the gaps' half-ranges of u
 SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
 #: block lengths (in fix gaps) of the positions-only transport bound (:func:`transport_by_fixes`)

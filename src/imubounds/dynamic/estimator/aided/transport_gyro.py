@@ -25,13 +25,15 @@ import math
 
 import numpy as np
 
+from imubounds.constants import EARTH_RATE, R_EARTH
+from imubounds.constants import EPS_UP as _EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     accel_error,
     c_extremes,
     k_two,
     other_rate,
 )
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
@@ -46,7 +48,6 @@ PIECES = 8
 #: the split of u - U0 (:mod:`.transport_split`) is computed where it could narrow the
 #: form by at least this share of its width
 SPLIT_GAIN = 0.03
-_EPS = 2.3e-16
 
 
 def _kernel_ok(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:

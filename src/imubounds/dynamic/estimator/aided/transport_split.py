@@ -48,13 +48,12 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
+from imubounds.constants import EPS_UP as _EPS
 from imubounds.dynamic.estimator.aided.accel_integral import c_extremes, k_two
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.budget import ChannelNoise
 from imubounds.dynamic.estimator.window_plan import LevelPlan
-
-_EPS = 2.3e-16
 
 
 def _cum_table(w: WindowContext) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import r_from_psidot
@@ -55,7 +56,7 @@ def q_window_mean(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) ->
     det = 2 * w.ctx.D_KR["gyro_y"] + 2 * cn.scale * w.mag_mean("gyro_y", s0, s1)
     for other in ("gyro_x", "gyro_z"):
         det = det + 2 * cn.misalignment_rad * w.mag_mean(other, s0, s1)
-    whole = up(((dev + crad + pitch_rate_mean(w, s0, s1) + det) * L / tau + conc) * (1 + 1e-12))
+    whole = up(((dev + crad + pitch_rate_mean(w, s0, s1) + det) * L / tau + conc) * (1 + ROUND_REL))
     blocks = block_r_abs(w, lp, tau, 0.5 * p, det, ch="gyro_y")
     fine = np.minimum(whole, blocks)
     return np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))
