@@ -30,7 +30,7 @@ from imubounds.stationary import drift, theory
 from imubounds.stationary import stationarity as stationarity_module
 from imubounds.stationary.allan import allan
 from imubounds.stationary.pipeline import StaticSettings, analyse_static
-from imubounds.stationary.stationarity import DRIFT_Z, WARMUP_Z, stationarity
+from imubounds.stationary.stationarity import DRIFT_Z, TREND_NOTE_Z, WARMUP_Z, stationarity
 
 from .drift_sim import CHANNELS, Disturbance, axis, spliced_log, static_log, write_csv
 
@@ -175,6 +175,22 @@ def test_drift_and_warmup_reach_noise_json_and_the_warnings() -> None:
     assert st_["stationary"] is False and st_["drift"]["z"] >= DRIFT_Z
     assert set(st_["noise_model"]) == {"Q", "N", "B", "K", "R"}
     assert any("the bias drifts by" in w for w in doc["channels"]["gyro_x"]["warnings"])
+
+
+def test_a_trend_below_a_drift_is_named_when_r_or_k_is_resolved(clean: list[Any]) -> None:
+    """A thermal settling whose slope stays below DRIFT_Z (z = 4.1 here) while the term
+    fit resolves R or K: the channel stays stationary, but a warning says those terms may
+    be the trend. On the clean channels the trend's z reaches TREND_NOTE_Z rarely."""
+    log = static_log(3008, rate_hz=RATE, hours=HOURS, channels=("gyro_x",),
+                     disturbance=Disturbance(thermal_amp=20.0, thermal_tau_s=1800.0))  # fmt: skip
+    imu = ImuLog({"gyro_x": log["gyro_x"]}, RATE, log["time_s"], "thermal.csv")
+    doc = analyse_static(imu, StaticSettings(models=())).to_dict()["channels"]["gyro_x"]
+    st_ = doc["stationarity"]
+    assert st_["drift"] is None and TREND_NOTE_Z <= abs(st_["trend"]["z"]) < DRIFT_Z
+    warned = [w for w in doc["warnings"] if "the bias trends by" in w]
+    assert len(warned) == 1 and "may describe this trend" in warned[0]
+    assert sum(abs(s.trend.z) >= TREND_NOTE_Z for s in clean) <= 0.1 * len(clean)
+    assert all(s.trend_message([]) is None for s in clean)
 
 
 # ------------------------------------------------------------------ --cut-warmup
@@ -337,3 +353,30 @@ def test_no_false_white_level_warning_on_clean_logs(seed: int, hours: float) -> 
     assert sel.value("N") == pytest.approx(axis("accel_y").N, rel=0.01)
     wl = white_level(curve, fit, slope, selected=sel.value("N"))
     assert wl is not None and wl.constant and wl.message("accel_y") is None
+
+
+def test_cut_warmup_out_of_core_says_nothing_was_cut(tmp_path: Path) -> None:
+    path = tmp_path / "warm.csv"
+    write_csv(path, static_log(1300, rate_hz=RATE, hours=0.2, channels=("gyro_x",),
+                               disturbance=Disturbance(40.0, 60.0)))  # fmt: skip
+    out = tmp_path / "out"
+    assert main(["static", str(path), "-o", str(out), "--quiet", "--no-plot", "--no-report",
+                 "--out-of-core", "--cut-warmup"]) == 0  # fmt: skip
+    doc = json.loads((out / "noise.json").read_text())
+    warned = doc["channels"]["gyro_x"]["warnings"]
+    assert any("--cut-warmup: nothing cut" in w and "out of core" in w for w in warned)
+
+
+def test_the_detrended_refit_is_not_pinned_by_a_point_near_zero() -> None:
+    """The refit of the noise to the curve without a ramp weighs each point by the
+    curve's own spread: a long-τ point the ramp's removal brings near 0 must not pin B
+    to 0 (it did, weighted by the detrended value: B 10x low, then a false drift at
+    z = 13 on a clean 2 h log with a Gauss–Markov component)."""
+    y = static_log(2005, rate_hz=RATE, hours=HOURS, gm_sigma_over_b=1.0)["gyro_z"]
+    curve = allan(y, RATE, "octave")
+    var = np.asarray(curve.dev, dtype=float) ** 2
+    low = var.copy()
+    low[-4:-1] *= [0.79, 0.23, 0.0045]  # as taking out the ramp did (last: EDF < 2)
+    b = drift.noise_model(curve, var).terms["B"]
+    assert b == pytest.approx(axis("gyro_z").B, rel=0.5)
+    assert drift.noise_model(curve, low).terms["B"] >= 0.7 * b

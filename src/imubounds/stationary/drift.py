@@ -236,7 +236,11 @@ def noise_model(curve: Any, var: NDArray[np.float64] | None = None,
     f = theory.basis(tau, curve.estimator, rate_hz=curve.rate_hz,
                      n_samples=curve.n_samples, terms=TERMS)  # fmt: skip
     target = v0 if var is None else np.asarray(var, dtype=np.float64)[ok]
-    wgt = np.sqrt(edf[ok] / 2.0) / np.maximum(target, v0 * 1e-3)
+    # the spread of each point is that of the curve's own estimate (σ²·√(2/EDF)), not
+    # of the detrended value: weighted by the detrended value, a long-τ point the
+    # ramp's removal brings near 0 would pin the fit there (B and K to 0 under a
+    # Gauss–Markov bump, then a false drift at z = 13)
+    wgt = np.sqrt(edf[ok] / 2.0) / v0
     cols = list(range(len(TERMS))) if var is None else [TERMS.index(t) for t in NULL_TERMS]
     design = f[:, cols] * wgt[:, None]
     norm = np.linalg.norm(design, axis=0)

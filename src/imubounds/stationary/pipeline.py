@@ -498,6 +498,10 @@ def analyse_static(
         if st is not None:
             unit = si_unit_of_signal(sensor_kind(name))
             warnings.extend(f"{name}: {m}" for m in st.messages(unit, cut=cut_s > 0))
+            absorbed = [t for t in ("R", "K") if sel.status(t) == "resolved"]
+            trend = st.trend_message(absorbed, unit)
+            if trend:
+                warnings.append(f"{name}: {trend}")
         if cut_s > 0:
             notes.append(
                 f"the first {cut_s:.4g} s (its warm-up) were cut before the analysis of this "
@@ -505,6 +509,11 @@ def analyse_static(
             )
         elif settings.cut_warmup and st is not None:
             notes.append("--cut-warmup: no warm-up found on this channel; nothing cut")
+        elif settings.cut_warmup:
+            warnings.append(
+                f"{name}: --cut-warmup: nothing cut: the warm-up and drift checks need the "
+                "samples in memory and are not run out of core (raise --max-memory)"
+            )
         timing = None
         if st is not None:  # the samples are in memory: so are their stamps
             stamps = stamps if stamps is not None else stamp_stats(log.t)
