@@ -35,7 +35,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, NoReturn
 
-from imubounds import __version__
+from imubounds.version import __version__
 from imubounds.errors import ImuboundsError
 
 # Command modules, in the order they appear in ``--help``.

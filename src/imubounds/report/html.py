@@ -19,7 +19,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from imubounds import __version__
+from imubounds.version import __version__
 from imubounds.errors import InputError
 from imubounds.report._html_checks import checks_block, summary_line
 from imubounds.report._html_fleet import _fleet_section

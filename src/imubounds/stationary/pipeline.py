@@ -15,7 +15,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imubounds import __version__
+from imubounds.version import __version__
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds import __version__
+from imubounds.version import __version__
 from imubounds.stationary.fleet.settings import TERMS, FleetSettings
 from imubounds.stationary.fleet.spec import FleetSpec
 from imubounds.stationary.fleet_stats import DEFAULT_DRIFT_Z
