@@ -44,7 +44,6 @@ from imubounds.errors import (
     OutputError,
     UnitsError,
 )
-
 from imubounds.version import __version__ as __version__
 
 #: Public name -> module that defines it (imported on first access).

@@ -15,7 +15,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imubounds.version import __version__
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
@@ -29,6 +28,7 @@ from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
 from imubounds.stationary.timing import stamp_stats, timing_check, timing_messages
 from imubounds.stationary.white_level import WhiteLevel, white_level
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
+from imubounds.version import __version__
 
 FORMAT = "imubounds.stationary.terms/1"
 #: Fewest samples a channel is characterised from (an Allan curve of five octaves and
