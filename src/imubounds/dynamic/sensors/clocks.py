@@ -41,6 +41,8 @@ __all__ = [
     "ALPHA_FAMILY",
     "DEFAULT_HEADING_CLOCK_BOUND_S",
     "OffsetEstimate",
+    "TURN_TEST_POWER",
+    "allowance_untested",
     "apply_offsets",
     "budget_timing",
     "clock_bound_events",
@@ -87,6 +89,7 @@ def clock_offsets(
         if "heading" not in timing:
             est = TM.estimate_heading(drive, o.imu_stamp, heading, noise)
             if est is not None:
+                est.untested_why = allowance_untested(heading)
                 timing["heading"] = est
         rel = relative_offset(heading)
         if rel is not None:
@@ -110,6 +113,33 @@ def heading_stated(drive: Any, o: FullOptions, timing: dict[str, Any]) -> Any:
             heading = TM.shifted(heading, None, est)
             timing["heading"] = est
     return heading
+
+
+#: the default heading clock allowance b counts as tested by the turn test of the check
+#: against the GNSS course when that test flags, at its limit, a lag of at most this many
+#: times b (its limit over the mean turn rate; with the receiver's velocity 0.15-0.18 s on
+#: the paper trip, where 0.2 s lags are withdrawn on 10 of 10 seeds; with a course from
+#: chords of fixes 0.50-0.59 s, or no turn test at all)
+TURN_TEST_POWER = 2.0
+
+
+def allowance_untested(heading: HeadingInput) -> str:
+    """Why the default heading clock allowance is not tested by the data ("" when the
+    turn test of the check against the GNSS course has the power: it flags a lag of
+    :data:`TURN_TEST_POWER` x the allowance at its limit). Untested, the heading clock
+    estimate's interval bounds the offset instead (``OffsetEstimate.finalize``)."""
+    b = DEFAULT_HEADING_CLOCK_BOUND_S
+    cc = heading.course_check or {}
+    tu = cc.get("turns")
+    if cc.get("passed") is None or not tu or not tu.get("mean_rate_dps"):
+        return ("the check against the GNSS course cannot test (no turns at a GNSS course "
+                "fast enough for it)")
+    power = float(tu["limit_deg"]) / float(tu["mean_rate_dps"])
+    if power > TURN_TEST_POWER * b:
+        return (f"the check against the GNSS course cannot test (its turn test flags only "
+                f"lags beyond {power:.2f} s: {int(tu['n'])} turn epochs, course "
+                "noise)")
+    return ""
 
 
 def relative_offset(heading: HeadingInput) -> Any:
