@@ -158,7 +158,7 @@ class OffsetEstimate:
             self.reason = (f"applied: the data put the offset outside the stated allowance "
                            f"(+-{b:g} s); the interval's half-width (+-{half:.3f} s) is "
                            "budgeted")
-        elif self.untested_why:
+        elif self.untested_why and max(-self.lo, self.hi) <= MAX_OFFSET_S:
             # the allowance is an assumption nothing else tests: the data's bound replaces it
             self.applied, self.applied_s = True, 0.0
             self.reason = (f"applied as a bound: the interval [{self.lo:+.3f}, {self.hi:+.3f}] s "
@@ -170,6 +170,9 @@ class OffsetEstimate:
                     else "the stamps are taken as exact (an assumption)")
             self.reason = (f"not applied: the interval (+-{half:.3f} s) holds the stated "
                            f"allowance (+-{b:g} s); {what}")
+            if self.untested_why:
+                self.reason += (f", which {self.untested_why}, and the data do not bound the "
+                                f"offset within +-{MAX_OFFSET_S:g} s: the guarantee is withdrawn")
 
     @property
     def at_edge(self) -> bool:

@@ -58,6 +58,7 @@ __all__ = [
     "model_events",
     "relative_offset",
     "shifted",
+    "untested_clock",
 ]
 
 if TYPE_CHECKING:
@@ -131,15 +132,36 @@ def allowance_untested(heading: HeadingInput) -> str:
     b = DEFAULT_HEADING_CLOCK_BOUND_S
     cc = heading.course_check or {}
     tu = cc.get("turns")
-    if cc.get("passed") is None or not tu or not tu.get("mean_rate_dps"):
-        return ("the check against the GNSS course cannot test (no turns at a GNSS course "
-                "fast enough for it)")
+    why = ""
+    if not cc:
+        why = "no GNSS course fast enough for it"
+    elif cc.get("passed") is None:
+        why = "no lateral speed bound: vehicle.lateral_speed_bound_mps"
+    elif not tu or not tu.get("mean_rate_dps"):
+        why = "too few turns at the GNSS course's epochs"
+    if why or tu is None:
+        return f"the check against the GNSS course cannot test ({why})"
     power = float(tu["limit_deg"]) / float(tu["mean_rate_dps"])
     if power > TURN_TEST_POWER * b:
         return (f"the check against the GNSS course cannot test (its turn test flags only "
                 f"lags beyond {power:.2f} s: {int(tu['n'])} turn epochs, course "
                 "noise)")
     return ""
+
+
+def untested_clock(ag: Aiding, timing: dict[str, Any]) -> str:
+    """The violation's detail when the default heading clock allowance is budgeted
+    (:func:`heading_clock_default`) but neither tested by the check against the GNSS
+    course nor bounded by the heading clock estimate (:func:`allowance_untested`,
+    ``OffsetEstimate.finalize``); "" otherwise."""
+    h = timing.get("heading")
+    if h is None or not h.untested_why or h.applied or not heading_clock_default(ag, timing):
+        return ""
+    return (f"the heading stream's clock is assumed within +-{DEFAULT_HEADING_CLOCK_BOUND_S:g} s "
+            f"of the IMU's (default), which {h.untested_why}; the clock estimate from the "
+            f"data does not bound it (interval [{h.lo:+.2f}, {h.hi:+.2f}] s): a late compass "
+            "would move the heading by the offset x the yaw rate unseen. State "
+            "heading.time_offset_s / time_offset_bound_s in drive.yaml")
 
 
 def relative_offset(heading: HeadingInput) -> Any:
