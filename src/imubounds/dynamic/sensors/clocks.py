@@ -43,6 +43,7 @@ __all__ = [
     "OffsetEstimate",
     "TURN_TEST_POWER",
     "allowance_untested",
+    "same_rows_as_imu",
     "apply_offsets",
     "budget_timing",
     "clock_bound_events",
@@ -90,7 +91,7 @@ def clock_offsets(
         if "heading" not in timing:
             est = TM.estimate_heading(drive, o.imu_stamp, heading, noise)
             if est is not None:
-                est.untested_why = allowance_untested(heading)
+                est.untested_why = allowance_untested(drive, heading)
                 timing["heading"] = est
         rel = relative_offset(heading)
         if rel is not None:
@@ -124,12 +125,24 @@ def heading_stated(drive: Any, o: FullOptions, timing: dict[str, Any]) -> Any:
 TURN_TEST_POWER = 2.0
 
 
-def allowance_untested(heading: HeadingInput) -> str:
+def same_rows_as_imu(drive: Any, heading: HeadingInput) -> bool:
+    """A magnetometer heading logged in the IMU's own rows (its stamps are the IMU's: no
+    clock between them, as on a VN-100 log)."""
+    mag, imu = drive.mag, drive.imu
+    if heading.source != "magnetometer" or mag is None or imu is None:
+        return False
+    return bool(mag.t.size == imu.t.size and np.array_equal(mag.t, imu.t))
+
+
+def allowance_untested(drive: Any, heading: HeadingInput) -> str:
     """Why the default heading clock allowance is not tested by the data ("" when the
     turn test of the check against the GNSS course has the power: it flags a lag of
-    :data:`TURN_TEST_POWER` x the allowance at its limit). Untested, the heading clock
-    estimate's interval bounds the offset instead (``OffsetEstimate.finalize``)."""
+    :data:`TURN_TEST_POWER` x the allowance at its limit; or when the heading shares the
+    IMU's rows). Untested, the heading clock estimate's interval bounds the offset
+    instead (``OffsetEstimate.finalize``)."""
     b = DEFAULT_HEADING_CLOCK_BOUND_S
+    if same_rows_as_imu(drive, heading):
+        return ""
     cc = heading.course_check or {}
     tu = cc.get("turns")
     why = ""
