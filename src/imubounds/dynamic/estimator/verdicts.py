@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.estimator.aided.forms import label_counts
+
 #: the verdict of a channel whose noise figures (N, B) were given nowhere: its band would
 #: be a default preset's, so the margins are given but not judged
 NO_REFERENCE = "no reference"
@@ -58,6 +60,9 @@ class LevelResult:
     p2: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     c_band: np.ndarray = field(default_factory=lambda: np.zeros(0))
     c_k: float = 0.0
+    #: per window, the bound forms giving its two ends (``name`` or ``lo_name|hi_name``;
+    #: docs/dynamic-method.md, section 3, "Bound forms and their shares")
+    bound_by: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
 
     @property
     def d_lo(self) -> np.ndarray:
@@ -111,6 +116,7 @@ class LevelResult:
             "n_windows": int(self.band.size),
             "k": self.k,
             "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
+            "bound_by": label_counts(self.bound_by),
             **self._change_summary(),
         }
 
@@ -182,6 +188,7 @@ def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str,
                         "tau_s": float(lv.tau[w]),
                         "interval": [float(lv.e_lo[w]), float(lv.e_hi[w])],
                         "stationary": float(lv.band[w]),
+                        "bound_by": str(lv.bound_by[w]) if lv.bound_by.size else "",
                     }
                 )
     for lv in levels:

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import up
+from imubounds.dynamic.estimator.aided.forms import FormRecord
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -27,6 +28,7 @@ class WindowContext:
         self.cache: dict[str, Any] = {}
         self.fine_r = True  # False once the gyro_z verdict is 'exceeds'
         self.p_window = 1e-6  # per-window probability of the current level
+        self.forms = FormRecord()  # which forms gave each window's bound, per term
 
     def mag_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Upper bound of the mean of |true signal| of channel ``ch`` over ``[a, b]``

@@ -28,9 +28,9 @@ two combined in the frequency domain. The kernel weights:
 
 Used only where the IMU samples are regular (every segment one period, no gap) and the
 window lies inside the heading epochs; elsewhere +inf (the caller keeps its other bound).
-Blocks of 1, 2, 4, 8 and 16 heading gaps are tried (:data:`BLOCK_GAPS`, the probability
-split over them): short blocks know their mean error only to ``2 h_psi / length``, long
-ones keep more of the slow flicker in ``P C P``.
+Blocks of a few lengths are tried (the registry's ``heading_blocks_<k>`` forms,
+:mod:`.form_tables`, the probability split over them): short blocks know their mean
+error only to ``2 h_psi / length``, long ones keep more of the slow flicker in ``P C P``.
 """
 
 from __future__ import annotations
@@ -214,11 +214,6 @@ def block_norm(cn: ChannelNoise, m: int, dt: float) -> float:
     return lam * (1 + 1e-9)
 
 
-#: blocks of this many heading gaps (gyro_z) or seconds (gyro_y) are tried (the smallest
-#: bound per window is used)
-BLOCK_GAPS = (1, 2, 4, 8, 16)
-
-
 def _block_edges(w: WindowContext, ch: str, k: int) -> np.ndarray | None:
     """Sample-boundary indices of the blocks: every ``k``-th heading epoch (gyro_z), every
     ``k`` seconds (gyro_y); None where the samples are not regular or have gaps."""
@@ -283,7 +278,7 @@ def _dev_over_box(
     return np.where(fin, up(np.maximum(g_lo, g_hi)), np.inf)
 
 
-def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
+def block_tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
     """Per block: start, end, ``G' = max over e in c_g +- rad_g of int |y - e|``
     (:func:`_dev_over_box`) and its prefix sums (also
     weighted by the block's end and start times); computed once per channel and ``k``."""
@@ -341,24 +336,25 @@ def _sum_blocks(tab: dict[str, Any], i: np.ndarray, j: np.ndarray, key: str) -> 
     return tab[key][jj] - tab[key][i]
 
 
-def block_r_abs(
+def block_bound(
     w: WindowContext,
     lp: LevelPlan,
     tau: np.ndarray,
     p: float,
     det_mean: np.ndarray,
+    k: int,
     ch: str = "gyro_z",
 ) -> np.ndarray:
-    """Bound of the kernel mean of |r| over each window (+inf where not applicable),
-    holding with probability ``>= 1 - p`` per window (``p`` split over the block lengths
-    of :data:`BLOCK_GAPS`); ``det_mean`` bounds the mean of the deterministic deviation
-    over the support."""
-    out = np.full(lp.a1.size, np.inf)
-    for k in BLOCK_GAPS:
-        tab = _tables(w, ch, k)
-        if tab is not None and lp.a1.size:
-            out = np.minimum(out, _bound(w, tab, lp, tau, p / len(BLOCK_GAPS), det_mean))
-    return out
+    """Bound of the kernel mean of |r| (``ch`` gyro_z; |q| for gyro_y) over each window
+    with the gyro centred on blocks of ``k`` heading gaps (gyro_y: ``k`` seconds), holding
+    with probability ``>= 1 - p`` per window (docs/dynamic-method.md, (3.9)); +inf where
+    not applicable. ``det_mean`` bounds the mean of the deterministic deviation over the
+    support."""
+    tab = block_tables(w, ch, k)
+    if tab is None or lp.a1.size == 0:
+        return np.full(lp.a1.size, np.inf)
+    out = _bound(w, tab, lp, tau, p, det_mean)
+    return np.where(np.isfinite(out), out, np.inf)
 
 
 def _bound(
@@ -369,7 +365,7 @@ def _bound(
     p: float,
     det_mean: np.ndarray,
 ) -> np.ndarray:
-    """:func:`block_r_abs` with the blocks of one table."""
+    """:func:`block_bound` with the blocks of one table."""
     ts, te = tab["ts"], tab["te"]
     s0, s1 = lp.a1, lp.b2
     inside = (s0 >= ts[0]) & (s1 <= te[-1])
