@@ -111,8 +111,8 @@ def run(case: str, seed: int) -> dict[str, Any]:
 #: residual checks (violations.CHECK_SHARE) and the course check (course_check.COURSE_CHECK_SHARE)
 #: have theirs; a drop or a bias disagreement fails only when a bound fails (alpha)
 def _levels() -> dict[str, float]:
-    from imubounds.dynamic.aiding.course_check import COURSE_CHECK_SHARE
     from imubounds.dynamic.estimator.violations import CHECK_SHARE
+    from imubounds.dynamic.sensors._course_check import COURSE_CHECK_SHARE
 
     return {"residual checks (every test of residual_checks)": CHECK_SHARE,
             "heading sensor against the GNSS course": COURSE_CHECK_SHARE,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds.dynamic.aiding import (
+from imubounds.dynamic.sensors import (
     cep_to_drms,
     compass_to_model,
     course_over_ground,
@@ -24,7 +24,7 @@ from imubounds.dynamic.aiding import (
     radius_at_probability,
     wrap_pi,
 )
-from imubounds.dynamic.aiding.compass import read_calibration
+from imubounds.dynamic.sensors._compass import read_calibration
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.geodesy import enu_to_geodetic, haversine_enu
 

@@ -177,7 +177,7 @@ def test_wired_pitch_encloses_the_truth_and_the_run_stays_sound(seed: int) -> No
     assert "altitude" in fam["gnss_position"]["what"]
     assert fam["gnss_position"]["count"] == 2 * r.drive.gnss.t.size
     # joined to existing families: no new one beyond the most the plan has
-    from imubounds.dynamic.aiding.course_check import ALPHA_FAMILIES_MAX
+    from imubounds.dynamic.sensors._course_check import ALPHA_FAMILIES_MAX
 
     assert set(fam) <= {"imu_samples", "imu_windows", "imu_changes", "imu_intervals",
                         "imu_turn_on", "imu_drift", "gnss_position", "gnss_velocity",
@@ -257,14 +257,14 @@ def test_comma2k19_pitch_from_gnss_does_not_run(shared_data: Path) -> None:
     from imubounds.cli.dynamic import load_drive
     from imubounds.dynamic.estimator import pitch_gnss as PG
     from imubounds.dynamic.estimator.budget import resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
     from imubounds.dynamic.estimator.inputs import ImuSeries, vehicle_from
+    from imubounds.dynamic.estimator.options import check_options
 
     drive = load_drive([str(shared_data / "dynamic" / "comma2k19_example1")])
     o = check_options({})
     veh, _ = vehicle_from(drive.settings, o)
     noise, _ = resolve_noise(drive.settings, None, o, None)
-    imu = ImuSeries.from_drive(drive, o["imu_stamp"], veh)
+    imu = ImuSeries.from_drive(drive, o.imu_stamp, veh)
     assert drive.gnss is not None and drive.gnss.alt_m is not None
     assert not PG.applicable(drive, veh, o, imu.available, noise)
 

@@ -10,14 +10,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from imubounds.dynamic.aiding.compass import (
+from imubounds.dynamic.sensors._compass import (
     UNCALIBRATED_DEVIATION_DEG,
     CompassHeading,
     compass_heading,
     harmonic_fit,
     k_sigma,
 )
-from imubounds.dynamic.aiding.magcal import fit_magnetometer
+from imubounds.dynamic.sensors._magcal import fit_magnetometer
 from imubounds.errors import AnalysisError, OptionError
 from imubounds.frames import rpy_to_matrix, wrap_pi
 from imubounds.io import Drive, read_drive
@@ -121,7 +121,7 @@ def test_outliers_break_only_their_own_samples(seed: int) -> None:
 
 def test_uncalibrated_heading_is_far_off_and_the_fit_brings_it_back() -> None:
     """Without the calibration the same samples are tens of degrees off (the test has teeth)."""
-    from imubounds.dynamic.aiding.compass import heading_from_magnetometer
+    from imubounds.dynamic.sensors._compass import heading_from_magnetometer
 
     t, truth, roll, pitch, raw = sim_mag(3)
     rawh = heading_from_magnetometer(raw[:, 0], raw[:, 1], "FLU")
@@ -383,7 +383,7 @@ def test_harmonic_fit_holds_the_model_and_its_coefficients_intervals() -> None:
     at the Gaussian tail's rate at most."""
     from scipy.stats import norm
 
-    from imubounds.dynamic.aiding.course_check import harmonic_basis
+    from imubounds.dynamic.sensors._course_check import harmonic_basis
 
     rng = np.random.default_rng(11)
     psi, rate, sig2, bound = _rectangle_setup(rng)
@@ -414,7 +414,7 @@ def test_model_adequacy_is_silent_on_the_model_and_sees_three_cycles() -> None:
     it."""
     from scipy.stats import norm
 
-    from imubounds.dynamic.aiding.course_check import model_adequacy
+    from imubounds.dynamic.sensors._course_check import model_adequacy
 
     rng = np.random.default_rng(2)
     n = 400
@@ -490,8 +490,8 @@ def test_turn_test_budgets_the_heading_clock_allowance(seed: int) -> None:
     clock allowance (0.1 s by default; course_check.CLOCK_TEST_SHARE) x the mean turn
     rate: a compass 0.1 s late (within the allowance; 1.38 deg against a limit of 1.36
     before) passes; a 0.3 s lag still fails it."""
-    from imubounds.dynamic.aiding.course_check import CLOCK_TEST_SHARE
-    from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
+    from imubounds.dynamic.sensors._course_check import CLOCK_TEST_SHARE
+    from imubounds.dynamic.sensors._timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
 
     ok = compass_heading(_offset_trip(seed, 0.0, lag=0.1)).detail["gnss_course_check"]
     tu = ok["turns"]

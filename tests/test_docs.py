@@ -123,7 +123,7 @@ def test_the_renamed_options_are_gone_from_the_docs() -> None:
 
 
 # where a short reference of docs/dynamic-method.md (`module.function`) is looked up
-_REF_BASES = ("imubounds.dynamic.estimator.", "imubounds.dynamic.aiding.", "imubounds.dynamic.",
+_REF_BASES = ("imubounds.dynamic.estimator.", "imubounds.dynamic.",
               "imubounds.")  # fmt: skip
 _FILE_SUFFIXES = {"json", "yaml", "yml", "csv", "py", "md", "png", "svg", "html", "gz"}
 
@@ -182,4 +182,4 @@ def test_every_code_reference_of_the_dynamic_method_exists() -> None:
     # the check itself can fail: a made-up name, and a re-export named in place of the home
     assert _resolve_code_ref("smoother.no_such_function") not in (None, "ok")
     assert _resolve_code_ref("inputs.gnss_outliers") not in (None, "ok")
-    assert _resolve_code_ref("gnss_screen.gnss_outliers") == "ok"
+    assert _resolve_code_ref("sensors.gnss.gnss_outliers") == "ok"

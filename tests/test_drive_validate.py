@@ -266,7 +266,7 @@ def test_pipes_are_refused_before_reading(
     _fifo(d / "heading.csv")
     assert main(["convert", str(d), "-o", str(tmp_path / "o")]) == 2
     assert "heading.csv is a named pipe" in capsys.readouterr().err
-    from imubounds.dynamic.aiding.compass import read_calibration
+    from imubounds.dynamic.sensors._compass import read_calibration
 
     cal = _fifo(tmp_path / "cal.csv")
     with pytest.raises(InputError, match="cal.csv is a named pipe"):
@@ -287,7 +287,7 @@ def test_compass_cal_pipe_in_the_dynamic_command(
 
 
 def test_header_only_and_short_compass_calibration_files(tmp_path: Path) -> None:
-    from imubounds.dynamic.aiding.compass import read_calibration
+    from imubounds.dynamic.sensors._compass import read_calibration
 
     p = tmp_path / "c.csv"
     p.write_text("measured_deg,reference_deg\n")

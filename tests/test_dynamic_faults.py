@@ -94,7 +94,7 @@ CASES: dict[str, tuple[Any, dict[str, Any], str | None]] = {
     "multipath 5 m": (F.multipath, {"step_m": 5.0, "t0_s": 100.0}, "GNSS position step"),
     "multipath 8 m": (F.multipath, {"step_m": 8.0, "t0_s": 100.0}, "GNSS position step"),
     "multipath 12 m": (F.multipath, {"step_m": 12.0, "t0_s": 60.0}, "GNSS position step"),
-    # the clock offsets are estimated from the data and applied (aiding/timing.py)
+    # the clock offsets are estimated from the data and applied (sensors/_timing.py)
     "GNSS lag 0.3 s": (F.gnss_lag, {"lag_s": 0.3}, None),
     "GNSS lag 0.5 s": (F.gnss_lag, {"lag_s": 0.5}, None),
     "compass lag 0.3 s": (F.heading_lag, {"lag_s": 0.3}, None),
@@ -167,7 +167,7 @@ def test_heading_errors_are_unknowns_of_the_trip(seed: int, case: str) -> None:
             hs["model"]["remainder_bound_deg"])
     # the family of the heading intervals counts the model's coefficients, whose k is
     # taken at alpha over at most ALPHA_FAMILIES_MAX families
-    from imubounds.dynamic.aiding.course_check import ALPHA_FAMILIES_MAX
+    from imubounds.dynamic.sensors._course_check import ALPHA_FAMILIES_MAX
 
     assert d["alpha"]["families"]["heading"]["count"] == r.full.ctx.heading.t.size + 5
     assert len(r.full.ctx.alpha.counts) <= ALPHA_FAMILIES_MAX
@@ -398,7 +398,7 @@ def test_heading_clock_bound_is_budgeted_in_the_turns(base: Any) -> None:
     """The default heading clock bound (0.1 s): the heading half-width grows by at least
     0.1 s x the true yaw rate at every epoch (the true turn within the bound, from the
     simulator's truth), and stating drive.yaml heading.time_offset_bound_s replaces it."""
-    from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
+    from imubounds.dynamic.sensors._timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
 
     r = dynamic_margins(base)
     hs = dataclasses.replace(base.settings.heading, time_offset_bound_s=0.0)
@@ -592,7 +592,7 @@ def test_course_check_harmonics_on_ten_seeds() -> None:
     the error model: nothing applied on the clean trips; the injected offset and
     amplitude inside their coefficient's interval, the offsets taken off, and the check
     of the corrected heading silent whenever the model took the fault off."""
-    from imubounds.dynamic.aiding.compass import compass_heading
+    from imubounds.dynamic.sensors._compass import compass_heading
 
     def s2_of(cc: Any) -> Any:
         return [c for c in cc["harmonics"] if (c["cycle"], c["term"]) == (2, "sin")][0]
@@ -638,7 +638,7 @@ BRAKING_ROBOT = {"duration_s": 300.0, "distance_m": 3000.0, "corner_length_m": 2
 @pytest.mark.parametrize("seed", [1, 2])
 def test_wheel_lag_on_a_braking_robot_is_found_and_enclosed(seed: int) -> None:
     """Wheel odometry 0.34 s (a real robot's) and 0.5 s late on a braking robot: the
-    offset is applied (aiding/speed_clock.py: the lag inside its interval, within 0.05
+    offset is applied (sensors/_speed_clock.py: the lag inside its interval, within 0.05
     s), the run is guaranteed (before, the smoother's checks withdrew it) and the truth
     is inside at every epoch: position, heading and the forward speed u (states.csv,
     against the simulator's true speed)."""

@@ -112,7 +112,7 @@ def _straight_north(heading_deg: np.ndarray) -> Drive:
 
 def test_heading_wrap_north() -> None:
     """Driving north with compass readings alternating 359.9 / 0.1 deg: no 2 pi blow-up."""
-    from imubounds.dynamic.aiding.compass import ZERO_DEVIATION
+    from imubounds.dynamic.sensors._compass import ZERO_DEVIATION
 
     n = 61
     drive = _straight_north(np.where(np.arange(n) % 2 == 0, 359.9, 0.1))

@@ -70,11 +70,11 @@ def _old_rate_allowance(tq: np.ndarray, it: np.ndarray, rate: np.ndarray, bound_
 
 @pytest.mark.parametrize("with_nan", [False, True])
 def test_timing_chunked_passes_equal_one_pass(monkeypatch: Any, with_nan: bool) -> None:
-    """aiding.timing: the chunked integral, the rate allowance from windows at the
+    """sensors._timing: the chunked integral, the rate allowance from windows at the
     queried samples only, and the reference variance's in-place reversed sums equal
     the one-pass formulas they replaced, bit for bit (chunks of 1000 samples)."""
-    from imubounds.dynamic.aiding import timing as TM
     from imubounds.dynamic.estimator.budget import ChannelNoise, kernel_variance
+    from imubounds.dynamic.sensors import _timing as TM
 
     monkeypatch.setattr(TM, "CHUNK", 1000)
     rng = np.random.default_rng(4)

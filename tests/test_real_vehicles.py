@@ -109,7 +109,7 @@ def test_ground_robot_fault_from_mid_log(main, tmp_path: Path, ch: str, value: f
 def test_lagging_odometry_on_a_fast_vehicle_is_found(main, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """On the robot the 0.3 s lag moves the speed by < 0.02 m/s (inside the odometry's
     bound); on a 10 m/s vehicle braking for 20 m corners it is ~0.6 m/s. The braking
-    pins the odometry's clock (aiding/speed_clock.py): the offset is estimated within
+    pins the odometry's clock (sensors/_speed_clock.py): the offset is estimated within
     0.05 s, its interval holds 0.3 s, it is applied and its remainder budgeted, and the
     truth is inside at every epoch of the guaranteed run. The control without the lag:
     its interval holds 0, nothing is applied."""

@@ -12,12 +12,6 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from imubounds.dynamic.aiding.compass import (
-    fit_deviation,
-    heading_from_magnetometer,
-    read_calibration,
-)
-from imubounds.dynamic.aiding.gps import cep_to_drms
 from imubounds.dynamic.scenario import (
     OUTPUT_FILES,
     VARIANTS,
@@ -30,6 +24,12 @@ from imubounds.dynamic.scenario import (
 )
 from imubounds.dynamic.scenario.imu import CHANNELS, imu_checks, k_level, simulate_errors
 from imubounds.dynamic.scenario.trajectory import Trajectory
+from imubounds.dynamic.sensors._compass import (
+    fit_deviation,
+    heading_from_magnetometer,
+    read_calibration,
+)
+from imubounds.dynamic.sensors.gnss import cep_to_drms
 from imubounds.errors import OptionError
 from imubounds.frames import model_to_compass, wrap_pi
 from imubounds.io.drive.layout import quaternion_to_rpy_compass, read_layout

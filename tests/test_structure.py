@@ -307,3 +307,20 @@ def test_drive_reading_is_one_package() -> None:
     for mod in ("layout", "settings", "readers", "validate", "mount"):
         assert importlib.util.find_spec(f"imubounds.io.drive.{mod}") is not None, mod
         assert importlib.util.find_spec(f"imubounds.io.drive_{mod}") is None, mod
+
+
+#: a citation of the project's tracker ("issue 27", "issues 11 and 12", "issue #27"): the
+#: tracker is not in the repository, so src cites the docs sections instead
+ISSUE_CITATION = re.compile(r"\bissues? *#?\d+", re.IGNORECASE)
+
+
+def test_src_cites_no_tracker_issue_numbers() -> None:
+    found = [
+        f"{p.relative_to(SRC)}:{i}: {line.strip()}"
+        for p in sorted((SRC / PACKAGE).rglob("*.py"))
+        for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+        if ISSUE_CITATION.search(line)
+    ]
+    assert not found, "\n".join(found)
+    assert ISSUE_CITATION.search("(issue 27, items 3 and 5)")
+    assert ISSUE_CITATION.search("Issue #12") and not ISSUE_CITATION.search("an issue of 2 s")

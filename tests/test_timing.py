@@ -56,7 +56,7 @@ def test_gaps_left_in_are_counted_and_the_long_tau_named() -> None:
 
 
 # --------------------------------------------------------------- clock offsets (issue 27)
-# The aiding streams' clock offsets against the IMU (dynamic/aiding/timing.py): estimated
+# The aiding streams' clock offsets against the IMU (dynamic/sensors/_timing.py): estimated
 # from the data on the simulator's paper trip (5 min, MTx-grade IMU at 50 Hz, GNSS
 # position + velocity at 1 Hz, compass), the stamps of one stream moved late.
 
@@ -64,11 +64,11 @@ LAG_TRIP = {"duration_s": 300.0, "distance_m": 3510.0, "rate_hz": 50.0}
 
 
 def _estimates(drive: object) -> dict[str, object]:
-    from imubounds.dynamic.aiding import speed_clock as SC
-    from imubounds.dynamic.aiding import timing as TM
     from imubounds.dynamic.estimator.budget import k_two_sided, resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
-    from imubounds.dynamic.estimator.heading_input import heading_input
+    from imubounds.dynamic.estimator.options import check_options
+    from imubounds.dynamic.sensors import _speed_clock as SC
+    from imubounds.dynamic.sensors import _timing as TM
+    from imubounds.dynamic.sensors.heading import heading_input
 
     o = check_options({})
     noise, _ = resolve_noise(drive.settings, None, o)  # type: ignore[attr-defined]
@@ -86,7 +86,7 @@ def _estimates(drive: object) -> dict[str, object]:
 def test_level_offset_recovers_a_synthetic_lag() -> None:
     """A synthetic yaw rate (raised-cosine turns) with a wandering bias, a stream of
     headings 0.23 s late with white noise: estimated within 0.02 s, inside its interval."""
-    from imubounds.dynamic.aiding.timing import level_offset
+    from imubounds.dynamic.sensors._timing import level_offset
 
     rng = np.random.default_rng(4)
     dt = 0.02
@@ -134,7 +134,7 @@ def test_injected_lags_are_estimated_within_50_ms(seed: int) -> None:
                 assert e.applied  # type: ignore[attr-defined]
 
 
-# ---- body-velocity (wheel, DVL) clock: aiding/speed_clock.py, a score test inverted
+# ---- body-velocity (wheel, DVL) clock: sensors/_speed_clock.py, a score test inverted
 #: the simulated ground robot of test_real_vehicles.py, fast (10 m/s) so that it brakes
 #: for each of its 20 m corners: the speed changes that pin the odometry's clock
 BRAKING_ROBOT = {"duration_s": 300.0, "distance_m": 3000.0, "corner_length_m": 20.0,
@@ -147,10 +147,10 @@ K_SPEED = 3.26
 
 def _speed_estimate(drive: object, k: float = K_SPEED) -> object:
     """The body velocity's offset as mode full finalizes it (k, against exact stamps)."""
-    from imubounds.dynamic.aiding import speed_clock as SC
-    from imubounds.dynamic.aiding import timing as TM
     from imubounds.dynamic.estimator.budget import resolve_noise
-    from imubounds.dynamic.estimator.full import check_options
+    from imubounds.dynamic.estimator.options import check_options
+    from imubounds.dynamic.sensors import _speed_clock as SC
+    from imubounds.dynamic.sensors import _timing as TM
 
     noise, _ = resolve_noise(drive.settings, None, check_options({}))  # type: ignore[attr-defined]
     e = SC.estimate_velocity(drive, "end", noise)
@@ -187,7 +187,7 @@ def test_speed_offset_recovers_a_stop_and_go_lag() -> None:
     """Stop-and-go: a wheel speed 0.23 s late is estimated within 0.01 s, inside an
     interval narrower than 0.05 s that excludes 0 (applied); the same trip without the
     lag holds 0 (not applied)."""
-    from imubounds.dynamic.aiding.speed_clock import speed_offset
+    from imubounds.dynamic.sensors._speed_clock import speed_offset
 
     for lag in (0.23, 0.0):
         t, ax, tw, yw = _stop_and_go(lag, True, 2)
@@ -202,7 +202,7 @@ def test_speed_offset_recovers_a_stop_and_go_lag() -> None:
 def test_speed_offset_is_honest_without_speed_changes() -> None:
     """Two slow ramps only: the interval is wide (the data hardly tell the offset) and
     holds the lag; where it reaches the end of the offsets tried it is not applied."""
-    from imubounds.dynamic.aiding.speed_clock import speed_offset
+    from imubounds.dynamic.sensors._speed_clock import speed_offset
 
     for seed in (1, 2, 3):
         t, ax, tw, yw = _stop_and_go(0.3, False, seed)
@@ -218,7 +218,7 @@ def test_score_interval_and_its_application() -> None:
     """The interval of a score curve: from the last rejected grid point below the
     accepted ones to the first rejected one above; an interval reaching the grid's end
     is never applied; one that excludes 0 is, one that holds 0 is not."""
-    from imubounds.dynamic.aiding.timing import OffsetEstimate, score_interval
+    from imubounds.dynamic.sensors._timing import OffsetEstimate, score_interval
 
     L = np.linspace(-1, 1, 41)
     sd = np.ones(L.size)
@@ -282,9 +282,9 @@ def test_speed_offset_on_hills_needs_the_pitch() -> None:
     never applied, and the note says why."""
     import dataclasses
 
-    from imubounds.dynamic.aiding.speed_clock import NO_PITCH
     from imubounds.dynamic.scenario import faults as F
     from imubounds.dynamic.scenario import make_trip
+    from imubounds.dynamic.sensors._speed_clock import NO_PITCH
 
     drive = make_trip("hills", seed=1, **{**BRAKING_ROBOT, "hill_amplitude_m": 5.0}).drive
     for lag in (0.0, 0.34):
@@ -302,10 +302,10 @@ def test_a_pinned_heading_clock_shrinks_the_allowance(monkeypatch: pytest.Monkey
     """A VN-100-grade gyro pins the compass's clock: the estimate is applied with a
     remainder below the default 0.1 s, and the clean trip's heading half-width in the
     turns shrinks against the default allowance (the same trip without the estimate)."""
-    from imubounds.dynamic.aiding import timing as TM
-    from imubounds.dynamic.aiding.timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
     from imubounds.dynamic.estimator import dynamic_margins
     from imubounds.dynamic.scenario import make_trip
+    from imubounds.dynamic.sensors import _timing as TM
+    from imubounds.dynamic.sensors._timing import DEFAULT_HEADING_CLOCK_BOUND_S as B
 
     drive = make_trip("paper", seed=1, aiding=("gnss", "gnss-vel", "compass"),
                       imu_preset="vn100", **LAG_TRIP).drive  # fmt: skip

@@ -17,11 +17,10 @@ import math
 import numpy as np
 import pymap3d
 
+from imubounds.constants import R_EARTH
 from imubounds.errors import OptionError
 from imubounds.frames import TWO_PI
 
-#: Earth's mean radius used by the paper, m.
-EARTH_RADIUS_M = 6_371_000.0
 GEODESY_METHODS = ("wgs84", "haversine")
 
 
@@ -30,7 +29,7 @@ def haversine_enu(
     lon_deg: np.ndarray,
     lat0_deg: float,
     lon0_deg: float,
-    radius_m: float = EARTH_RADIUS_M,
+    radius_m: float = R_EARTH,
 ) -> tuple[np.ndarray, np.ndarray]:
     """East and north in m of points from an origin, by haversine distance and bearing."""
     p1, l1 = math.radians(lat0_deg), math.radians(lon0_deg)

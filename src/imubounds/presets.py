@@ -31,9 +31,9 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from imubounds.errors import OptionError
-from imubounds.units import DEG
+from imubounds.units import DEG, G0
 
-_MG = 9.80665e-3  # one milli-g in m/s^2
+_MG = G0 * 1e-3  # one milli-g in m/s^2
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ TACTICAL = _p(
     "tactical",
     "tactical-grade MEMS IMU (representative figures)",
     gyro={"N": 0.04 * DEG / 60.0, "B": 0.45 * DEG / 3600.0, "K": 4.583e-08},
-    accel={"N": 0.03 / 60.0, "B": 25e-6 * 9.80665, "K": 8.92e-06},
+    accel={"N": 0.03 / 60.0, "B": 25e-6 * G0, "K": 8.92e-06},
 )
 
 #: Industrial-grade MEMS IMU: gyro ARW 0.15 deg/sqrt(h), 3 deg/h, K at 200 s;
@@ -119,7 +119,7 @@ INDUSTRIAL = _p(
     "industrial",
     "industrial-grade MEMS IMU (representative figures)",
     gyro={"N": 0.15 * DEG / 60.0, "B": 3.0 * DEG / 3600.0, "K": 1.183e-06},
-    accel={"N": 0.04 / 60.0, "B": 25e-6 * 9.80665, "K": 1.629e-05},
+    accel={"N": 0.04 / 60.0, "B": 25e-6 * G0, "K": 1.629e-05},
 )
 
 #: Consumer-grade MEMS IMU (phone / drone class): gyro 0.014 deg/s/sqrt(Hz), 20 deg/h,
@@ -128,7 +128,7 @@ CONSUMER = _p(
     "consumer",
     "consumer-grade MEMS IMU (representative figures)",
     gyro={"N": 0.014 * DEG, "B": 20.0 * DEG / 3600.0, "K": 9.109e-06},
-    accel={"N": 150e-6 * 9.80665, "B": 40e-6 * 9.80665, "K": 2.257e-05},
+    accel={"N": 150e-6 * G0, "B": 40e-6 * G0, "K": 2.257e-05},
 )
 
 PRESETS: Mapping[str, ImuPreset] = MappingProxyType(

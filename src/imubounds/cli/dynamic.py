@@ -13,7 +13,7 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from imubounds.cli._common import (
     add_force_option,
@@ -27,6 +27,9 @@ from imubounds.cli._common import (
     probability,
 )
 from imubounds.errors import InputError
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 
 def register(sub: Any) -> None:
@@ -179,8 +182,12 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
 # --------------------------------------------------------------------------- run
 
 
-def _full_options(args: argparse.Namespace) -> dict[str, Any]:
-    deg = math.pi / 180
+def _full_options(args: argparse.Namespace, settings: Any) -> FullOptions:
+    """The options of mode full from the arguments, checked (:class:`OptionError`), an
+    ``--imu-stamp`` not given taken from drive.yaml (``settings``)."""
+    from imubounds.dynamic.estimator.options import check_options
+    from imubounds.units import DEG as deg
+
     o = {
         "alpha": args.alpha,
         "imu_spec": args.imu_spec,
@@ -210,7 +217,7 @@ def _full_options(args: argparse.Namespace) -> dict[str, Any]:
         "tol": args.tol,
         "reverses": args.reverses,
     }
-    return {k: v for k, v in o.items() if v is not None}
+    return check_options({k: v for k, v in o.items() if v is not None}, settings)
 
 
 def _paper_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -260,8 +267,12 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     modes = [args.mode] if args.mode else ["full", "paper"]
     results: dict[str, Any] = {}
     for mode in modes:
-        opts = _full_options(args) if mode == "full" else _paper_options(args)
-        if mode == "paper" and drive.gnss is None:
+        if mode == "full":
+            results[mode] = dynamic_margins(drive, noise=args.static, mode=mode,
+                                            options=_full_options(args, drive.settings))
+            continue
+        opts = _paper_options(args)
+        if drive.gnss is None:
             say("imubounds: note: mode paper skipped: it needs GNSS fixes")
             continue
         results[mode] = dynamic_margins(drive, noise=args.static, mode=mode, **opts)

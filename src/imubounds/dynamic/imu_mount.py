@@ -1,4 +1,4 @@
-"""Is the IMU mounted with its axes on the body axes? (issue 24, item 3)
+"""Is the IMU mounted with its axes on the body axes? (docs/drive-layout.md, "The mount: imu_axes")
 
 Over a drive (or at rest) the mean specific force is gravity, pointing along body +z (x
 forward, y left, z up), plus the mean acceleration, small against g for a vehicle that

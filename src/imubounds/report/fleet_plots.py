@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imubounds.stationary.fleet_stats import DEFAULT_OUTLIER_Z, STAT_TERMS
+from imubounds.units import G0
 
 if TYPE_CHECKING:
     from imubounds.stationary.fleet.result import FleetResult
@@ -52,7 +53,7 @@ def fleet_figure(result: FleetResult) -> Any:
     fig = plt.figure(figsize=(13, 4.2 + 3.0 * len(kinds)), layout="constrained")
     gs = fig.add_gridspec(1 + len(kinds), 6)
     ylab = {"gyro": "Allan deviation [deg/h]", "accel": "Allan deviation [mg]"}
-    scale = {"gyro": 3600.0 / DEG, "accel": 1.0 / (9.80665e-3)}
+    scale = {"gyro": 3600.0 / DEG, "accel": 1.0 / (G0 * 1e-3)}
     n_units = len(result.curves)
     for col, kind in enumerate(("gyro", "accel")):
         ax = fig.add_subplot(gs[0, 3 * col : 3 * col + 3])

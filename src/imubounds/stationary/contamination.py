@@ -1,4 +1,5 @@
-"""Spikes and contaminated samples in a static log (issue 13; METHOD.md 1.1).
+"""Spikes and contaminated samples in a static log (METHOD.md 1.1;
+docs/static-method.md, section 1.1).
 
 A spike (one wild sample, or a short burst of them, as MEMS logs show after
 a bus error or a shock) adds its squared size to every Allan term that

@@ -1,4 +1,5 @@
-"""Fleet statistics: the spread of the noise terms across units, outliers, drift (issue 15).
+"""Fleet statistics: the spread of the noise terms across units, outliers, drift
+(docs/fleet.md, "statistics in fleet.json").
 
 For every channel (``gyro_x`` ... ``accel_z``) and term (N, B, K), across the
 units of a fleet that were analysed:

@@ -1,4 +1,4 @@
-"""Out-of-core Allan variance: logs larger than memory (issue 7).
+"""Out-of-core Allan variance: logs larger than memory (docs/static-method.md, section 1).
 
 The in-memory path (:func:`imubounds.stationary.allan.allan`) holds the rate signal ``y``
 and its phase ``x`` (compensated cumulative sum, length ``N + 1``) in RAM. Here

@@ -1,4 +1,5 @@
-"""What assuming a constant sample rate costs the Allan curve (issue 28 item 5).
+"""What assuming a constant sample rate costs the Allan curve (docs/static-method.md,
+section 1.2, irregular sampling).
 
 The Allan family takes samples at a constant step δt. With jittered stamps the
 true cluster of m samples lasts ``m·δt·(1 + ε)``, ε of standard deviation

@@ -1,4 +1,5 @@
-"""Is the white-noise level the same at every τ where N dominates? (issue 28, item 1)
+"""Is the white-noise level the same at every τ where N dominates? (docs/static-method.md,
+section 1.2, white level across τ)
 
 The fit and the IEEE 952 read-off estimate N differently: the read-off takes the
 lowest N line that touches the curve where N dominates (the point minimising

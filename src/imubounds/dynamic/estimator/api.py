@@ -9,6 +9,7 @@ from imubounds.dynamic.estimator.result import DynamicResult
 from imubounds.errors import InputError, OptionError
 
 if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
     from imubounds.io.drive import Drive
     from imubounds.stationary.pipeline import StaticResult
 
@@ -20,7 +21,8 @@ def dynamic_margins(
     *,
     noise: str | Path | dict[str, Any] | StaticResult | None = None,
     mode: str = "full",
-    **options: Any,
+    options: FullOptions | None = None,
+    **kwargs: Any,
 ) -> DynamicResult:
     """Dynamic error margins of a drive's IMU.
 
@@ -37,10 +39,15 @@ def dynamic_margins(
         ``"full"`` (default): guaranteed window-mean margins per averaging time with
         verdicts, and the whole-trip interval smoother (docs/dynamic-method.md).
         ``"paper"``: the paper's per-step estimator (not guaranteed).
-    **options:
-        Mode options (SI unless named otherwise): for ``full`` see
-        :data:`imubounds.dynamic.estimator.full.FULL_DEFAULTS` (``alpha``,
-        ``imu_spec``, ``max_tilt_deg``, ``lateral_speed_bound_mps``, ...); for ``paper`` see
+    options:
+        The options of mode ``full`` as a
+        :class:`~imubounds.dynamic.estimator.options.FullOptions` (the command line builds
+        one); not with keyword options.
+    **kwargs:
+        Mode options as keywords (SI unless named otherwise): for ``full`` the fields of
+        :class:`~imubounds.dynamic.estimator.options.FullOptions` (``alpha``,
+        ``imu_spec``, ``max_tilt_deg``, ``lateral_speed_bound_mps``, ...), checked here
+        (:func:`~imubounds.dynamic.estimator.options.check_options`); for ``paper`` see
         :class:`imubounds.dynamic.estimator.paper.PaperConfig`.
 
     Returns
@@ -62,7 +69,12 @@ def dynamic_margins(
         )
     if isinstance(noise, _StaticResult):
         noise = noise.to_dict()
-    spec = options.get("imu_spec")
+    if options is not None and (kwargs or mode != "full"):
+        raise OptionError(
+            "options= (a FullOptions) is for mode full, without keyword options; got "
+            f"mode {mode!r} and {', '.join(sorted(kwargs)) or 'no keywords'}"
+        )
+    spec = options.imu_spec if options is not None else kwargs.get("imu_spec")
     if spec is not None and (not isinstance(spec, str) or not spec.strip()):
         raise OptionError(
             f"imu_spec must be a preset name or 'accel_nd=..,accel_bs=..,gyro_nd=..,"
@@ -79,9 +91,10 @@ def dynamic_margins(
             from imubounds.dynamic.estimator.full import run_full
             from imubounds.dynamic.estimator.result import full_summary
 
-            run = run_full(drive, noise, **options)
+            # the keywords are checked into a FullOptions by build_context (check_options)
+            run = run_full(drive, noise, options if options is not None else kwargs)
             return DynamicResult("full", full_summary(run, drive), full=run)
         from imubounds.dynamic.estimator.paper import run_paper
 
-        paper: DynamicResult = run_paper(drive, noise, **options)
+        paper: DynamicResult = run_paper(drive, noise, **kwargs)
         return paper

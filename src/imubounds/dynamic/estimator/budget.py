@@ -47,6 +47,8 @@ import numpy as np
 from scipy.signal import lfilter
 from scipy.special import ndtri
 
+from imubounds.constants import ROUND_REL
+from imubounds.dynamic.estimator.options import FullOptions, check_options
 from imubounds.errors import InputError, OptionError
 from imubounds.units import DEG
 
@@ -61,8 +63,6 @@ TERM_UNITS: dict[str, dict[str, str]] = {
 }
 #: Default tau range of the flicker (bias-instability) model, s (that of the noise simulator).
 DEFAULT_FLICKER_RANGE_S: tuple[float, float] = (1.0, 1000.0)
-#: Default whole-trip probability that some stated probabilistic bound fails.
-DEFAULT_ALPHA = 0.01
 #: Defaults used when no source gives a figure (listed as assumed in the output).
 DEFAULT_SCALE = 0.005
 DEFAULT_MISALIGNMENT_RAD = 0.5 * DEG
@@ -384,13 +384,13 @@ class _NoiseSources:
 def _noise_sources(
     settings: Any,
     noise: str | Path | Mapping[str, Any] | None,
-    overrides: Mapping[str, Any],
+    overrides: FullOptions,
     base_dir: Path | None,
 ) -> _NoiseSources:
     from imubounds.presets import get_preset
 
     imu_s = getattr(settings, "imu", None)
-    spec = overrides.get("imu_spec")
+    spec = overrides.imu_spec
     preset_name, preset_src = "mtx", "default"
     datasheet: dict[str, float] = {}
     if spec:
@@ -449,7 +449,7 @@ def _set_terms(cn: ChannelNoise, kind: str, src: _NoiseSources, assumed: list[st
 
 
 def _set_turn_on(
-    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: Mapping[str, Any],
+    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: FullOptions,
     assumed: list[str],
 ) -> None:
     """The turn-on bias: option > drive.yaml > preset > Gaussian with 1-sigma B."""
@@ -458,8 +458,8 @@ def _set_turn_on(
     yaml_key = "accel_turn_on_mps2" if kind == "accel" else "gyro_turn_on_dps"
     yv = getattr(imu_s, yaml_key, None) if imu_s is not None else None
     cn.turn_on_kind = "bound"
-    if overrides.get(key) is not None:
-        cn.turn_on, srcs["turn_on"] = float(overrides[key]), "option"
+    if getattr(overrides, key) is not None:
+        cn.turn_on, srcs["turn_on"] = float(getattr(overrides, key)), "option"
     elif yv is not None:
         cn.turn_on = float(yv) * (1.0 if kind == "accel" else DEG)
         srcs["turn_on"] = "drive.yaml"
@@ -488,15 +488,15 @@ def _set_drift(cn: ChannelNoise, kind: str, imu_s: Any) -> None:
 
 
 def _set_geometry(
-    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: Mapping[str, Any]
+    cn: ChannelNoise, kind: str, src: _NoiseSources, overrides: FullOptions
 ) -> None:
     """Scale factor, misalignment and the flicker band: option > drive.yaml > named preset
     > default."""
     srcs, imu_s, pre = cn.sources, src.imu_s, src.preset.kind(kind)
     named = src.preset_src != "default"
     yv = getattr(imu_s, "scale_factor", None) if imu_s is not None else None
-    if overrides.get("scale") is not None:
-        cn.scale, srcs["scale"] = float(overrides["scale"]), "option"
+    if overrides.scale is not None:
+        cn.scale, srcs["scale"] = float(overrides.scale), "option"
     elif yv is not None:
         cn.scale, srcs["scale"] = float(yv), "drive.yaml"
     elif "scale_factor" in pre and named:
@@ -504,8 +504,8 @@ def _set_geometry(
     else:
         srcs["scale"] = "default"
     yv = getattr(imu_s, "misalignment_deg", None) if imu_s is not None else None
-    if overrides.get("misalignment_deg") is not None:
-        cn.misalignment_rad = float(overrides["misalignment_deg"]) * DEG
+    if overrides.misalignment_deg is not None:
+        cn.misalignment_rad = float(overrides.misalignment_deg) * DEG
         srcs["misalignment_rad"] = "option"
     elif yv is not None:
         cn.misalignment_rad, srcs["misalignment_rad"] = float(yv) * DEG, "drive.yaml"
@@ -514,7 +514,7 @@ def _set_geometry(
         srcs["misalignment_rad"] = f"preset {src.preset.key}"
     else:
         srcs["misalignment_rad"] = "default"
-    fr = overrides.get("flicker_tau_range_s")
+    fr = overrides.flicker_tau_range_s
     if fr is not None:
         cn.flicker_tau_range_s = (float(fr[0]), float(fr[1]))
         srcs["flicker_tau_range_s"] = "option"
@@ -561,17 +561,20 @@ def _default_assumptions(out: dict[str, ChannelNoise]) -> list[str]:
 def resolve_noise(
     settings: Any,
     noise: str | Path | Mapping[str, Any] | None,
-    overrides: Mapping[str, Any],
+    overrides: FullOptions | Mapping[str, Any],
     base_dir: Path | None = None,
 ) -> tuple[dict[str, ChannelNoise], list[str]]:
     """Noise figures of every channel, in the order option > noise.json > drive.yaml >
     preset > default, and the list of assumptions made (defaults taken).
 
-    ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` may hold
+    ``settings`` is a :class:`imubounds.io.drive.DriveSettings`; ``overrides`` the options
+    of mode full (:class:`~imubounds.dynamic.estimator.options.FullOptions`, or keywords
+    checked by :func:`~imubounds.dynamic.estimator.options.check_options`), of which
     ``imu_spec`` (preset name or ``accel_nd=..,accel_bs=..,gyro_nd=..,gyro_bs=..``),
     ``accel_turn_on``/``gyro_turn_on`` (SI, bounds), ``scale`` (fraction),
-    ``misalignment_deg``, ``flicker_tau_range_s``.
+    ``misalignment_deg``, ``flicker_tau_range_s`` are read.
     """
+    overrides = check_options(overrides)
     src = _noise_sources(settings, noise, overrides, base_dir)
     assumed: list[str] = []
     out: dict[str, ChannelNoise] = {}
@@ -674,7 +677,7 @@ def _gm_row_excess(m: int, a: float) -> float:
     j = (m - 1) // 2
     left = -math.expm1(-a * (j + 1)) / q
     right = -math.expm1(-a * (m - j)) / q
-    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + 1e-12)
+    return max(left + right - 1.0 - m * math.exp(-a * (m - 1)), 0.0) * (1 + ROUND_REL)
 
 
 def centered_ms_bound(cn: ChannelNoise, m: int, dt: float, p: float) -> float:

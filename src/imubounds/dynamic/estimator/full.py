@@ -6,20 +6,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import timing as TM
-from imubounds.dynamic.estimator import clock as CK
+from imubounds.constants import EARTH_RATE, G_HI, G_LO, R_EARTH, ROUND_REL
 from imubounds.dynamic.estimator import pitch_gnss as PG
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator import violations as V
 from imubounds.dynamic.estimator.budget import (
     CHANNELS,
-    DEFAULT_ALPHA,
     TERM_UNITS,
     UNITS,
     AlphaPlan,
@@ -34,22 +33,17 @@ from imubounds.dynamic.estimator.budget import (
     sample_bound,
     wander_of,
 )
-from imubounds.dynamic.estimator.heading_input import HeadingInput
 from imubounds.dynamic.estimator.inputs import (
     Aiding,
     ImuSeries,
     Vehicle,
-    build_aiding,
     check_overlap,
     vehicle_from,
 )
+from imubounds.dynamic.estimator.options import FullOptions, check_options
 from imubounds.dynamic.estimator.vehicle_bounds import refine_vehicle
 from imubounds.dynamic.estimator.window_plan import epochs_near, plan_on_subset
 from imubounds.dynamic.estimator.windows import (
-    EARTH_RATE,
-    G_HI,
-    G_LO,
-    R_EARTH,
     ChannelMargins,
     ChannelPlan,
     MarginBuilder,
@@ -58,99 +52,11 @@ from imubounds.dynamic.estimator.windows import (
     plan_channel,
     tau_grid,
 )
-from imubounds.errors import InputError, OptionError
+from imubounds.dynamic.sensors import build_aiding
+from imubounds.dynamic.sensors import clocks as CK
+from imubounds.dynamic.sensors.heading import HeadingInput
+from imubounds.errors import InputError
 from imubounds.units import DEG
-
-#: Options of mode ``full`` and their defaults (SI unless the name says otherwise).
-FULL_DEFAULTS: dict[str, Any] = {
-    "alpha": DEFAULT_ALPHA,
-    "imu_stamp": "end",
-    "imu_spec": None,
-    "accel_turn_on": None,
-    "gyro_turn_on": None,
-    "scale": None,
-    "misalignment_deg": None,
-    "flicker_tau_range_s": None,
-    "max_speed": None,
-    "max_accel": None,
-    "max_jerk": None,
-    "max_rate_dps": None,
-    "max_tilt_deg": None,
-    "max_ang_accel_dps2": None,
-    "lateral_speed_bound_mps": None,
-    "vertical_speed_bound_mps": None,
-    "gnss_cep_m": None,
-    "default_hdop": None,
-    "gnss_vel_sigma": None,
-    "velocity_bound": None,
-    "attitude_bound_deg": None,
-    "heading_noise_deg": None,
-    "heading_deviation_deg": None,
-    "declination_deg": None,
-    "compass_cal": None,
-    "compass_fit": None,
-    "geodesy": "wgs84",
-    "use_gnss": True,
-    "use_gnss_velocity": True,
-    "use_velocity": True,
-    "use_attitude": True,
-    "use_gnss_altitude": True,
-    "reverses": False,
-    "tol": 1e-3,
-    "max_sweeps": 200,
-    "max_windows": 2048,
-}
-
-
-def check_options(opts: dict[str, Any]) -> dict[str, Any]:
-    """Defaults filled in, unknown names and bad values refused (:class:`OptionError`)."""
-    unknown = set(opts) - set(FULL_DEFAULTS)
-    if unknown:
-        raise OptionError(
-            f"unknown option(s) for mode full: {', '.join(sorted(unknown))}; "
-            f"known: {', '.join(sorted(FULL_DEFAULTS))}"
-        )
-    o = {**FULL_DEFAULTS, **{k: v for k, v in opts.items() if v is not None}}
-    a = o["alpha"]
-    if not (isinstance(a, int | float) and 0 < a < 1):
-        raise OptionError(f"--alpha must lie in (0, 1), got {a!r}")
-    for name in (
-        "max_speed",
-        "max_accel",
-        "max_jerk",
-        "max_rate_dps",
-        "max_ang_accel_dps2",
-        "gnss_cep_m",
-        "default_hdop",
-        "tol",
-    ):
-        v = o[name]
-        if v is not None and not (math.isfinite(float(v)) and float(v) > 0):
-            raise OptionError(f"--{name.replace('_', '-')} must be positive, got {v!r}")
-    for name in (
-        "accel_turn_on",
-        "gyro_turn_on",
-        "scale",
-        "misalignment_deg",
-        "max_tilt_deg",
-        "lateral_speed_bound_mps",
-        "vertical_speed_bound_mps",
-        "gnss_vel_sigma",
-        "velocity_bound",
-        "attitude_bound_deg",
-        "heading_noise_deg",
-        "heading_deviation_deg",
-    ):
-        v = o[name]
-        if v is not None and not (math.isfinite(float(v)) and float(v) >= 0):
-            raise OptionError(f"--{name.replace('_', '-')} must be >= 0, got {v!r}")
-    if o["scale"] is not None and o["scale"] >= 0.5:
-        raise OptionError("--scale is a fraction (0.01 = 1 %) below 0.5")
-    if o["imu_stamp"] not in ("end", "start", "centre"):
-        raise OptionError(f"--imu-stamp must be end, start or centre, got {o['imu_stamp']!r}")
-    if int(o["max_windows"]) < 1 or int(o["max_sweeps"]) < 1:
-        raise OptionError("max_windows and max_sweeps must be >= 1")
-    return o
 
 
 @dataclass
@@ -158,7 +64,7 @@ class Context:
     """Everything mode full computes before the margins and the smoother."""
 
     drive: Any
-    opts: dict[str, Any]
+    opts: FullOptions
     vehicle: Vehicle
     noise: dict[str, ChannelNoise]
     imu: ImuSeries
@@ -179,43 +85,43 @@ class Context:
     level_index_changes: dict[tuple[str, int], int] = field(default_factory=dict)
     #: failed checks of assumptions found while building the inputs (violations.py)
     violations: list[Any] = field(default_factory=list)
-    #: clock offsets of the aiding streams (aiding/timing.py)
+    #: clock offsets of the aiding streams (sensors/_timing.py)
     timing: dict[str, Any] = field(default_factory=dict)
 
 
-def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: dict[str, Any]) -> Any:
+def _epochs(drive: Any, heading: HeadingInput | None, t0: float, opts: FullOptions) -> Any:
     g = drive.gnss
     parts = []
     n_fix = n_vel = 0
-    if g is not None and opts["use_gnss"]:
+    if g is not None and opts.use_gnss:
         ok = g.usable()
         parts.append(g.t[ok] - t0)
         n_fix = int(ok.sum())
         v = g.velocity_ne()
-        if v is not None and opts["use_gnss_velocity"]:
+        if v is not None and opts.use_gnss_velocity:
             n_vel = int(np.sum(ok & np.isfinite(v[0]) & np.isfinite(v[1])))
     n_head = 0
     if heading is not None:
         parts.append(np.asarray(heading.t, float) - t0)
         n_head = int(heading.t.size)
-    if drive.velocity is not None and opts["use_velocity"]:
+    if drive.velocity is not None and opts.use_velocity:
         parts.append(np.asarray(drive.velocity.t, float) - t0)
     te = np.unique(np.concatenate(parts)) if parts else np.zeros(0)
     return te, n_fix, n_vel, n_head
 
 
-def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
-    """Budget, inputs and window plans of mode full (see the module docstring)."""
+def build_context(
+    drive: Any, noise: Any, opts: FullOptions | Mapping[str, Any]
+) -> Context:
+    """Budget, inputs and window plans of mode full (see the module docstring); ``opts``
+    a :class:`FullOptions`, or keywords checked here (:func:`check_options`)."""
     if drive.imu is None:
         raise InputError(f"{drive.source}: no IMU stream")
-    st_time = getattr(drive.settings.imu, "sample_time", None)
-    if "imu_stamp" not in opts and st_time in ("end", "start", "centre"):
-        opts = {**opts, "imu_stamp": st_time}
-    o = check_options(opts)
+    o = check_options(opts, drive.settings)
     vehicle, vnotes = vehicle_from(drive.settings, o)
     base = Path(drive.source) if Path(str(drive.source)).is_dir() else None
     noise_terms, assumed = resolve_noise(drive.settings, noise, o, base)
-    imu = ImuSeries.from_drive(drive, o["imu_stamp"], vehicle)
+    imu = ImuSeries.from_drive(drive, o.imu_stamp, vehicle)
     drive, heading, timing = CK.clock_offsets(drive, o, noise_terms)
     te, n_fix, n_vel, n_head = _epochs(drive, heading, imu.t0, o)
     te = te[(te >= imu.bnd[0]) & (te <= imu.bnd[-1])]
@@ -236,7 +142,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     n_fl = imu.n * sum(drift_rule(noise_terms[c]) != "stated"
                        for c in ("gyro_x", "gyro_y", "gyro_z")) if use_pitch else 0
     alpha = AlphaPlan(
-        float(o["alpha"]),
+        float(o.alpha),
         {
             "imu_samples": imu.n * 6 * (2 if any_d else 1) + n_fl,
             "imu_windows": 1,
@@ -280,16 +186,16 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
     # intervals), the applied ones taken off the stamps before the aiding, the
     # windows and the smoother use them, and counted in that family
     def k_of(stream: str, n: int) -> float:
-        fam = TM.ALPHA_FAMILY.get(stream)
+        fam = CK.ALPHA_FAMILY.get(stream)
         if fam is None:
             return float(-ndtri(alpha.share() / 2 / n))
         return k_two_sided(alpha.share(), alpha.counts.get(fam, 0) + n)
 
     n_model = CK.model_events(heading)
-    drive, moved = TM.apply_offsets(drive, timing, k_of)
+    drive, moved = CK.apply_offsets(drive, timing, k_of)
     joined: dict[str, int] = {}
     for name, est in timing.items():
-        fam = TM.ALPHA_FAMILY.get(name)
+        fam = CK.ALPHA_FAMILY.get(name)
         if fam is not None and est.applied and est.method != "drive.yaml":
             joined[fam] = joined.get(fam, 0) + 1 + len(est.parts)
             alpha.counts[fam] = alpha.counts.get(fam, 0) + 1 + len(est.parts)
@@ -339,7 +245,7 @@ def build_context(drive: Any, noise: Any, opts: dict[str, Any]) -> Context:
             "the GNSS radius"
         )
     if CK.heading_clock_default(aiding, timing):
-        assumed.append(TM.heading_clock_assumption(timing))
+        assumed.append(CK.heading_clock_assumption(timing))
     check_overlap(imu, aiding, drive.source)
     ctx = Context(
         drive=drive,
@@ -423,7 +329,7 @@ def _plan_windows(ctx: Context) -> None:
     mb = MarginBuilder(ctx)
     ag = ctx.aiding
     imu = ctx.imu
-    cap = int(ctx.opts["max_windows"])
+    cap = int(ctx.opts.max_windows)
     grid = tau_grid(imu.dt, imu.duration)
     bv = mb.body_velocity()
     plans: dict[str, ChannelPlan] = {}
@@ -636,7 +542,7 @@ def _link_errors(ctx: Context, beta0: np.ndarray) -> dict[str, np.ndarray]:
     eq1 = q_left + np.minimum(phi_max, 1.0) * q_fwd + D * (rot + bias_rot + cor)
 
     def widen(x: np.ndarray, e: np.ndarray) -> None:
-        e = np.nextafter(e * (1 + 1e-12), np.inf)
+        e = np.nextafter(e * (1 + ROUND_REL), np.inf)
         x[:, 0] = np.nextafter(x[:, 0] - e, -np.inf)
         x[:, 1] = np.nextafter(x[:, 1] + e, np.inf)
 
@@ -788,15 +694,17 @@ def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> An
         links["QH"],
         beta0,
         math.inf if vl is None else float(vl),
-        tol=float(ctx.opts["tol"]),
-        max_sweeps=int(ctx.opts["max_sweeps"]),
+        tol=float(ctx.opts.tol),
+        max_sweeps=int(ctx.opts.max_sweeps),
         t_offset=ctx.imu.t0,
     )
 
 
-def run_full(drive: Any, noise: Any = None, **options: Any) -> FullRun:
+def run_full(
+    drive: Any, noise: Any = None, options: FullOptions | Mapping[str, Any] | None = None
+) -> FullRun:
     """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
-    ctx = build_context(drive, noise, options)
+    ctx = build_context(drive, noise, {} if options is None else options)
     mb = MarginBuilder(ctx)
     order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
     margins: dict[str, ChannelMargins] = {}

@@ -8,31 +8,36 @@ intervals at their epochs, built without the IMU (docs/dynamic-method.md, sectio
   float sum of ``y dt`` (summation error bounded by Higham's ``gamma_n``), the
   length of partially covered samples at the ends (for the sample-model error),
   and spans with no sample (gaps, NaN rows) are bounded by the vehicle's limits.
-* :class:`Aiding` -- GNSS position boxes and velocity boxes, heading intervals
-  (compass after deviation correction), body-velocity intervals (DVL, wheel/CAN),
-  roll/pitch intervals: everything at its own epochs, in the local ENU frame at the
-  first fix, with the half-widths of the error budget.
+* :class:`Aiding` -- the container of the aiding intervals: GNSS position boxes and
+  velocity boxes, heading intervals (compass after deviation correction), body-velocity
+  intervals (DVL, wheel/CAN), roll/pitch intervals: everything at its own epochs, in the
+  local ENU frame at the first fix, with the half-widths of the error budget. Each sensor
+  fills its part (:mod:`imubounds.dynamic.sensors`, :func:`~imubounds.dynamic.sensors.
+  build_aiding`).
+* :class:`Vehicle` -- the vehicle bounds (:func:`vehicle_from`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.constants import G_HI, ROUND_REL
+from imubounds.constants import UNIT_ROUNDOFF as _U
 from imubounds.dynamic.estimator import series_kernels as SK
-from imubounds.dynamic.estimator.budget import CHANNELS, AlphaPlan, Term
-from imubounds.dynamic.estimator.gnss_screen import gnss_outliers, miss_of
+from imubounds.dynamic.estimator.budget import CHANNELS, Term
 from imubounds.errors import InputError, OptionError
 from imubounds.interval import IntervalArray as IA
 from imubounds.interval.rounding import down as _dn
 from imubounds.interval.rounding import up as _up
 from imubounds.units import DEG
 
-_U = 2.0**-53
-EARTH_RATE = 7.2921159e-5  #: rad/s
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
+
 
 
 class RangeExt:
@@ -100,7 +105,7 @@ class Vehicle:
     def signal_bound(self, ch: str) -> float:
         """|true signal| bound of a channel (for spans with no IMU sample); ``max_accel``
         bounds the horizontal acceleration including the centripetal part."""
-        g = 9.84
+        g = G_HI
         if ch in ("accel_x", "accel_y"):
             return self.max_accel + g * math.sin(self.max_tilt)
         if ch == "accel_z":
@@ -112,7 +117,7 @@ class Vehicle:
         return self.max_jerk if ch.startswith("accel") else self.max_ang_accel
 
 
-def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str]]:
+def vehicle_from(settings: Any, opts: FullOptions) -> tuple[Vehicle, list[str]]:
     """Vehicle bounds: options > drive.yaml (``vehicle``) > defaults (listed as assumed)."""
     vs = getattr(settings, "vehicle", None)
     assumed_in = list(getattr(settings, "assumed", []) or [])
@@ -129,8 +134,8 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
         ("vertical_bound", "vertical_speed_bound_mps", 1.0, "vertical_speed_bound_mps"),
     )
     for attr, key, fac, opt in table:
-        if opt is not None and opts.get(opt) is not None:
-            setattr(v, attr, float(opts[opt]) * fac)
+        if opt is not None and getattr(opts, opt) is not None:
+            setattr(v, attr, float(getattr(opts, opt)) * fac)
             v.sources[attr] = "option"
             continue
         val = getattr(vs, key, None) if vs is not None else None
@@ -140,8 +145,8 @@ def vehicle_from(settings: Any, opts: dict[str, Any]) -> tuple[Vehicle, list[str
             v.sources[attr] = "default (drive.yaml silent)" if assumed else "drive.yaml"
         else:
             v.sources[attr] = "default"
-    if opts.get("max_ang_accel_dps2") is not None:
-        v.max_ang_accel = float(opts["max_ang_accel_dps2"]) * DEG
+    if opts.max_ang_accel_dps2 is not None:
+        v.max_ang_accel = float(opts.max_ang_accel_dps2) * DEG
         v.sources["max_ang_accel"] = "option"
     else:
         v.sources["max_ang_accel"] = "default"
@@ -350,7 +355,7 @@ class PiecewiseSignal:
         else:
             AB = np.concatenate([[0.0], np.cumsum(np.abs(self.y) * np.diff(self.bnd))])
             Ab, Aa = AB[ib + 1], AB[ia]
-        return (Ab - Aa) * (1 + 1e-12) + self.unknown_len(a, b) * self.xmax
+        return (Ab - Aa) * (1 + ROUND_REL) + self.unknown_len(a, b) * self.xmax
 
 
 @dataclass
@@ -592,25 +597,13 @@ class Aiding:
                 hi[has] = np.maximum(hi[has], mx + self.att_bound + dev)
             lo = np.maximum(lo, -cap)
             hi = np.minimum(hi, cap)
-            out += [_dn(lo * (1 + 1e-12) - 1e-15), _up(hi * (1 + 1e-12) + 1e-15)]
+            out += [_dn(lo * (1 + ROUND_REL) - 1e-15), _up(hi * (1 + ROUND_REL) + 1e-15)]
         return out[0], out[1], out[2], out[3]
 
     def tilt(self, t: np.ndarray, vehicle: Vehicle) -> tuple[Any, ...]:
         """Roll/pitch intervals at times ``t`` (see :meth:`tilt_range`)."""
         t = np.asarray(t, dtype=float)
         return self.tilt_range(t, t, vehicle)
-
-
-#: rejection threshold of the GNSS-only outlier test, in units of the residual's DRMS
-def _rel(t: np.ndarray, t0: float) -> np.ndarray:
-    return np.asarray(t, dtype=float) - t0
-
-
-#: body-velocity kinds measured at the wheels, and the scale-factor bound they get when
-#: ``velocity.scale`` is not stated: the rolling radius of a road tyre varies by 1-3 %
-#: with pressure, wear and load.
-WHEEL_KINDS = ("wheel", "can", "odometry")
-WHEEL_SCALE_DEFAULT = 0.03
 
 
 def lateral_h_bound(vehicle: Vehicle) -> float | None:
@@ -622,346 +615,7 @@ def lateral_h_bound(vehicle: Vehicle) -> float | None:
     return float(_up(vl + math.sin(vehicle.max_tilt) * vehicle.vertical_bound))
 
 
-def _course_heading(ag: Aiding, vehicle: Vehicle, opts: dict[str, Any]) -> None:
-    """Heading from the GNSS course when there is no heading sensor: with the lateral
-    velocity bound ``vl`` and a vehicle that does not reverse (the horizontal velocity
-    points forward), ``|psi - chi| <= asin(vl / S)``; with the velocity radius ``R``,
-    ``S >= |Vm| - R`` and ``|chi - chi_m| <= asin(R / |Vm|)``. Epochs slower than
-    ``R + vl`` give no heading. Holds on the GNSS-velocity event (no extra probability)."""
-    vh = lateral_h_bound(vehicle)
-    if vh is None:
-        ag.notes.append("no heading sensor and no lateral velocity bound: no heading")
-        return
-    if opts.get("reverses"):
-        ag.notes.append("the vehicle may reverse (--reverses): no heading from the GNSS course")
-        return
-    ok = ag.gvel_ok
-    ve, vn, R = ag.gvel_e, ag.gvel_n, ag.gvel_hi
-    s = np.hypot(np.nan_to_num(ve), np.nan_to_num(vn))
-    use = ok & (s * (1 - 1e-9) > R + vh)
-    if not np.any(use):
-        ag.notes.append("no GNSS velocity fast enough for a heading from the course")
-        return
-    s_u, R_u = s[use], R[use]
-    e_chi = np.arcsin(np.minimum(1.0, R_u / s_u))
-    d = np.arcsin(np.minimum(1.0, vh / ((s_u - R_u) * (1 - 1e-12))))
-    half = _up((e_chi + d) * (1 + 1e-9) + 1e-15)
-    chi = np.arctan2(vn[use], ve[use])
-    ag.head_t = ag.gnss_t[use]
-    ag.head_c = np.unwrap(chi)
-    ag.head_h = half
-    ag.head_source = "GNSS course"
-    ag.head_independent_of_imu = True
-    ag.head_from_course = True
-    ag.budget["heading"] = [
-        Term(
-            "lateral velocity bound",
-            vh,
-            "m/s",
-            vehicle.sources.get("lateral_speed_bound_mps", "default"),
-            "|horizontal lateral velocity| (vehicle bound, plus sin(max tilt) x vertical bound)",
-        ),
-        Term(
-            "median half-width",
-            float(np.median(half)) / DEG,
-            "deg",
-            "computed",
-            "asin(R / |Vm|) + asin(vl / (|Vm| - R)) at fixes faster than R + vl",
-        ),
-    ]
-    ag.notes.append(
-        f"heading from the GNSS course at {int(use.sum())} of {int(ok.sum())} velocity "
-        "fixes: assumes the vehicle does not reverse and the lateral velocity bound "
-        "(--reverses turns it off)"
-    )
-
-
-def _gnss_positions(
-    ag: Aiding, g: Any, ok: np.ndarray, st: Any, vehicle: Vehicle, alpha: AlphaPlan,
-    opts: dict[str, Any], t0: float,
-) -> tuple[np.ndarray, float]:
-    """GNSS position boxes (Rayleigh radius of each usable fix, plus the lever arm) and
-    the GNSS outlier screen; returns the fixes kept and the horizontal lever arm (m)."""
-    from imubounds.dynamic.aiding.gps import cep_to_drms
-    from imubounds.geodesy import geodetic_to_enu
-
-    lat, lon = g.lat_deg[ok], g.lon_deg[ok]
-    alt = g.alt_m[ok] if g.alt_m is not None else None
-    e, n, origin = geodetic_to_enu(lat, lon, alt, method=opts.get("geodesy", "wgs84"))
-    ag.origin = origin
-    ag.gnss_t = _rel(g.t[ok], t0)
-    ag.gnss_e, ag.gnss_n = e, n
-    ag.gnss_alt = np.asarray(alt, float) if alt is not None else np.full(e.size, np.nan)
-    va = getattr(g, "v_acc_m", None)
-    ag.gnss_vacc = np.asarray(va[ok], float) if va is not None else np.full(e.size, np.nan)
-    cep = float(opts.get("gnss_cep_m") or st.gnss.cep_m)
-    dflt = float(opts.get("default_hdop") or st.gnss.default_hdop)
-    hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
-    hd = np.where(np.isfinite(hd) & (hd > 0), hd, dflt)
-    drms = hd * cep_to_drms(cep)
-    if g.h_acc_m is not None:
-        # h_acc_m is the 1-sigma of each horizontal axis: DRMS = sqrt(2) h_acc
-        ha = g.h_acc_m[ok].astype(float)
-        drms = np.where(np.isfinite(ha) & (ha > 0), math.sqrt(2.0) * ha, drms)
-    p = alpha.p_radial("gnss_position")
-    fac = math.sqrt(-math.log(p))
-    lever = getattr(st, "lever_arm_m", None)
-    lev = float(np.hypot(lever[0], lever[1])) if lever is not None else 0.0
-    ag.gnss_h = _up(drms * fac * (1 + 1e-12) + lev)
-    ag.gnss_sig = drms / math.sqrt(2.0)
-    ag.gnss_det = lev
-    src_cep = "option" if opts.get("gnss_cep_m") else "drive.yaml"
-    ag.budget["gnss_position"] = [
-        Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
-        Term(
-            "box half-width factor",
-            fac,
-            "x DRMS",
-            "alpha plan",
-            f"Rayleigh radial error, P(outside) = {p:.3g} per fix (whole trip "
-            f"{alpha.share():.3g} over {ok.sum()} fixes); DRMS = sqrt(2) h_acc_m "
-            "(1-sigma per axis) where given, else HDOP x CEP / sqrt(ln 2)",
-        ),
-        Term(
-            "lever arm",
-            lev,
-            "m",
-            "drive.yaml" if lever is not None else "default",
-            "horizontal antenna offset from the IMU, added to the position radius "
-            "and (x the yaw-rate bound) to the velocity radius",
-        ),
-        Term(
-            "median box half-width",
-            float(np.median(ag.gnss_h)),
-            "m",
-            "computed",
-            "square box around the circle of that radius",
-        ),
-    ]
-    out = gnss_outliers(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, vehicle.max_accel)
-    if np.any(out):
-        misses = miss_of(ag.gnss_t, ag.gnss_e, ag.gnss_n, drms, out, vehicle.max_accel)
-        ag.gnss_rejected = [
-            (float(ag.gnss_t[i] + t0), float(miss))
-            for i, miss in zip(np.flatnonzero(out), misses, strict=True)
-        ]
-        keep = ~out
-        for name in ("gnss_t", "gnss_e", "gnss_n", "gnss_h", "gnss_sig", "gnss_alt",
-                     "gnss_vacc"):
-            setattr(ag, name, getattr(ag, name)[keep])
-        ok_idx = np.flatnonzero(ok)[keep]
-        ok = np.zeros_like(ok)
-        ok[ok_idx] = True
-    return ok, lev
-
-
-def _gnss_velocity(
-    ag: Aiding, g: Any, ok: np.ndarray, lev: float, st: Any, vehicle: Vehicle,
-    alpha: AlphaPlan, opts: dict[str, Any],
-) -> None:
-    """GNSS velocity radii of the kept fixes (Rayleigh, plus omega x lever)."""
-    vel = g.velocity_ne()
-    if vel is not None and opts.get("use_gnss_velocity", True):
-        vn, ve = vel[0][ok], vel[1][ok]
-        good = np.isfinite(vn) & np.isfinite(ve)
-        if np.any(good):
-            sig = float(opts.get("gnss_vel_sigma") or st.gnss.vel_sigma_mps)
-            # radial (Rayleigh) bound of the 2-D velocity error: it bounds each
-            # component, the speed (|S - |Vm|| <= R) and the course (asin(R/|Vm|))
-            p_v = alpha.p_radial("gnss_velocity")
-            k = math.sqrt(-2.0 * math.log(p_v))
-            ag.gvel_ok = good
-            ag.gvel_e = np.where(good, ve, np.nan)
-            ag.gvel_n = np.where(good, vn, np.nan)
-            sig_i = np.full(good.size, sig)
-            va = getattr(g, "vel_acc_mps", None)
-            if va is not None and not opts.get("gnss_vel_sigma"):
-                va = np.asarray(va, dtype=float)[ok]
-                sig_i = np.where(np.isfinite(va) & (va > 0), va, sig)
-            # a lever arm adds omega x lever to the antenna velocity
-            lv_v = lev * vehicle.max_rate
-            ag.gvel_h = float(_up(np.float64(k * sig * (1 + 1e-12) + lv_v)))
-            ag.gvel_hi = _up(k * sig_i * (1 + 1e-12) + lv_v)
-            ag.gvel_sig = sig_i
-            ag.gvel_det = lv_v
-            ag.budget["gnss_velocity"] = [
-                Term(
-                    "velocity sigma per component",
-                    sig,
-                    "m/s",
-                    "option" if opts.get("gnss_vel_sigma") else "drive.yaml",
-                    "Gaussian error of north and east velocity",
-                ),
-                Term(
-                    "radius factor",
-                    k,
-                    "x sigma",
-                    "alpha plan",
-                    f"Rayleigh radial error, P(outside) = {p_v:.3g} per fix "
-                    f"({int(good.sum())} fixes)",
-                ),
-                Term(
-                    "radius",
-                    ag.gvel_h,
-                    "m/s",
-                    "computed",
-                    "bounds the 2-D velocity error, hence each component, the speed "
-                    "and (asin(radius / speed)) the course",
-                ),
-            ]
-
-
-def _heading_intervals(ag: Aiding, heading: Any, alpha: AlphaPlan, t0: float) -> None:
-    """Heading intervals: deviation bound + k x noise at each heading epoch."""
-    from imubounds.frames import compass_to_model
-
-    k = alpha.k("heading")
-    ag.head_t = _rel(heading.t, t0)
-    cen = np.unwrap(np.asarray(compass_to_model(heading.heading_rad), dtype=float))
-    ag.head_c = cen
-    half = heading.deviation_bound_rad + k * heading.noise_sigma_rad * heading.noise_gain
-    ag.head_h = _up(np.full(cen.size, half) * (1 + 1e-12))
-    ag.head_sig = heading.noise_sigma_rad * heading.noise_gain
-    ag.head_det = heading.deviation_bound_rad
-    ag.head_source = heading.source
-    ag.head_independent_of_imu = heading.independent_of_imu
-    ag.budget["heading"] = [
-        Term(
-            "deviation bound",
-            heading.deviation_bound_rad / DEG,
-            "deg",
-            heading.deviation_source,
-            "after the one-cycle deviation correction",
-        ),
-        Term(
-            "noise sigma",
-            heading.noise_sigma_rad / DEG,
-            "deg",
-            heading.noise_source,
-            "Gaussian; x (1 + |B| + |C|) for the correction evaluated at the noisy reading",
-        ),
-        Term("k", k, "", "alpha plan", f"Bonferroni over {cen.size} heading epochs"),
-        Term("half-width", half / DEG, "deg", "computed", "deviation + k x noise"),
-    ]
-
-
-def _body_velocity(
-    ag: Aiding, drive: Any, st: Any, opts: dict[str, Any], t0: float
-) -> None:
-    """Body-velocity intervals (DVL, wheel/CAN speed): bound + scale x speed."""
-    vel_s = drive.velocity
-    if vel_s is not None and opts.get("use_velocity", True):
-        bound = float(opts.get("velocity_bound") or st.velocity.bound_mps)
-        scale = float(st.velocity.scale)
-        scale_src = "drive.yaml"
-        if "velocity.scale" in drive.settings.defaulted and vel_s.kind in WHEEL_KINDS:
-            # a wheel speed scales with the tyre's rolling radius (pressure, wear, load)
-            scale = WHEEL_SCALE_DEFAULT
-            scale_src = "default for a wheel speed"
-            ag.notes.append(
-                f"{vel_s.kind} speed: scale-factor error assumed within "
-                f"{100 * WHEEL_SCALE_DEFAULT:g} % (tyre rolling radius; set velocity.scale)"
-            )
-        ag.bvel_t = _rel(vel_s.t, t0)
-        ag.bvel_u = np.asarray(vel_s.u_mps, dtype=float)
-        ag.bvel_v = None if vel_s.v_mps is None else np.asarray(vel_s.v_mps, dtype=float)
-        ag.bvel_w = None if vel_s.w_mps is None else np.asarray(vel_s.w_mps, dtype=float)
-        spd = np.abs(ag.bvel_u)
-        if ag.bvel_v is not None:
-            spd = np.hypot(spd, np.nan_to_num(ag.bvel_v))
-        ag.bvel_h = _up((bound + scale * spd) * (1 + 1e-12))
-        ag.bvel_kind = vel_s.kind
-        ag.budget["velocity"] = [
-            Term(
-                "bound",
-                bound,
-                "m/s",
-                "option" if opts.get("velocity_bound") else "drive.yaml",
-                f"{vel_s.kind} body-velocity error per component",
-            ),
-            Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),
-        ]
-
-
-def _attitude(
-    ag: Aiding, drive: Any, st: Any, vehicle: Vehicle, opts: dict[str, Any], t0: float
-) -> None:
-    """Roll/pitch intervals of an attitude stream, or the vehicle's max tilt."""
-    att = drive.attitude
-    if att is not None and opts.get("use_attitude", True):
-        bd = opts.get("attitude_bound_deg")
-        ag.att_bound = float(bd if bd is not None else st.attitude.bound_deg) * DEG
-        ag.att_t = _rel(att.t, t0)
-        ag.att_roll = np.asarray(att.roll_rad, dtype=float)
-        ag.att_pitch = np.asarray(att.pitch_rad, dtype=float)
-        ag.att_source = att.source
-        ok = np.isfinite(ag.att_roll) & np.isfinite(ag.att_pitch)
-        ag.att_t, ag.att_roll, ag.att_pitch = ag.att_t[ok], ag.att_roll[ok], ag.att_pitch[ok]
-        defaulted = bd is None and "attitude.bound_deg" in getattr(drive.settings, "defaulted", [])
-        if defaulted:
-            ag.notes.append(
-                f"attitude stream ({att.source}): its roll/pitch error bound "
-                f"{ag.att_bound / DEG:g} deg is the default (no figure given; state "
-                "attitude.bound_deg in drive.yaml or --attitude-bound)"
-            )
-        ag.budget["attitude"] = [
-            Term(
-                "roll/pitch bound",
-                ag.att_bound / DEG,
-                "deg",
-                "option" if bd is not None else "default" if defaulted else "drive.yaml",
-                f"attitude stream ({att.source}) error; between samples widened by the "
-                "angular-rate bound",
-            )
-        ]
-        if att.source == "ahrs":
-            ag.notes.append(
-                "the attitude stream is an AHRS output computed from this IMU: the gravity "
-                "terms of the accelerometer channels are then not independent of them"
-            )
-    else:
-        ag.budget["attitude"] = [
-            Term(
-                "max tilt",
-                vehicle.max_tilt / DEG,
-                "deg",
-                vehicle.sources.get("max_tilt", "default"),
-                "no attitude stream: roll and pitch only bounded by the vehicle's max tilt",
-            )
-        ]
-
-
-def build_aiding(
-    drive: Any,
-    t0: float,
-    vehicle: Vehicle,
-    alpha: AlphaPlan,
-    opts: dict[str, Any],
-    heading: Any,
-) -> Aiding:
-    """Aiding intervals (IMU-free) with their budget rows, one builder per sensor.
-    ``alpha`` must already count the GNSS fixes, GNSS velocity components and heading
-    epochs."""
-    st = drive.settings
-    ag = Aiding(origin=None)
-    g = drive.gnss
-    if g is not None and opts.get("use_gnss", True):
-        ok = g.usable()
-        if np.any(ok):
-            ok, lev = _gnss_positions(ag, g, ok, st, vehicle, alpha, opts, t0)
-            _gnss_velocity(ag, g, ok, lev, st, vehicle, alpha, opts)
-    if heading is not None and heading.t.size:
-        _heading_intervals(ag, heading, alpha, t0)
-    if heading is not None:
-        ag.notes += heading.notes
-    if not ag.has_heading and ag.has_gvel:
-        _course_heading(ag, vehicle, opts)
-    _body_velocity(ag, drive, st, opts, t0)
-    _attitude(ag, drive, st, vehicle, opts, t0)
-    return ag
-
-
-# ------------------------------------------------------------------- heading input
+# ------------------------------------------------------------------------ checks
 
 
 def check_overlap(imu: ImuSeries, ag: Aiding, source: str) -> None:

@@ -27,20 +27,20 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding.compass import (
+from imubounds.dynamic.estimator import paper_kernel as K
+from imubounds.dynamic.sensors.gnss import gps_box_halfwidths, parse_gps_box
+from imubounds.dynamic.sensors.heading import (
     ZERO_DEVIATION,
     CompassDeviation,
-    course_over_ground,
     fit_deviation,
     heading_from_magnetometer,
     heading_intervals,
 )
-from imubounds.dynamic.aiding.gps import gps_box_halfwidths, parse_gps_box
-from imubounds.dynamic.estimator import paper_kernel as K
 from imubounds.errors import AnalysisError, InputError, OptionError
-from imubounds.geodesy import geodetic_to_enu
+from imubounds.geodesy import course_over_ground, geodetic_to_enu
 from imubounds.io.drive import DEFAULT_CEP_M, DEFAULT_HDOP  # the GNSS defaults, defined once
 from imubounds.stationary.bounds import interval_halfwidth, level_95_si
+from imubounds.units import DEG
 
 CHANNELS: tuple[str, ...] = ("accel_x", "accel_y", "gyro_z")
 CHANNEL_UNITS = {"accel_x": "m/s^2", "accel_y": "m/s^2", "gyro_z": "rad/s"}
@@ -92,7 +92,7 @@ class EstimatorConfig:
     default_hdop: float = DEFAULT_HDOP
     geodesy: str = "wgs84"
     compass_mode: str = "corrected"
-    compass_floor_rad: float = 0.5 * math.pi / 180.0
+    compass_floor_rad: float = 0.5 * DEG
     compass_margin: float = 1.0
     deviation: CompassDeviation | None = None
     declination_rad: float = 0.0
@@ -583,7 +583,7 @@ def config_for_drive(drive: Any, imu: ImuSpec | None = None, **overrides: Any) -
     """Settings of the paper estimator for a drive: ``drive.settings`` (drive.yaml) gives
     the GNSS CEP, default HDOP and the compass calibration; ``overrides`` (non-None
     values) win; the IMU spec defaults to the MTx datasheet."""
-    from imubounds.dynamic.aiding.compass import swing_deviation
+    from imubounds.dynamic.sensors.heading import swing_deviation
     from imubounds.presets import XSENS_MTX
 
     st = drive.settings

@@ -33,15 +33,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE
+from imubounds.constants import EARTH_RATE, R_EARTH_MIN, ROUND_REL
 from imubounds.dynamic.estimator.budget import Term, k_two_sided
 from imubounds.interval.rounding import down as _dn
 from imubounds.interval.rounding import up as _up
 from imubounds.units import DEG
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: spacing of the reference epochs (GNSS fixes taken as nodes), s
 REF_STEP_S = 1.0
@@ -51,9 +54,6 @@ HALF_NODES = (2, 4, 8, 16, 32, 64)
 SPLIT = 2
 #: bisection steps over [-max tilt, max tilt] (resolution 2 max_tilt / 2^steps)
 BISECT = 12
-#: a lower bound of the Earth's radius (m): the rate of the local level frame against
-#: inertial space is at most Omega + v / R (Omega: ``aided.base.EARTH_RATE``)
-EARTH_RADIUS_M = 6.35e6
 #: name of the failed check (violations)
 TEST_PITCH = "pitch from GNSS altitude (altitude chords against the gyro-propagated pitch)"
 
@@ -81,7 +81,7 @@ class PitchBoxes:
 USEFUL_FRACTION = 0.5
 
 
-def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[str, bool],
+def applicable(drive: Any, vehicle: Any, opts: FullOptions, available: dict[str, bool],
                noise: dict[str, Any]) -> bool:
     """Whether the method runs, decided from the settings alone before the alpha plan
     (its events are counted then, whatever the data): a ground vehicle with a stated
@@ -96,11 +96,11 @@ def applicable(drive: Any, vehicle: Any, opts: dict[str, Any], available: dict[s
     g = drive.gnss
     if vehicle.kind != "ground" or vehicle.lateral_speed_bound_mps is None:
         return False
-    if opts.get("reverses") or not opts.get("use_gnss", True):
+    if opts.reverses or not opts.use_gnss:
         return False
-    if not opts.get("use_gnss_velocity", True) or not opts.get("use_gnss_altitude", True):
+    if not opts.use_gnss_velocity or not opts.use_gnss_altitude:
         return False
-    if drive.attitude is not None and opts.get("use_attitude", True):
+    if drive.attitude is not None and opts.use_attitude:
         return False
     if g is None or g.alt_m is None or g.velocity_ne() is None:
         return False
@@ -154,7 +154,7 @@ def _speed_hull(
     H0, H1 = s_hi[span], s_hi[span + 1]
     y = np.clip((H1 - H0 + a * d) / (2 * a), xa, xb)
     hi = np.minimum(np.minimum(H0 + a * y, H1 + a * (d - y)), smax)
-    return _dn(lo * (1 - 1e-12)), _up(np.maximum(hi, lo) * (1 + 1e-12))
+    return _dn(lo * (1 - ROUND_REL)), _up(np.maximum(hi, lo) * (1 + ROUND_REL))
 
 
 def _bias_bound(ctx: Any, ch: str) -> float:
@@ -201,7 +201,7 @@ def _gyro_parts(ctx: Any, m: float) -> tuple[Any, ...]:
     # an unknown span: the rates there are not measured (y = 0 there): + the rate bound
     rho = np.where(unknown, rho + veh.max_rate * (1.0 + sum(coef.values())), rho)
     # the gyros measure the Earth rate and the transport rate too (the level frame turns)
-    rho = rho + EARTH_RATE + veh.max_speed / EARTH_RADIUS_M
+    rho = rho + EARTH_RATE + veh.max_speed / R_EARTH_MIN
     # magnitudes from the sample means, as the smoother's links bound int |x| (full.py,
     # _link_errors: int |y| + E0 D over 1 - s): the sample model of the budget
     qs = imu.sig["gyro_y"]
@@ -306,7 +306,7 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     va = ag.gnss_vacc if ag.gnss_vacc.size == ag.gnss_t.size else np.full(ag.gnss_t.size, np.nan)
     has_va = np.isfinite(va) & (va > 0)
     sig_v = np.where(has_va, va, ratio * ag.gnss_sig)
-    h_fix = _up(k_alt * sig_v * (1 + 1e-12) + lev3 + dtr * vz)
+    h_fix = _up(k_alt * sig_v * (1 + ROUND_REL) + lev3 + dtr * vz)
     b0, b1 = float(imu.bnd[0]), float(imu.bnd[-1])
     t = ag.gnss_t
     ok = np.isfinite(ag.gnss_alt) & ag.gvel_ok & (t > b0) & (t < b1)
@@ -320,8 +320,8 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
                              veh.max_accel, veh.max_speed)
     c = np.sqrt(np.maximum(s_lo**2 - vh**2, 0.0)) - E * math.sin(m)
     c = np.where(c >= 0, c, c / math.cos(m))
-    ulo = _dn(c - np.abs(c) * 1e-12)
-    uhi = _up((s_hi + E * math.sin(m)) / math.cos(m) * (1 + 1e-12))
+    ulo = _dn(c - np.abs(c) * ROUND_REL)
+    uhi = _up((s_hi + E * math.sin(m)) / math.cos(m) * (1 + ROUND_REL))
     irregular = ulo < 0  # near standstill: the cell's u sin(theta) taken as a slack
     dcell = np.diff(tc)
     slack_cell = np.where(irregular, np.maximum(-ulo, uhi) * math.sin(m) * dcell, 0.0)
@@ -387,8 +387,8 @@ def pitch_boxes(ctx: Any) -> PitchBoxes | None:
     plo = np.where(empty, -m, plo)
     phi = np.where(empty, m, phi)
     pb = np.concatenate([[b0], tn, [b1]])
-    plo = _dn(np.concatenate([[-m], plo, [-m]]) * (1 + 1e-12) - 1e-12)
-    phi = _up(np.concatenate([[m], phi, [m]]) * (1 + 1e-12) + 1e-12)
+    plo = _dn(np.concatenate([[-m], plo, [-m]]) * (1 + ROUND_REL) - 1e-12)
+    phi = _up(np.concatenate([[m], phi, [m]]) * (1 + ROUND_REL) + 1e-12)
     plo, phi = np.maximum(plo, -m), np.minimum(phi, m)
     hw = 0.5 * (phi - plo)
     out = PitchBoxes(pb, plo, phi, median_halfwidth=float(np.median(hw[1:-1])),

@@ -1,4 +1,5 @@
-"""Residual checks of the aiding against the smoothed states (issue 27, items 3 and 5).
+"""Residual checks of the aiding against the smoothed states (docs/dynamic-method.md,
+section 5b).
 
 After the smoother, every aiding measurement ``z_i`` (a GNSS fix's east and north, a
 GNSS velocity's components, a compass heading) is compared with the centre ``c_i`` of
@@ -35,6 +36,7 @@ import numpy as np
 
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator.violations import Violation
+from imubounds.units import G0
 
 RUN_LENGTHS = (1, 4, 16, 64)
 STEP_LENGTHS = (4, 8, 16, 32)
@@ -210,7 +212,7 @@ def imu_trapezoid(
     mis = max(ctx.noise["accel_x"].misalignment_rad, ctx.noise["accel_y"].misalignment_rad)
     tilt = ctx.vehicle.max_tilt
     rmax = ctx.vehicle.max_rate
-    g = 9.80665
+    g = G0
     if not (np.all(np.isfinite(beta)) and math.isfinite(bw + eps)):
         return chat, var, det
     ie = np.searchsorted(sm.te, t).clip(0, sm.te.size - 1)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.constants import G_HI, G_LO, ROUND_REL
 from imubounds.dynamic.estimator import smoother as SM
 from imubounds.dynamic.estimator.budget import CHANNELS, UNITS
 
@@ -336,7 +337,7 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
             "epochs": int(sm.te.size),
             "rounds": sm.rounds,
             "sweeps": sm.sweeps,
-            "tolerance": float(ctx.opts["tol"]),
+            "tolerance": float(ctx.opts.tol),
             "links_dropped": int(np.sum(~sm.link)),
             "note": sm.beta_note,
         }
@@ -394,7 +395,7 @@ def _assumptions(ctx: Any) -> list[str]:
         f"{v.max_accel:g} m/s^2, jerk <= {v.max_jerk:g} m/s^3, angular rate <= "
         f"{v.max_rate * 180 / math.pi:g} deg/s, angular acceleration <= "
         f"{v.max_ang_accel * 180 / math.pi:g} deg/s^2, tilt <= {v.max_tilt * 180 / math.pi:g} deg",
-        "local gravity between 9.76 and 9.84 m/s^2; Earth rate and Coriolis bounded",
+        f"local gravity between {G_LO:g} and {G_HI:g} m/s^2; Earth rate and Coriolis bounded",
         "the accelerometer windows use the gyros only as magnitude bounds in second-order "
         "(transport) terms, never the channel they judge",
     ]
@@ -502,7 +503,7 @@ def _enclosure(ctx: Any, sm: Any, drive: Any, states: dict[str, Any], bias: Any)
         (lo, hi), _ = states["speed"]
         x = np.hypot(tr["u"], tr["v"] if tr.get("v") is not None else 0.0)
         x = x * np.cos(tr["pitch_rad"]) if tr.get("pitch_rad") is not None else x
-        share("speed", (lo <= x * (1 + 1e-12)) & (x <= hi * (1 + 1e-12)), np.isfinite(x))
+        share("speed", (lo <= x * (1 + ROUND_REL)) & (x <= hi * (1 + ROUND_REL)), np.isfinite(x))
     # biases: the truth's bias series at the IMU rate, inside the over-trip interval
     tt = np.asarray(drive.truth.t, dtype=float)
     for ch in CHANNELS:

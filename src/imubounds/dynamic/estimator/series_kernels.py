@@ -1,5 +1,6 @@
 """Compiled kernels of the sample series of mode ``full`` (:mod:`.inputs`), written so
-that long trips fit in memory (issue 27: a 24 h trip at 100 Hz is 8.64 M samples).
+that long trips fit in memory (docs/dynamic-method.md, section 2: a 24 h trip at 100 Hz
+is 8.64 M samples).
 
 * Prefix sums by checkpoints: :class:`~imubounds.dynamic.estimator.inputs.PiecewiseSignal`
   keeps its four running sums (``S`` of ``y l``, ``A`` of ``|y l|``, ``Z`` of the

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.rotation import irot as _irot
 from imubounds.dynamic.estimator.rotation import rot as _rot
 from imubounds.interval import scalar as c
@@ -576,8 +577,8 @@ def preintegrate(
         FH[j, 1, 0], FH[j, 1, 1] = f1l, f1h
         QH[j, 0, 0], QH[j, 0, 1] = q0l, q0h
         QH[j, 1, 0], QH[j, 1, 1] = q1l, q1h
-        AA[j, 0] = aabs * (1.0 + 1e-12)
-        AA[j, 1] = rabs * (1.0 + 1e-12)
+        AA[j, 0] = aabs * (1.0 + ROUND_REL)
+        AA[j, 1] = rabs * (1.0 + ROUND_REL)
 
 
 # ------------------------------------------------------------------------ driver

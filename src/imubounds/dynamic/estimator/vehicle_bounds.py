@@ -1,4 +1,5 @@
-"""Vehicle bounds from the aiding sensors' own intervals (issue 24, item 1).
+"""Vehicle bounds from the aiding sensors' own intervals (docs/dynamic-method.md, section 1,
+"Vehicle bounds from the data").
 
 The windows and the smoother need bounds of the vehicle's speed and tilt over the whole
 trip. Where the drive has a sensor that bounds the quantity, the bound comes from that
@@ -25,13 +26,18 @@ default stays only where nothing in the data bounds the quantity, and is then li
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle, build_aiding
+from imubounds.constants import G_HI, ROUND_REL
+from imubounds.dynamic.estimator.inputs import Aiding, ImuSeries, Vehicle
+from imubounds.dynamic.sensors import build_aiding
 from imubounds.errors import InputError
 from imubounds.units import DEG
+
+if TYPE_CHECKING:
+    from imubounds.dynamic.estimator.options import FullOptions
 
 #: an attitude stream beyond this tilt is refused (Euler angles near their singularity)
 TILT_LIMIT = 85.0 * DEG
@@ -50,7 +56,7 @@ def tilt_from_attitude(ag: Aiding, veh: Vehicle, span: tuple[float, float]) -> f
     gap = float(np.max(np.diff(at))) if at.size > 1 else 0.0
     far = max(float(at[0]) - span[0], 0.0) + max(span[1] - float(at[-1]), 0.0)
     b = m + ag.att_bound + veh.max_ang_accel * gap * gap / 8.0 + veh.max_rate * far
-    return float(np.nextafter(b * (1 + 1e-12), np.inf))
+    return float(np.nextafter(b * (1 + ROUND_REL), np.inf))
 
 
 def _grown(t: np.ndarray, s: np.ndarray, accel: float, span: tuple[float, float]) -> float:
@@ -98,7 +104,7 @@ def speed_from_aiding(
     if not cands:
         return None
     v, src = min(cands)
-    return float(np.nextafter(v * (1 + 1e-12), np.inf)), src
+    return float(np.nextafter(v * (1 + ROUND_REL), np.inf)), src
 
 
 def bound_vehicle(
@@ -169,7 +175,7 @@ def refine_vehicle(
     imu: ImuSeries,
     aiding: Aiding,
     alpha: Any,
-    opts: dict[str, Any],
+    opts: FullOptions,
     heading: Any,
 ) -> tuple[ImuSeries, Aiding, list[str]]:
     """:func:`bound_vehicle` on the built inputs; the IMU series and the aiding (whose
@@ -205,7 +211,7 @@ def dominant_default(
     tilt = veh.max_tilt
     if ch == "accel_x" and pitch_halfwidth is not None:
         tilt = min(tilt, pitch_halfwidth)
-    grav = 9.84 * math.sin(tilt)
+    grav = G_HI * math.sin(tilt)
     if grav < 0.5 * halfwidth:
         return None
     if tilt < veh.max_tilt:

@@ -25,7 +25,6 @@ import numpy as np
 from imubounds.dynamic.estimator.aided.accel_x import accel_x
 from imubounds.dynamic.estimator.aided.accel_y import accel_y
 from imubounds.dynamic.estimator.aided.attitude import accel_z, gyro_x, gyro_y
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, G_LO, R_EARTH
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.forms import FormRecord, side_labels
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals, build_tilt
@@ -89,10 +88,6 @@ def bound_labels(
 
 __all__ = [
     "CONSTRAINTS",
-    "EARTH_RATE",
-    "G_HI",
-    "G_LO",
-    "R_EARTH",
     "ChannelMargins",
     "ChannelPlan",
     "MarginBuilder",

@@ -1,4 +1,4 @@
-"""Trip simulator with ground truth (METHOD.md 3.5, issue 11 item 6, issue 12).
+"""Trip simulator with ground truth (METHOD.md 3.5).
 
 :func:`simulate` turns a :class:`ScenarioConfig` into a :class:`SimResult`: the
 trip as a :class:`~imubounds.io.drive.Drive` (IMU at 100 Hz in the body frame,

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding.gps import cep_to_drms
 from imubounds.dynamic.scenario.config import ScenarioConfig
 from imubounds.dynamic.scenario.imu import k_level, truncated_normal
 from imubounds.dynamic.scenario.record import Check, check
 from imubounds.dynamic.scenario.trajectory import body_from_enu
+from imubounds.dynamic.sensors.gnss import cep_to_drms, drms_to_sigma, rayleigh_factor
 from imubounds.frames import model_to_compass, wrap_pi
 from imubounds.io.drive import (
     AttitudeStream,
@@ -127,8 +127,8 @@ def _gnss(
     hdop = cfg.hdop_mean + 0.1 * np.sin(2 * math.pi * t / 300.0) + rng.normal(0, 0.03, m)
     hdop = np.asarray(np.round(np.clip(hdop, 0.5, 1.5), 2), dtype=float)
     drms = hdop * cep_to_drms(cfg.gps_cep_m)
-    sig = drms / math.sqrt(2.0)
-    radius = drms * math.sqrt(math.log(m / cfg.alpha))
+    sig = drms_to_sigma(drms)
+    radius = drms * rayleigh_factor(one_in=m / cfg.alpha)
     ex = rng.standard_normal(m) * sig
     ey = rng.standard_normal(m) * sig
     if cfg.bounded:

@@ -1,4 +1,6 @@
-"""Real-sensor faults injected into a simulated drive (issue 27's fault suite).
+"""Real-sensor faults injected into a simulated drive (the fault suite of
+tests/test_dynamic_faults.py and benchmarks/sweep_faults.py; docs/dynamic-method.md,
+section 5b).
 
 Each function returns a copy of the :class:`~imubounds.io.drive.Drive` with one stream
 perturbed the way a real sensor is, as if its file had been edited (``time_s`` shifted,
@@ -15,6 +17,8 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
+from imubounds.dynamic.sensors.gnss import cep_to_sigma
 
 
 def _copy(drive: Any) -> Any:
@@ -88,7 +92,7 @@ def student_t(drive: Any, dof: float = 3.0, seed: int = 0) -> Any:
     d = _copy(drive)
     rng = np.random.default_rng(seed)
     n = d.gnss.t.size
-    s = d.settings.gnss.cep_m / math.sqrt(2 * math.log(2.0))
+    s = cep_to_sigma(d.settings.gnss.cep_m)
     scale = s * math.sqrt((dof - 2) / dof) if dof > 2 else s
     d.gnss.lat_deg = d.gnss.lat_deg.copy()
     d.gnss.lon_deg = d.gnss.lon_deg.copy()

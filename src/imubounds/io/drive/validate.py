@@ -48,7 +48,6 @@ from imubounds.io.validate import check_input_path
 
 #: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
 GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
-RAD_PER_DEG = math.pi / 180.0
 
 
 # ----------------------------------------------------------------------------- paths

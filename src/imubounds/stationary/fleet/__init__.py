@@ -1,4 +1,4 @@
-"""Fleet characterisation: the stationary pipeline over many logs on Dask (issue 7).
+"""Fleet characterisation: the stationary pipeline over many logs on Dask (docs/fleet.md).
 
 :func:`run_fleet` runs :func:`imubounds.stationary.pipeline.analyse_static` (the same
 reading and settings as ``imubounds static``, out-of-core for large logs) on

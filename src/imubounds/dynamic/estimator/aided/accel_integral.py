@@ -25,7 +25,8 @@ import math
 import numpy as np
 from scipy.special import ndtri
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, G_HI, R_EARTH, up
+from imubounds.constants import EARTH_RATE, G_HI, R_EARTH, ROUND_REL
+from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.velocity import speed_max
 from imubounds.dynamic.estimator.inputs import RangeExt
@@ -105,7 +106,7 @@ def error_rates(w: WindowContext, turn_on: bool = True) -> tuple[float, float, f
                      else float(np.max(np.abs(w.imu.sig[other].y))) + ctx.E0[other])
             mis += cn.misalignment_rad * o_max / (1.0 - ctx.noise[other].scale)
     lin = b_to + mean_long + s * ctx.E0["accel_x"] / (1.0 - s) + mis
-    return (float(up(np.asarray(lin * (1 + 1e-12)))), per_sample - mean_long, win_s,
+    return (float(up(np.asarray(lin * (1 + ROUND_REL)))), per_sample - mean_long, win_s,
             s / (1.0 - s))
 
 
@@ -130,7 +131,7 @@ def accel_error(
     nw, nq = noise_amplitudes(w)
     return up((lin * x + excess * np.minimum(x, win_s) + sc * absint
                + kw * nw * np.sqrt(x) + 2.0 * np.asarray(kq) * nq + sample_model(w))
-              * (1 + 1e-12))
+              * (1 + ROUND_REL))
 
 
 def sample_model(w: WindowContext) -> float:

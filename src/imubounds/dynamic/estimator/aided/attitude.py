@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.constants import EARTH_RATE, R_EARTH
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, psi_dot_abs
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm, up
+from imubounds.constants import EARTH_RATE, R_EARTH, ROUND_REL
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.inputs import RangeExt
 from imubounds.dynamic.estimator.window_plan import LevelPlan
@@ -246,7 +247,7 @@ def _gap_excursions(w: WindowContext) -> np.ndarray:
         integral = up(psi_dot_abs(w, a, b) * (b - a))
         change = np.maximum(np.nextafter(np.abs(hc[1:] - hc[:-1]) - hh[1:] - hh[:-1],
                                          -np.inf), 0.0)
-        ge = up(np.maximum(integral - change, 0.0) * (0.5 * (1 + 1e-12)) + 1e-300)
+        ge = up(np.maximum(integral - change, 0.0) * (0.5 * (1 + ROUND_REL)) + 1e-300)
         w.cache["gap_exc"] = ge
         w.cache["gap_exc_ext"] = RangeExt(ge)
     return w.cache["gap_exc"]

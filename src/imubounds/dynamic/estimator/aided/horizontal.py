@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, R_EARTH, pm
+from imubounds.constants import EARTH_RATE, R_EARTH
+from imubounds.dynamic.estimator.aided.base import pm
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.positions import position_means
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import (
@@ -181,8 +182,8 @@ def _mean_over(w: WindowContext, p: np.ndarray, q: np.ndarray) -> tuple[IA, IA]:
     by parts, their second-order remainders, and a bound of the prefix sums' rounding."""
     t = w.ag.gnss_t
     nu, nv, perr, rest_u, rest_v = _mean_over_parts(w, p, q)
-    wu = up((perr + rest_u) * (1 + 1e-12))
-    wv = up((perr + rest_v) * (1 + 1e-12))
+    wu = up((perr + rest_u) * (1 + ROUND_REL))
+    wv = up((perr + rest_v) * (1 + ROUND_REL))
     dT = IA(t[q] - t[p])
     return (IA(nu) + pm(wu)) / dT, (IA(nv) + pm(wv)) / dT
 
@@ -221,9 +222,9 @@ def body_u_mean_parts(
     L = b - a
     nu, _, _, rest_u, _ = _mean_over_parts(w, p, q)
     c = nu / L
-    u = _body_u(w, IA(c) + pm(up(up(rest_u * (1 + 1e-12)) / L * (1 + 1e-12))), a, b,
+    u = _body_u(w, IA(c) + pm(up(up(rest_u * (1 + ROUND_REL)) / L * (1 + ROUND_REL))), a, b,
                 speed_max(w, a, b))
-    rest = up(np.maximum(u.hi - c, c - u.lo) * (1 + 1e-12) + 1e-300)
+    rest = up(np.maximum(u.hi - c, c - u.lo) * (1 + ROUND_REL) + 1e-300)
     return c, rest
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import G_HI, G_LO
+from imubounds.constants import G_HI, G_LO
 from imubounds.dynamic.estimator.inputs import Locator, PiecewiseSignal, RangeExt
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     c_extremes,
     error_rates,
@@ -33,7 +34,7 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
     other_rate,
     sample_model,
 )
-from imubounds.dynamic.estimator.aided.base import EPS, earth_rates, pm, up
+from imubounds.dynamic.estimator.aided.base import earth_rates, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.forms import share
 from imubounds.dynamic.estimator.aided.heading import heading_at_epochs, heading_at_fixes

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EPS, pm, up
+from imubounds.constants import EPS_UP as EPS
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.gap_sums import gap_sums
 from imubounds.dynamic.estimator.aided.heading import heading_at

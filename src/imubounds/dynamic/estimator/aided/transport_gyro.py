@@ -25,13 +25,15 @@ import math
 
 import numpy as np
 
+from imubounds.constants import EARTH_RATE, R_EARTH
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     accel_error,
     c_extremes,
     k_two,
     other_rate,
 )
-from imubounds.dynamic.estimator.aided.base import EARTH_RATE, EPS, R_EARTH, pm, up
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.forms import share
 from imubounds.dynamic.estimator.aided.heading import heading_at

@@ -48,8 +48,9 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import c_extremes, k_two
-from imubounds.dynamic.estimator.aided.base import EPS, up
+from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.forms import share
 from imubounds.dynamic.estimator.budget import ChannelNoise

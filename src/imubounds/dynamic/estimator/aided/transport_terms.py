@@ -8,7 +8,8 @@ import math
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import EPS, earth_rates, up
+from imubounds.constants import EPS_UP as EPS
+from imubounds.dynamic.estimator.aided.base import earth_rates, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA

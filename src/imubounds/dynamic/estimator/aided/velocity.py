@@ -16,11 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.base import G_HI, TWO_PI, pm, up
+from imubounds.constants import G_HI, ROUND_REL
+from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.inputs import RangeExt, lateral_h_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
+from imubounds.frames import TWO_PI
 from imubounds.interval import IntervalArray as IA
 from imubounds.interval import atan2, cos, sin, sqr, sqrt
 from imubounds.interval import pi as ipi
@@ -108,7 +110,7 @@ def _heading_gyro_free(w: WindowContext, t: np.ndarray) -> IA:
     hi = np.full(t.shape, np.inf)
     if ht.size == 0:
         return IA(lo, hi)
-    rate = up(np.asarray(veh.max_rate / math.cos(veh.max_tilt) * (1 + 1e-12)))
+    rate = up(np.asarray(veh.max_rate / math.cos(veh.max_tilt) * (1 + ROUND_REL)))
     j = np.searchsorted(ht, t)
     for e in (j - 1, j):
         ok = (e >= 0) & (e < ht.size)

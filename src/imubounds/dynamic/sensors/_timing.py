@@ -5,8 +5,8 @@ motion ``L`` late. Its levels ``y_i`` (an angle: compass heading, GNSS course,
 counter-clockwise, rad; or a speed, m/s) are compared with an IMU reference ``Y(t) =
 int_0^t rho dt'`` (``rho`` the yaw rate, from the gyro z or from the lateral
 acceleration over the speed ``a_y / u``; or the forward acceleration ``a_x``, whose
-interval is a score test inverted over the offsets: :mod:`~imubounds.dynamic.aiding.
-speed_clock`):
+interval is a score test inverted over the offsets:
+:mod:`~imubounds.dynamic.sensors._speed_clock`):
 
     y_i = s Y(t_i - L) + c(t_i) + d_i + e_i
 
@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import course_check as CC
+from imubounds.dynamic.sensors import _course_check as CC
 
 GRID_STEP_S = 0.0025
 MAX_OFFSET_S = 1.0
@@ -573,11 +573,11 @@ def estimate_gnss(
 ) -> OffsetEstimate | None:
     """The GNSS's clock offset against the IMU: its course (from the receiver's
     velocity, else from chords of fixes) at speeds of at least
-    :data:`~imubounds.dynamic.aiding.compass.COURSE_CHECK_MIN_SPEED`, against the
+    :data:`~imubounds.dynamic.sensors._compass.COURSE_CHECK_MIN_SPEED`, against the
     lateral acceleration over the speed (exact kinematics: no deterministic term) and
     the gyro z (the sideslip, bounded by asin(lateral bound / speed), its deterministic
     error; not without a lateral bound)."""
-    from imubounds.dynamic.aiding.course_check import COURSE_CHECK_MIN_SPEED, course_noise
+    from imubounds.dynamic.sensors._course_check import COURSE_CHECK_MIN_SPEED, course_noise
 
     if drive.gnss is None:
         return None
@@ -603,7 +603,7 @@ def estimate_heading(
     drive: Any, stamp: str, heading: Any, noise: dict[str, Any] | None = None
 ) -> OffsetEstimate | None:
     """The heading sensor's clock offset against the IMU, from the corrected heading (a
-    :class:`~imubounds.dynamic.estimator.heading_input.HeadingInput`), against the
+    :class:`~imubounds.dynamic.sensors.heading.HeadingInput`), against the
     gyro z (its deviation bound the deterministic error) and the lateral acceleration
     over the speed (+ the sideslip bound asin(lateral bound / speed), a level error that
     turns with the vehicle; not without a lateral bound). None for an AHRS yaw."""

@@ -4,9 +4,9 @@ test inverted over the offsets (docs/dynamic-method.md, section 5b "Clock offset
 A speed stream late by ``L`` (stamp = true time + L) reads ``y_i = (1 + kappa) u(t_i -
 L) + e_i``; the IMU's forward acceleration integrates to ``Y(t) = u(t) + B(t) + N(t)``
 (``B`` the integrated bias, its drift and the gravity of a slow pitch; ``N`` the
-integrated noise). As in :func:`~imubounds.dynamic.aiding.timing.level_offset`, the model
+integrated noise). As in :func:`~imubounds.dynamic.sensors._timing.level_offset`, the model
 is ``y_i = s Y(t_i - L) + c(t_i) + e_i`` with ``c`` a cubic spline (knots every
-:data:`~imubounds.dynamic.aiding.timing.KNOT_S`) and the scale ``s`` eliminated
+:data:`~imubounds.dynamic.sensors._timing.KNOT_S`) and the scale ``s`` eliminated
 (Frisch-Waugh). The information on ``L`` is in the speed changes shorter than the knot
 spacing (braking for corners, stop-and-go); on a trip whose only speed changes are two
 slow ramps the spline takes almost all of it, and the least-squares estimate moves by
@@ -23,14 +23,14 @@ Gaussian noise, however curved the cost is):
 (``P`` the weighted spline residual, ``w = 1/sigma^2``; ``S = <J, e> - s0 <J, N>`` at the
 true offset whatever the fitted scale, ``s0`` the true scale ratio, at most
 ``max(|s|, (1 + speed scale bound) / (1 - accel_x scale bound))``; the second variance term the
-stated IMU noise through the kernel, :func:`~imubounds.dynamic.aiding.timing.
+stated IMU noise through the kernel, :func:`~imubounds.dynamic.sensors._timing.
 _reference_variance`; without a stated noise a Bartlett HAC estimate over one knot span).
-``L`` is accepted when ``|S(L)| <= k sd(L)`` (:func:`~imubounds.dynamic.aiding.timing.
+``L`` is accepted when ``|S(L)| <= k sd(L)`` (:func:`~imubounds.dynamic.sensors._timing.
 score_interval`, k of the stream's share of alpha). The IMU noise's share of ``Var S``
 varies slowly with ``L``: it is computed every :data:`ANCHOR_S` and the larger of the two
 around ``L`` taken. The grid: every
-:data:`~imubounds.dynamic.aiding.timing.COARSE_STEP_S` over ``[-MAX_OFFSET_S,
-MAX_OFFSET_S]``, refined down to :data:`~imubounds.dynamic.aiding.timing.GRID_STEP_S` in
+:data:`~imubounds.dynamic.sensors._timing.COARSE_STEP_S` over ``[-MAX_OFFSET_S,
+MAX_OFFSET_S]``, refined down to :data:`~imubounds.dynamic.sensors._timing.GRID_STEP_S` in
 the cells where ``S`` changes sign or ``|S| / sd`` crosses the range of k (:data:`K_RANGE`)
 in steps larger than :data:`Z_STEP`. The point estimate is the zero of ``S`` next to the
 smallest residual sum of squares.
@@ -43,10 +43,10 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import timing as TM
+from imubounds.dynamic.sensors import _timing as TM
 
 #: the range of k (the stream's share of alpha) whose acceptance boundary the grid
-#: resolves to :data:`~imubounds.dynamic.aiding.timing.GRID_STEP_S`
+#: resolves to :data:`~imubounds.dynamic.sensors._timing.GRID_STEP_S`
 K_RANGE = (2.5, 7.0)
 #: spacing (s) of the offsets at which the stated IMU noise's share of Var S is computed
 ANCHOR_S = 0.2

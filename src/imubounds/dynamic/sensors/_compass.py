@@ -18,7 +18,7 @@ with ``psi`` the *measured* compass heading and ``psi_err = measured - reference
 :func:`compass_heading` is the one function that turns a drive's heading
 sources into a corrected heading with its bounds (:class:`CompassHeading`):
 a compass or dual-antenna heading stream, or the raw magnetometer calibrated
-by an ellipse fit (:mod:`imubounds.dynamic.aiding.magcal`), or an AHRS yaw;
+by an ellipse fit (:mod:`imubounds.dynamic.sensors._magcal`), or an AHRS yaw;
 corrected by a swing calibration file, the ellipse fit, or (only when asked
 explicitly) a fit against the GNSS course, in which case the heading is no
 longer independent of the GNSS and says so.
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding.course_check import (  # noqa: F401 (re-exported)
+from imubounds.dynamic.sensors._course_check import (  # noqa: F401 (re-exported)
     COURSE_CHECK_BINS,
     COURSE_CHECK_HARMONICS,
     COURSE_CHECK_MIN_SPEED,
@@ -425,7 +425,7 @@ def compass_heading(
     estimate_errors:
         Estimate the compass error model (constant offset, harmonics 1 and 2) against
         the GNSS course and take what the data detect off the headings
-        (:func:`~imubounds.dynamic.aiding.course_check.estimate_heading_model`); False:
+        (:func:`~imubounds.dynamic.sensors._course_check.estimate_heading_model`); False:
         the stated bound only, checked. None: ``heading.errors`` of drive.yaml
         (``"estimate"`` by default, or ``"stated"``).
     """
@@ -593,7 +593,7 @@ def _stream_heading(drive: Any, src: str) -> tuple[np.ndarray, np.ndarray, bool]
 def _mag_heading(
     drive: Any, fit: str, alpha: float, detail: dict[str, Any], notes: list[str]
 ) -> tuple[np.ndarray, np.ndarray, bool, float, float]:
-    from imubounds.dynamic.aiding.magcal import fit_magnetometer
+    from imubounds.dynamic.sensors._magcal import fit_magnetometer
 
     m = drive.mag
     a = drive.attitude
@@ -606,7 +606,7 @@ def _mag_heading(
             notes.append(f"{int((~inside).sum())} magnetometer sample(s) outside the attitude "
                          "stream: its end values are used for their tilt")
     if fit == "ellipse":
-        from imubounds.dynamic.aiding.magcal import MIN_COVERAGE_DEG
+        from imubounds.dynamic.sensors._magcal import MIN_COVERAGE_DEG
 
         turn = _imu_turn_deg(drive, m.t[0], m.t[-1])
         if turn is not None and turn < MIN_COVERAGE_DEG:

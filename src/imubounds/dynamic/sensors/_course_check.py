@@ -23,16 +23,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imubounds.dynamic.sensors.gnss import cep_to_sigma
 from imubounds.frames import TWO_PI, wrap_pi
 from imubounds.geodesy import geodetic_to_enu
 
 if TYPE_CHECKING:
-    from imubounds.dynamic.aiding.compass import CompassHeading
+    from imubounds.dynamic.sensors._compass import CompassHeading
 
 #: the stated bound (s) on an undeclared clock offset of the heading stream against the
 #: IMU (drive.yaml heading.time_offset_s / time_offset_bound_s replace it); a larger
 #: offset is what the check against the GNSS course in the turns tests (re-exported by
-#: :mod:`imubounds.dynamic.aiding.timing`)
+#: :mod:`imubounds.dynamic.sensors._timing`)
 DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
 #: the most families mode full's alpha plan has (estimator/full.py: imu_samples,
 #: imu_windows, imu_changes, imu_intervals, imu_turn_on, imu_drift, gnss_position,
@@ -40,7 +41,7 @@ DEFAULT_HEADING_CLOCK_BOUND_S = 0.1
 #: coefficients of :func:`estimate_heading_model` are counted in that family
 ALPHA_FAMILIES_MAX = 9
 #: room for the heading clock estimate's events the heading family also counts (the
-#: estimate and its references' parts, aiding/timing.py)
+#: estimate and its references' parts, sensors/_timing.py)
 HEADING_FAMILY_EXTRA = 4
 
 
@@ -115,7 +116,7 @@ def course_noise(
     t = g.t[ok]
     hd = g.hdop[ok].astype(float) if g.hdop is not None else np.full(e.size, np.nan)
     hd = np.where(np.isfinite(hd) & (hd > 0), hd, float(st.default_hdop))
-    s_ax = hd * float(st.cep_m) / math.sqrt(2.0 * math.log(2.0))
+    s_ax = cep_to_sigma(hd * float(st.cep_m))
     # chords of COURSE_CHORD fixes (not overlapping): the chord of an arc points along
     # its tangent at the middle, and its noise is COURSE_CHORD times smaller
     c = COURSE_CHORD

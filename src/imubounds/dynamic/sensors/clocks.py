@@ -1,7 +1,15 @@
-"""The stream clocks of mode ``full`` (docs/dynamic-method.md, section 5b "Clock
-offsets" and "Heading clock"): the offsets stated in drive.yaml or estimated from the
-data (:mod:`imubounds.dynamic.aiding.timing`), the heading's offset relative to the GNSS,
-and the default heading clock bound budgeted into the heading intervals.
+"""The clocks of the aiding streams (docs/dynamic-method.md, section 5b "Clock offsets" and
+"Heading clock"): the offsets stated in drive.yaml or estimated from the data, the
+heading's offset relative to the GNSS, and the default heading clock bound budgeted into
+the heading intervals.
+
+The surface of the stream clocks; the implementation beside it:
+
+* :mod:`._timing` -- a stream's offset against the IMU from its levels (heading, GNSS
+  course) against an integrated IMU reference, :class:`OffsetEstimate`, the heading
+  clock's turn allowance;
+* :mod:`._speed_clock` -- the body-velocity stream's offset against the forward
+  acceleration.
 """
 
 from __future__ import annotations
@@ -11,23 +19,57 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imubounds.dynamic.aiding import speed_clock as SC
-from imubounds.dynamic.aiding import timing as TM
 from imubounds.dynamic.estimator.budget import box_sum_variance, kernel_variance
-from imubounds.dynamic.estimator.heading_input import HeadingInput, heading_input
 from imubounds.dynamic.estimator.inputs import Aiding, Vehicle
+from imubounds.dynamic.sensors import _speed_clock as SC
+from imubounds.dynamic.sensors import _timing as TM
+from imubounds.dynamic.sensors._speed_clock import estimate_velocity
+from imubounds.dynamic.sensors._timing import (
+    ALPHA_FAMILY,
+    DEFAULT_HEADING_CLOCK_BOUND_S,
+    OffsetEstimate,
+    apply_offsets,
+    estimate_gnss,
+    estimate_heading,
+    heading_clock_assumption,
+    heading_clock_bound_s,
+    shifted,
+)
+from imubounds.dynamic.sensors.heading import HeadingInput, heading_input
+
+__all__ = [
+    "ALPHA_FAMILY",
+    "DEFAULT_HEADING_CLOCK_BOUND_S",
+    "OffsetEstimate",
+    "apply_offsets",
+    "budget_timing",
+    "clock_bound_events",
+    "clock_offsets",
+    "estimate_gnss",
+    "estimate_heading",
+    "estimate_velocity",
+    "heading_clock_allowance",
+    "heading_clock_assumption",
+    "heading_clock_bound_s",
+    "heading_clock_default",
+    "heading_stated",
+    "model_events",
+    "relative_offset",
+    "shifted",
+]
 
 if TYPE_CHECKING:
     from imubounds.dynamic.estimator.full import Context
+    from imubounds.dynamic.estimator.options import FullOptions
 
 
 def clock_offsets(
-    drive: Any, o: dict[str, Any], noise: dict[str, Any] | None = None
+    drive: Any, o: FullOptions, noise: dict[str, Any] | None = None
 ) -> tuple[Any, HeadingInput | None, Any]:
     """The drive with the clock offsets stated in drive.yaml (``gnss.time_offset_s``,
     ``heading.time_offset_s``, true time = stamp - offset) taken off its GNSS and heading
     stamps, the heading input, and every stream's offset (stated, or estimated from the
-    data: :mod:`imubounds.dynamic.aiding.timing`, applied by ``TM.apply_offsets``)."""
+    data: :mod:`imubounds.dynamic.sensors._timing`, applied by ``TM.apply_offsets``)."""
     st = drive.settings
     timing: dict[str, Any] = {}
     est: TM.OffsetEstimate | None
@@ -37,26 +79,26 @@ def clock_offsets(
             est = TM.OffsetEstimate.stated(float(st.gnss.time_offset_s), float(b or 0.0))
             drive = TM.shifted(drive, "gnss", est)
         else:
-            est = TM.estimate_gnss(drive, o["imu_stamp"], noise)
+            est = TM.estimate_gnss(drive, o.imu_stamp, noise)
         if est is not None:
             timing["gnss"] = est
     heading = heading_stated(drive, o, timing)
     if heading is not None and heading.t.size:
         if "heading" not in timing:
-            est = TM.estimate_heading(drive, o["imu_stamp"], heading, noise)
+            est = TM.estimate_heading(drive, o.imu_stamp, heading, noise)
             if est is not None:
                 timing["heading"] = est
         rel = relative_offset(heading)
         if rel is not None:
             timing["heading_vs_gnss"] = rel
-    if drive.velocity is not None and o.get("use_velocity", True):
-        est = SC.estimate_velocity(drive, o["imu_stamp"], noise)
+    if drive.velocity is not None and o.use_velocity:
+        est = SC.estimate_velocity(drive, o.imu_stamp, noise)
         if est is not None:
             timing["velocity"] = est
     return drive, heading, timing
 
 
-def heading_stated(drive: Any, o: dict[str, Any], timing: dict[str, Any]) -> Any:
+def heading_stated(drive: Any, o: FullOptions, timing: dict[str, Any]) -> Any:
     """The heading input, with the offset stated in drive.yaml (``heading.time_offset_s``
     / ``time_offset_bound_s``) taken off its stamps and put in ``timing``."""
     heading = heading_input(drive, o)
@@ -121,15 +163,13 @@ def heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     """The default heading clock bound ``b`` (:data:`TM_HEADING_BOUND_S`) budgeted into
     the heading intervals: the largest true turn within ``b`` of each epoch. With the
     gyro z bias taken from the heading stream over a window of ~20 s around the epoch
-    (:func:`~imubounds.dynamic.aiding.timing.local_swing`): the bias-corrected measured
+    (:func:`~imubounds.dynamic.sensors._timing.local_swing`): the bias-corrected measured
     turn x (1 + scale) + b x the bias's error from the heading's ends + k of the gyro
     noise's kernel (box of b minus its share of the window: the turn-on bias cancels,
     the flicker mostly) + the rate random walk and misalignment over b. Elsewhere (no
     window, gaps): the measured turn corrected by the centre of the windows' bias
     interval ``beta0``, + its half-width x b + k of the noise integrated over b
-    (:func:`~imubounds.dynamic.aiding.timing.rate_allowance`). At most b x max rate."""
-    from imubounds.dynamic.aiding import timing as TM
-
+    (:func:`~imubounds.dynamic.sensors._timing.rate_allowance`). At most b x max rate."""
     ag, veh, imu = ctx.aiding, ctx.vehicle, ctx.imu
     if not heading_clock_default(ag, ctx.timing):
         return
@@ -140,7 +180,7 @@ def heading_clock_allowance(ctx: Context, beta0: np.ndarray) -> None:
     other = gz.misalignment_rad * veh.max_rate * b
     th = ag.head_t + imu.t0
     # the local bias from the heading
-    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts["imu_stamp"])
+    te, G = TM.imu_yaw_angle(ctx.drive.imu.t, ctx.drive.imu.gyro[:, 2], ctx.opts.imu_stamp)
     turn, berr, ok = TM.local_swing(th, ag.head_c, ag.head_h, te, G, b, W, veh.max_rate,
                                     gz.scale)
     M = int(round(2 * W / imu.dt))
