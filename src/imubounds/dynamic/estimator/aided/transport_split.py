@@ -134,8 +134,8 @@ def _terms(
     cn = w.ctx.noise["gyro_z"]
     dt = w.imu.dt
     ratio = max(1.0, w.imu.max_len / dt)
-    ka = k_two(share("split", "accel_weights") * p)
-    kt = k_two(share("split", "clock_weights") * p)
+    k_wa = k_two(share("split", "accel_weights") * p)
+    k_wt = k_two(share("split", "clock_weights") * p)
     bnd = gy.bnd
     a1, b1, b2 = la1[:, None], lb1[:, None], lb2[:, None]
     r1, r2 = 1.0 / ((b1 - a1) * tau[:, None]), 1.0 / ((b2 - b1) * tau[:, None])
@@ -225,8 +225,8 @@ def _terms(
     # = (L1 + L2) / (2 tau) up to two roundings
     norm = np.abs((lb2 - la1) / (2 * tau) - 1) + 4 * EPS
     e0 = w.ctx.E0["gyro_z"] * norm
-    known = (np.abs(m_a) + e_a + (rho + e0) * abs_ka + ka * (sd[:n] + rnd_a) + ed * dev_a)
-    tb = (np.abs(m_t) + e_t + (rho + e0) * abs_kt + kt * (sd[n:] + rnd_t) + ed * dev_t)
+    known = (np.abs(m_a) + e_a + (rho + e0) * abs_ka + k_wa * (sd[:n] + rnd_a) + ed * dev_a)
+    tb = (np.abs(m_t) + e_t + (rho + e0) * abs_kt + k_wt * (sd[n:] + rnd_t) + ed * dev_t)
     known = np.where(ok, up(known * (1 + 1e-9)), np.inf)
     tb = np.where(ok, up(tb * (1 + 1e-9)), np.inf)
     return known, tb, np.where(ok, aerr, np.inf)
