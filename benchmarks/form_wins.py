@@ -15,16 +15,21 @@ Usage::
     python benchmarks/form_wins.py OUT.json clean-sweep N
     python benchmarks/form_wins.py OUT.json drive PATH [OPTIONS_JSON]
     python benchmarks/form_wins.py OUT.json sim VARIANT SEED AIDING [KEY=VALUE ...]
+    python benchmarks/form_wins.py OUT.json cli dynamic PATH [CLI OPTIONS ...]   # the CLI
     python benchmarks/form_wins.py --merge OUT.json IN.json ...     # add up runs
 
 AIDING like ``gnss+compass``. The JSON holds, per ``term/form``: ``windows`` (seen),
 ``ahead`` (windows where it narrows the term), ``ahead_3pct``, ``max_gain`` and
-``where`` (the run and window count of the largest).
+``where`` (the run and window count of the largest). With ``FORM_WINS_RETIRE=a,b,..``
+(form names) also, per term, ``term/retired``: the same gains for removing all the named
+forms of the term at once (what retiring them together costs; their shares going to
+the forms left only narrows those further).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -65,22 +70,53 @@ def _gains(names: tuple[str, ...], cands: list[Any], kind: str) -> np.ndarray:
     return out
 
 
+RETIRE = {x for x in os.environ.get("FORM_WINS_RETIRE", "").split(",") if x}
+
+
+def _joint_gain(names: tuple[str, ...], cands: list[Any], kind: str) -> np.ndarray | None:
+    """Per window, how much wider the term is without all the forms named in RETIRE."""
+    gone = [i for i, nm in enumerate(names) if nm in RETIRE]
+    if not gone:
+        return None
+    keep = [i for i in range(len(names)) if i not in gone]
+    merged = ("retired",) + tuple(names[i] for i in keep)
+    if kind == "upper":
+        v = np.stack([np.where(np.isfinite(cands[i]), cands[i], np.inf) for i in gone])
+        cands2 = [np.min(v, axis=0), *(cands[i] for i in keep)]
+    else:
+        lo = np.max(np.stack([cands[i].lo for i in gone]), axis=0)
+        hi = np.min(np.stack([cands[i].hi for i in gone]), axis=0)
+        cands2 = [_Pair(lo, hi), *(cands[i] for i in keep)]
+    return _gains(merged, cands2, kind)[0]
+
+
+class _Pair:
+    def __init__(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        self.lo, self.hi = lo, hi
+
+
+def _add(key: str, gi: np.ndarray) -> None:
+    st = STATS.setdefault(key, {"windows": 0, "ahead": 0, "ahead_3pct": 0,
+                                "max_gain": 0.0, "where": ""})
+    gi = np.nan_to_num(gi, nan=0.0)
+    st["windows"] += int(gi.size)
+    st["ahead"] += int(np.sum(gi > 0))
+    st["ahead_3pct"] += int(np.sum(gi > 0.03))
+    m = float(np.max(gi)) if gi.size else 0.0
+    if m > st["max_gain"]:
+        st["max_gain"] = m
+        st["where"] = f"{RUN['name']} ({int(np.sum(gi > 0.03))} windows > 3 % here)"
+
+
 def observe(term: str, names: tuple[str, ...], cands: list[Any], kind: str) -> None:
     if not cands or np.size(cands[0] if kind == "upper" else cands[0].lo) == 0:
         return
     g = _gains(names, cands, kind)
+    joint = _joint_gain(names, cands, kind) if RETIRE else None
+    if joint is not None:
+        _add(f"{term}/retired", joint)
     for i, nm in enumerate(names):
-        key = f"{term}/{nm}"
-        st = STATS.setdefault(key, {"windows": 0, "ahead": 0, "ahead_3pct": 0,
-                                    "max_gain": 0.0, "where": ""})
-        gi = np.nan_to_num(g[i], nan=0.0)
-        st["windows"] += int(gi.size)
-        st["ahead"] += int(np.sum(gi > 0))
-        st["ahead_3pct"] += int(np.sum(gi > 0.03))
-        m = float(np.max(gi)) if gi.size else 0.0
-        if m > st["max_gain"]:
-            st["max_gain"] = m
-            st["where"] = f"{RUN['name']} ({int(np.sum(gi > 0.03))} windows > 3 % here)"
+        _add(f"{term}/{nm}", g[i])
 
 
 def _sim(variant: str, seed: int, aiding: str, rest: list[str]) -> Any:
@@ -128,6 +164,10 @@ def main() -> None:
         dynamic_margins(drive, **opts)
     elif what == "sim":
         dynamic_margins(_sim(args[0], int(args[1]), args[2], args[3:]))
+    elif what == "cli":
+        from imubounds.cli import main as cli_main
+
+        cli_main(args)
     else:
         raise SystemExit(f"unknown workload {what!r}")
     Path(out).write_text(json.dumps(STATS, indent=1, sort_keys=True))

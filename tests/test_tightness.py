@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from imubounds.dynamic.estimator.aided.form_tables import (
+    SUPPORT_MEAN_ABS_R,
     TRANSPORT_Y,
     mean_abs_q,
     mean_abs_r,
@@ -341,7 +342,7 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             sup, L = support_plan(lp)
             p_sup = allot(p_fix, "fix_blocks", ["accel_noise"])["psi_variation"]
-            psi_var = psi_variation(mb, lp, mean_abs_r(mb, sup, L, p_sup))
+            psi_var = psi_variation(mb, lp, mean_abs_r(mb, sup, L, p_sup, table=SUPPORT_MEAN_ABS_R))
             p_acc = share("fix_blocks", "accel_noise") * p_fix / len(FIX_BLOCKS)
             for blk in FIX_BLOCKS:
                 box = fix_block_form(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var, p_acc)

@@ -56,6 +56,8 @@ SHARES: dict[str, dict[str, float | str]] = {
     # the bound of the kernel mean of |r| (or |q|): the window-centred form and the
     # heading blocks (family, equal over its block lengths)
     "mean_abs": {"centred_window": 0.5, "heading_blocks": 0.5},
+    # the mean |r| over a positions-only window's support: the heading blocks alone
+    "support_mean_abs": {"heading_blocks": 1.0},
     # the fix blocks: the support's mean |r| (psi's variation) and accel_x's white noise
     # in u's deviation (equal over the family's block lengths)
     "fix_blocks": {"accel_noise": 0.2, "psi_variation": REST},
@@ -111,14 +113,18 @@ class BoundForm:
     without an event of its own), ``family`` (forms sharing the last part equally, e.g.
     the block lengths; empty: none), ``applies(inputs)`` and ``compute(inputs, p)`` (an
     enclosure, or an upper bound for ``kind="upper"``; ``p`` the form's own
-    probability)."""
+    probability). ``screened``: ``compute(inputs, p, within)`` also takes the
+    intersection of the forms before it in the table (an enclosure term) and may skip its
+    costly parts where it provably contains it (returning ``(-inf, inf)`` there: the
+    intersection is the same)."""
 
     name: str
     eq: str
     share: tuple[tuple[str, str], ...]
     applies: Callable[[Any], bool]
-    compute: Callable[[Any, float], Any]
+    compute: Callable[..., Any]
     family: str = ""
+    screened: bool = False
 
 
 def form_probability(form: BoundForm, p: float, family_size: int = 1) -> float:
@@ -199,7 +205,15 @@ def combine(
     for f in forms:
         if f.family:
             fam[f.family] = fam.get(f.family, 0) + 1
-    cands = [f.compute(inputs, form_probability(f, p, fam.get(f.family, 1))) for f in forms]
+    cands: list[Any] = []
+    for f in forms:
+        pf = form_probability(f, p, fam.get(f.family, 1))
+        if f.screened and kind == "enclosure" and cands:
+            within = IA(np.max(np.stack([c.lo for c in cands]), axis=0),
+                        np.min(np.stack([c.hi for c in cands]), axis=0))
+            cands.append(f.compute(inputs, pf, within))
+        else:
+            cands.append(f.compute(inputs, pf))
     names = tuple(f.name for f in forms)
     if OBSERVER is not None:
         OBSERVER(term, names, cands, kind)

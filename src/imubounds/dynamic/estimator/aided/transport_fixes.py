@@ -158,16 +158,87 @@ def psi_variation(w: WindowContext, lp: LevelPlan, r_sup: np.ndarray) -> np.ndar
     return up(m * L * (1 + 1e-12))
 
 
+def _gap_rows(
+    t: np.ndarray, lp: LevelPlan, tau: np.ndarray, s: np.ndarray, e: np.ndarray,
+    win: np.ndarray, in1: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per fix gap of the blocks: its block, first fix, window and the kernel's mean on it
+    (K linear on the gap: its value at the gap's midpoint)."""
+    L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
+    cnt = e - s
+    gb = np.repeat(np.arange(s.size), cnt)
+    bstart = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    gk = s[gb] + (np.arange(int(np.sum(cnt))) - bstart[gb])
+    gw = win[gb]
+    mid = 0.5 * (t[gk] + t[gk + 1])
+    kbar = np.where(in1[gb], (mid - lp.a1[gw]) / (L1[gw] * tau[gw]),
+                    (lp.b2[gw] - mid) / (L2[gw] * tau[gw]))
+    return gb, gk, gw, kbar
+
+
+def _kernel_on_fixes(t: np.ndarray, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
+    """Windows whose kernel integrates to 1 and has its corners on fix epochs."""
+    kint = 0.5 * ((lp.b1 - lp.a1) + (lp.b2 - lp.b1)) / tau  # int K (1 for the trapezoid)
+    ok = np.abs(kint - 1.0) < 1e-9
+    for x_t in (lp.a1, lp.b1, lp.b2):
+        k = np.clip(np.searchsorted(t, x_t), 0, t.size - 1)
+        ok &= np.abs(t[k] - x_t) <= 1e-9
+    return ok
+
+
+def _accel_noise_k(
+    w: WindowContext, win: np.ndarray, ta: np.ndarray, tb: np.ndarray, p_acc: float
+) -> tuple[float | None, float]:
+    """The k of accel_x's white noise (Levy, 4 tails per block, over the most blocks of a
+    window) and of its quantization (a union bound over the samples of the longest
+    block) at ``p_acc`` (``SHARES["accel_noise"]`` where it has a quantization part)."""
+    if not (p_acc > 0 and ta.size):
+        return None, 0.0
+    nb = int(np.max(np.bincount(win)))
+    q = w.ctx.noise["accel_x"].Q > 0
+    pw = share("accel_noise", "white") * p_acc if q else p_acc
+    kw = k_two(pw / (2.0 * nb))
+    kq = 0.0
+    if q:
+        mm = int(np.max(w.imu.count(ta, tb)))
+        kq = k_two(share("accel_noise", "quantization") * p_acc / (nb * (mm + 1.0)))
+    return kw, kq
+
+
+def _turn_factor(w: WindowContext, s: np.ndarray, win: np.ndarray, gb: np.ndarray,
+                 gk: np.ndarray, ell: np.ndarray, n: int) -> np.ndarray:
+    """Per window ``max_B (2 sqrt 2 + turn_B)/len_B``: where the unknown part of rho meets
+    the position boxes (the blocks' ends, ``|e|_1 <= sqrt 2`` each side, and the turns
+    inside a block)."""
+    ce, sn = gap_units(w)
+    first_g = np.r_[True, gb[1:] != gb[:-1]]
+    de = np.where(first_g, 0.0, np.abs(ce[gk] - ce[np.maximum(gk - 1, 0)])
+                  + np.abs(sn[gk] - sn[np.maximum(gk - 1, 0)]))
+    turn = np.zeros(s.size)
+    np.add.at(turn, gb, de)
+    fac = np.zeros(n)
+    np.maximum.at(fac, win, up((2 * math.sqrt(2) + turn) / ell))
+    return fac
+
+
 def fix_block_form(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, mb: int, r_mag: np.ndarray,
     q_mean: np.ndarray | None, psi_var: np.ndarray, p_acc: float = 0.0,
+    within: IA | None = None,
 ) -> IA:
     """``mean(r u)`` over trapezoid (positions-only) windows, the window cut into blocks
     B of ``mb`` fix gaps (docs/dynamic-method.md, (3.20); ``psi_var`` from
     :func:`psi_variation`; ``p_acc`` > 0: u's deviation also from accel_x's signed
     integral, one event at that probability per window over its blocks: Levy's
     inequality for the white noise, 4 tails per block, and the quantization over the
-    samples of the longest block, a union bound)."""
+    samples of the longest block, a union bound).
+
+    ``within`` (the intersection of the forms before it, :func:`~.forms.combine`): the
+    form is ``head + [-R, R]`` with ``R >= max|c_B| Delta + h_max max_B((2 sqrt 2 +
+    turn_B)/len_B) Delta``; where ``head +-`` that already contains ``within`` at every
+    window of the level (or the window has no bound), the form cannot narrow the
+    intersection and its costly parts (u's deviation, the position errors, the speed
+    part) are skipped: ``(-inf, inf)``."""
     t = w.ag.gnss_t
     h = w.ag.gnss_h
     n = lp.a1.size
@@ -177,26 +248,7 @@ def fix_block_form(
     cb, rest = body_u_mean_parts(w, s, e)
     fin = np.isfinite(cb) & np.isfinite(rest)
     cb = np.where(fin, cb, 0.0)
-    kw, kq = None, 0.0
-    if p_acc > 0 and s.size:
-        nb = int(np.max(np.bincount(win)))
-        q = w.ctx.noise["accel_x"].Q > 0
-        pw = share("accel_noise", "white") * p_acc if q else p_acc
-        kw = k_two(pw / (2.0 * nb))
-        if q:
-            mm = int(np.max(w.imu.count(ta, tb)))
-            kq = k_two(share("accel_noise", "quantization") * p_acc / (nb * (mm + 1.0)))
-    du = np.where(fin, up(rest + u_deviation(w, ta, tb, kw, kq)), np.inf)
-    L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
-    # per fix gap: its block, window, first fix, the kernel at its midpoint and slope
-    cnt = e - s
-    gb = np.repeat(np.arange(s.size), cnt)
-    bstart = np.concatenate([[0], np.cumsum(cnt)[:-1]])
-    gk = s[gb] + (np.arange(int(np.sum(cnt))) - bstart[gb])
-    gw = win[gb]
-    mid = 0.5 * (t[gk] + t[gk + 1])
-    kbar = np.where(in1[gb], (mid - lp.a1[gw]) / (L1[gw] * tau[gw]),
-                    (lp.b2[gw] - mid) / (L2[gw] * tau[gw]))
+    gb, gk, gw, kbar = _gap_rows(t, lp, tau, s, e, win, in1)
     ref = heading_at_epochs(w, lp.a1).mid()
     ref = np.where(np.isfinite(ref), ref, 0.0)
     ps = heading_at_fixes(w, gk) - IA(ref[gw])
@@ -204,40 +256,37 @@ def fix_block_form(
     c0, ext, _ = rate_terms(w, lp, tau, q_mean)
     # the first sum: c0 sum_g c_B Kbar_g dpsi_g by parts over the window's fixes
     head = by_parts(cb[gb] * kbar, gw, gk, ps, pe, gw) * IA(c0)
-    # rho_B's known part: (c0/len_B) sum_{g in B} Kbar_g dpsi_g, by parts in the block
-    rho0 = by_parts(kbar, gw, gk, ps, pe, gb) * IA(c0[win]) / IA(ell)
     # what the gaps leave: c0 K' int_g (t - t_mid) psi' and int K |r - c0 psi'|
     gmax = np.zeros(n)
     np.maximum.at(gmax, gw, t[gk + 1] - t[gk])
-    kslope = np.maximum(1.0 / (L1 * tau), 1.0 / (L2 * tau))
+    kslope = np.maximum(1.0 / ((lp.b1 - lp.a1) * tau), 1.0 / ((lp.b2 - lp.b1) * tau))
     delta = up(up(c0 * kslope * 0.5 * gmax * psi_var) + ext)
     delta = up(delta * (1 + 1e-9))
-    ok_b = fin & np.isfinite(rho0.lo) & np.isfinite(rho0.hi)
     ok = np.ones(n, dtype=bool)
-    np.logical_and.at(ok, win, ok_b)
-    ok &= np.isfinite(head.lo) & np.isfinite(head.hi)
-    kint = 0.5 * (L1 + L2) / tau  # int K (1 for the trapezoid)
-    ok &= np.abs(kint - 1.0) < 1e-9
-    for x_t in (lp.a1, lp.b1, lp.b2):  # the kernel's corners on fix epochs
-        k = np.clip(np.searchsorted(t, x_t), 0, t.size - 1)
-        ok &= np.abs(t[k] - x_t) <= 1e-9
+    np.logical_and.at(ok, win, fin)
+    ok &= np.isfinite(head.lo) & np.isfinite(head.hi) & _kernel_on_fixes(t, lp, tau)
     umax = np.zeros(n)
     np.maximum.at(umax, win, np.abs(cb))
-    rho0 = IA(np.where(ok_b, rho0.lo, 0.0), np.where(ok_b, rho0.hi, 0.0))
-    perr = _position_error_share(w, s, e, win, rho0, n)
-    # the unknown part of rho: sum_B len_B |delta_B| <= delta; it meets the boxes at the
-    # blocks' ends (|e|_1 <= sqrt 2 each side) and at the turns inside a block
-    ce, sn = gap_units(w)
-    first_g = np.r_[True, gb[1:] != gb[:-1]]
-    de = np.where(first_g, 0.0, np.abs(ce[gk] - ce[np.maximum(gk - 1, 0)])
-                  + np.abs(sn[gk] - sn[np.maximum(gk - 1, 0)]))
-    turn = np.zeros(s.size)
-    np.add.at(turn, gb, de)
-    fac = np.zeros(n)
-    np.maximum.at(fac, win, up((2 * math.sqrt(2) + turn) / ell))
+    inner = head + pm(up(umax * delta))
+    fac = _turn_factor(w, s, win, gb, gk, ell, n)
     hmax = np.zeros(n)
     np.maximum.at(hmax, gw, np.maximum(h[gk], h[gk + 1]))
-    perr = up(perr + up(hmax * fac * delta) * (1 + 1e-9))
+    pturn = up(hmax * fac * delta) * (1 + 1e-9)
+    none = IA(np.full(n, -np.inf), np.full(n, np.inf))
+    if within is not None:
+        g2 = inner + pm(pturn)
+        if np.all(~ok | ((g2.lo <= within.lo) & (g2.hi >= within.hi))):
+            return none
+    kw, kq = _accel_noise_k(w, win, ta, tb, p_acc)
+    du = np.where(fin, up(rest + u_deviation(w, ta, tb, kw, kq)), np.inf)
+    # rho_B's known part: (c0/len_B) sum_{g in B} Kbar_g dpsi_g, by parts in the block
+    rho0 = by_parts(kbar, gw, gk, ps, pe, gb) * IA(c0[win]) / IA(ell)
+    ok_b = np.isfinite(rho0.lo) & np.isfinite(rho0.hi)
+    np.logical_and.at(ok, win, ok_b)
+    rho0 = IA(np.where(fin & ok_b, rho0.lo, 0.0), np.where(fin & ok_b, rho0.hi, 0.0))
+    perr = _position_error_share(w, s, e, win, rho0, n)
+    # the unknown part of rho: sum_B len_B |delta_B| <= delta
+    perr = up(perr + pturn)
     speed = speed_part(w, win, ta, tb, np.where(fin, du, 0.0), n, tau, r_mag, earth_rates(w.veh))
-    x = head + pm(up(umax * delta)) + pm(perr) + pm(speed)
+    x = inner + pm(perr) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
