@@ -117,8 +117,15 @@ class LevelResult:
             "k": self.k,
             "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
             "bound_by": label_counts(self.bound_by),
+            "bound_by_max": self._bound_by_max(hw, fin),
             **self._change_summary(),
         }
+
+    def _bound_by_max(self, hw: np.ndarray, fin: np.ndarray) -> str:
+        """The forms giving the bound of the window of ``halfwidth_max``."""
+        if not fin.any() or self.bound_by.size != hw.size:
+            return ""
+        return str(self.bound_by[int(np.argmax(np.where(fin, hw, -np.inf)))])
 
     def _change_summary(self) -> dict[str, Any]:
         if self.p1.size == 0:
