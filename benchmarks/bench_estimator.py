@@ -2,13 +2,19 @@
 compass, attitude), smoothed to the fixpoint with margins for every tau, against the
 one-pass mode paper on the same drive, in the same run.
 
+``--workload positions``: the paper's kind of trip with GNSS positions only and the
+compass (``imubounds simulate --scenario paper --seed 7 --duration 3600 --rate 100
+--gps-rate 10``; positions-only forms of accel_y's transport term, the costliest; the
+target is mode full within 5 s on the 2-core machine).
+
 The trip comes from the project's trip simulator when it offers
 ``imubounds.dynamic.scenario.make_trip`` (variant ``gnss10``), else from the test
 suite's generator ``tests/trips.py``. Times are wall-clock seconds of the analysis
 alone (the drive is built first), best of ``--repeat`` after one warm-up run that
 compiles or loads the numba caches; on a shared machine they vary with the load.
 
-Usage: ``python benchmarks/bench_estimator.py [--hours H] [--repeat R] [--baseline SRC]``.
+Usage: ``python benchmarks/bench_estimator.py [--hours H] [--repeat R] [--baseline SRC]
+[--workload gnss10|positions]``.
 The last line is ``full_seconds <t> paper_seconds <t> ratio <full/paper>``; with
 ``--baseline SRC`` (the ``src`` directory of the previous version, e.g. a checkout of
 main) the same trip is analysed by that version in a subprocess in the same run and the
@@ -29,8 +35,13 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 
 
-def make_drive(hours: float) -> Any:
+def make_drive(hours: float, workload: str = "gnss10") -> Any:
     duration = 3600.0 * hours
+    if workload == "positions":
+        from imubounds.dynamic.scenario import make_trip as sim_trip
+
+        res = sim_trip("paper", seed=7, duration_s=duration, rate_hz=100.0, gps_rate_hz=10.0)
+        return res.drive, "imubounds.dynamic.scenario (paper, seed 7, positions + compass)"
     distance = 12.0 * duration
     try:
         from imubounds.dynamic.scenario import make_trip as sim_trip  # the simulator
@@ -61,12 +72,15 @@ def main() -> None:
     ap.add_argument("--hours", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--baseline", default=None, help="src directory of the previous version")
+    ap.add_argument("--workload", choices=("gnss10", "positions"), default="gnss10",
+                    help="gnss10: positions + velocity + compass + attitude; positions: "
+                    "the paper trip's positions + compass at 10 Hz")
     ap.add_argument("--full-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     from imubounds.dynamic.estimator import dynamic_margins
 
     t0 = time.perf_counter()
-    drive, src = make_drive(args.hours)
+    drive, src = make_drive(args.hours, args.workload)
     print(f"trip: {src}, {args.hours:g} h, {drive.imu.t.size} IMU samples, "
           f"{drive.gnss.t.size} GNSS fixes (built in {time.perf_counter() - t0:.1f} s, "
           f"peak RSS so far {_peak_mib():.0f} MiB: the simulator's)")
@@ -89,7 +103,7 @@ def main() -> None:
 
         env = {**os.environ, "PYTHONPATH": str(Path(args.baseline).resolve())}
         cmd = [sys.executable, __file__, "--hours", str(args.hours), "--repeat",
-               str(args.repeat), "--full-only"]
+               str(args.repeat), "--workload", args.workload, "--full-only"]
         out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
         last = out.strip().splitlines()[-1].split()
         t_base = float(last[1])
