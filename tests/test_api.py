@@ -57,7 +57,7 @@ def test_public_names_resolve_and_are_listed() -> None:
 def test_allan_of_an_array_equals_the_estimator_and_carries_its_unit() -> None:
     x = white(20_000, N_TRUE, 3)
     res = ib.allan(x, RATE_HZ, unit="rad/s")
-    ref = allan_estimator(x, RATE_HZ)
+    ref = allan_estimator(x, RATE_HZ, taus=40)  # ib.allan's grid: characterize's, 40 points
     np.testing.assert_array_equal(res.dev, ref.dev)
     np.testing.assert_array_equal(res.ci_upper, ref.ci_upper)
     assert res.unit == "rad/s" and ref.unit is None
@@ -286,3 +286,18 @@ def test_drive_and_dynamic_result_convert(tmp_path: Path) -> None:
     assert {"channel", "tau_s", "unit"} <= set(df.columns)
     with pytest.raises(ib.AnalysisError, match="mode full"):
         res.states_frame()
+
+
+def test_frames_say_their_units_as_the_readme_does(table: pd.DataFrame,
+                                                   static: ib.StaticResult) -> None:  # fmt: skip
+    """README: a column whose values share a unit says it in its name; where the rows mix
+    units (the terms) a unit column gives each row's, matching the value's unit."""
+    log = ib.read_frame(table)
+    assert all(c.endswith(("_s", "_rads", "_mps2")) for c in log.to_frame().columns)
+    df = static.to_frame()
+    for _, row in df.iterrows():
+        sel = static.channels[row["channel"]].selected.to_dict()[row["term"]]
+        assert row["unit"] == sel["unit"] and row["ieee_unit"] == sel["ieee"]["unit"]
+    assert df.groupby("channel")["unit"].nunique().min() > 1  # the rows do mix units
+    curve = ib.allan(table["gyro_z_rads"], RATE_HZ, unit="rad/s").to_frame()
+    assert "tau_s" in curve.columns and set(curve["unit"]) == {"rad/s"}

@@ -102,6 +102,9 @@ def _run_case(case: Case, tmp: Path, capsys: pytest.CaptureFixture[str]) -> str:
     after = _snapshot(tmp)
     changed = [k for k, v in before.items() if after.get(k) != v and v != "dir"]
     assert not changed, f"{case.name}: pre-existing {changed} changed or removed"
+    if case.code:  # a refused run writes nothing, not even a hidden file or a lock
+        added = sorted(set(after) - set(before))
+        assert not added, f"{case.name}: a refused run left {added}"
     lines = [ln for ln in err.splitlines() if ln.strip()]
     if case.code:
         # counted warnings (e.g. a term the short log does not resolve) may precede the error
@@ -144,7 +147,8 @@ SIM = ["simulate-noise", "--preset", "xsens-mtx", "--rate", "50", "--duration", 
 
 OUTPUT_CASES = [
     Case("simulate-noise -o a file imubounds did not write",
-         lambda d: [*SIM, "-o", str(_user_file(d, "mine.csv"))], 2, ("did not write", "--force")),
+         lambda d: [*SIM, "-o", str(_user_file(d, "mine.csv"))], 2,
+         ("did not write", "--overwrite")),
     Case("simulate-noise -o a directory",
          lambda d: [*SIM, "-o", str(d) + "/"], 2, ("does not end in .csv",)),
     Case("simulate-noise -o an existing directory named like a CSV",
@@ -164,13 +168,13 @@ OUTPUT_CASES = [
          2, ("did not write",)),
     Case("static: a log named noise.json with -o its own folder",
          lambda d: ["static", str(_log(d, "noise.json")), "-o", str(d), *FAST],
-         2, ("input of this run",)),
+         2, ("noise.json (an input of this run)",)),
     Case("static -o an existing file",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "res")), *FAST],
          2, ("not a directory",)),
     Case("static -o a folder holding the user's noise.json",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "o/noise.json").parent),
-                    *FAST], 2, ("did not write", "--force")),
+                    *FAST], 2, ("did not write: noise.json", "--overwrite")),
     Case("static -o under a file",
          lambda d: ["static", str(_log(d)), "-o", str(_user_file(d, "f") / "sub"), *FAST],
          2, ("cannot write to",)),
@@ -178,8 +182,58 @@ OUTPUT_CASES = [
          lambda d: ["static", str(_log(d)), "-o", str(d / ("x" * 300)), *FAST],
          2, ("too long",)),
     Case("report over a report.html imubounds did not write",
-         lambda d: _report_dir(d, user_report=True), 2, ("did not write", "--force")),
+         lambda d: _report_dir(d, user_report=True), 2, ("did not write", "--overwrite")),
+    # issue 36: a result set lands only in a new or empty folder, or over the same command's
+    # results of the same input; everything else is named and refused without --overwrite
+    Case("simulate -o a folder holding the user's notes and a real log",
+         lambda d: [*DRIVE_SIM, "-o", str(_notes_and_log(d / "mine"))], 2,
+         ("did not write: log.csv, notes.md", "--overwrite")),
+    Case("simulate -o a folder of static results",
+         lambda d: [*DRIVE_SIM, "-o", str(_static_results(d))], 2,
+         ("other results: imu.yaml, noise.json", "the results of 'imubounds static",
+          "--overwrite")),
+    Case("static -o a folder holding another log's results and the user's files",
+         lambda d: ["static", str(_log(d, "other.csv")), "-o",
+                    str(_user_file(_static_results(d), "notes.md").parent), *FAST], 2,
+         ("did not write and other results", "notes.md", "--overwrite")),
+    Case("static -o a folder holding another log's results",
+         lambda d: ["static", str(_log(d, "other.csv")), "-o", str(_static_results(d)),
+                    *FAST], 2, ("other results: imu.yaml, noise.json", "log.csv")),
+    Case("static -o a folder holding its results, edited by the user",
+         lambda d: ["static", str(d / "log.csv"), "-o", str(_edited(_static_results(d))),
+                    *FAST], 2, ("changed since imubounds wrote them: noise.json",)),
+    Case("dynamic -o a folder of static results",
+         lambda d: ["dynamic", str(d), "-o", str(_static_results(d)), "-q"], 2,
+         ("other results", "noise.json")),
+    Case("export DIR -o DIR/noise.json (its own input)",
+         lambda d: ["export", str(_static_results(d)), "--format", "kalibr", "-o",
+                    str(d / "res" / "noise.json"), "--overwrite"], 2,
+         ("noise.json is an input of this run",)),
+    Case("export -o DIR/run.json",
+         lambda d: ["export", str(_static_results(d)), "--format", "kalibr", "-o",
+                    str(d / "res" / "run.json")], 2, ("run.json is imubounds' record",)),
 ]
+
+DRIVE_SIM = ["simulate", "--duration", "150", "--distance", "1500", "-q"]
+
+
+def _notes_and_log(d: Path) -> Path:
+    _user_file(d, "notes.md")
+    _log(d)
+    return d
+
+
+def _static_results(d: Path) -> Path:
+    res = d / "res"
+    assert main(["static", str(_log(d)), "-o", str(res), *FAST]) == 0
+    return res
+
+
+def _edited(res: Path) -> Path:
+    doc = json.loads((res / "noise.json").read_text())
+    doc["my_note"] = "checked by hand"
+    (res / "noise.json").write_text(json.dumps(doc))
+    return res
 
 
 def _mkdir(p: Path) -> Path:
@@ -204,6 +258,20 @@ def test_outputs_never_cost_the_user_a_file(
     case: Case, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     _run_case(case, tmp_path, capsys)
+
+
+def test_simulate_into_the_current_folder_is_refused_unless_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    _user_file(tmp_path, "notes.md")
+    case = Case("simulate -o .", lambda d: [*DRIVE_SIM, "-o", "."], 2,
+                ("output directory . holds files imubounds did not write: notes.md",))
+    _run_case(case, tmp_path, capsys)
+    assert main([*DRIVE_SIM, "-o", ".", "--overwrite"]) == 0  # as asked: beside the notes
+    assert (tmp_path / "notes.md").read_text() == "the user's own file\n"
+    assert (tmp_path / "imu.csv").is_file()
+    assert main([*DRIVE_SIM, "-o", ".", "--seed", "3", "--force"]) == 0  # the old name
 
 
 def test_rerun_overwrites_only_what_imubounds_wrote(tmp_path: Path) -> None:
@@ -398,6 +466,12 @@ WARNING_CASES = [
     Case("a truncated ULog",
          lambda d: ["static", str(_cut_ulog(d)), "-o", str(d / "o"), *FAST], 0,
          ("truncated",), warning=True),
+    *(Case(f"a units row under the header{' (out of core)' if ooc else ''}",
+           lambda d, ooc=ooc: ["static", str(_log(d, header="time,gyro_x,accel_z", rows=[
+               "s,rad/s,m/s^2", *_rows()])), "-o", str(d / "o"), *FAST, *(OOC if ooc else [])],
+           0, ("log.csv", "line 2 under the header is a row of units (s, rad/s, m/s^2)",
+               "not as data"), warning=True, extra=_noise_rate(Path("o")))
+      for ooc in (False, True)),
 ]
 
 
@@ -563,3 +637,75 @@ def test_ctrl_c_after_one_file_names_what_was_written(
     assert f"complete results had been written to {csv}; nothing else was written" in err
     assert csv.is_file() and not spec.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == [".imubounds-files.json", "x.csv"]
+
+
+def _interrupt_when(monkeypatch: pytest.MonkeyPatch, when: Callable[[str, str], bool]) -> None:
+    """KeyboardInterrupt at the first ``os.replace(src, dst)`` for which ``when`` holds (a
+    Ctrl-C at that instant that nothing held back)."""
+    real = os.replace
+    fired = []
+
+    def replace(src: object, dst: object) -> None:
+        if not fired and when(os.fspath(src), os.fspath(dst)):  # type: ignore[arg-type]
+            fired.append(1)
+            raise KeyboardInterrupt
+        real(src, dst)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "replace", replace)
+
+
+@pytest.mark.parametrize("moment", ["as the old noise.json is set aside",
+                                    "as the new noise.json moves in",
+                                    "as run.json is written"])
+def test_ctrl_c_at_the_commit_of_static_leaves_the_old_set_or_the_new_and_no_lock(
+    moment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 36: Ctrl-C just as noise.json is replaced left a mix of old and new figures,
+    just as it appeared a .imubounds.lock. Now: the old set or the new one, whole, the
+    message says which, no lock, nothing hidden left."""
+    out = tmp_path / "o"
+    old_log, new_log = _log(tmp_path, "a.csv"), _log(tmp_path, "b.csv", rows=_rows(2000))
+    assert main(["static", str(old_log), "-o", str(out), "-q", "--models", "none"]) == 0
+    capsys.readouterr()
+    before = _snapshot(out)
+    when = {
+        "as the old noise.json is set aside": lambda s, d: s.endswith("/o/noise.json"),
+        "as the new noise.json moves in": lambda s, d: d.endswith("/o/noise.json"),
+        "as run.json is written": lambda s, d: d.endswith("/o/run.json") and ".part" in s,
+    }[moment]
+    _interrupt_when(monkeypatch, when)
+    code = main(["static", str(new_log), "-o", str(out), "-q", "--models", "none",
+                 "--overwrite"])
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert "nothing was written (outputs are as they were)" in err
+    assert _snapshot(out) == before, "not the old set"
+    assert not (out / ".imubounds.lock").exists()
+    assert not [p for p in tmp_path.rglob(".*") if "imubounds" in p.name]
+    monkeypatch.undo()
+    assert main(["static", str(new_log), "-o", str(out), *FAST, "--overwrite"]) == 0
+    rec = json.loads((out / "run.json").read_text())
+    assert "b.csv" in rec["command"] and set(rec["files"]) <= {p.name for p in out.iterdir()}
+
+
+def test_ctrl_c_just_after_the_commit_says_what_was_written_and_leaves_no_lock(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import shutil
+
+    out = tmp_path / "o"
+    real = shutil.rmtree
+
+    def rmtree(p: object, *a: object, **k: object) -> None:
+        if ".imubounds-" in str(p):  # the clean-up right after noise.json appeared
+            monkeypatch.setattr(shutil, "rmtree", real)
+            real(p, *a, **k)  # type: ignore[arg-type]
+            raise KeyboardInterrupt
+        real(p, *a, **k)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    assert main(["static", str(_log(tmp_path)), "-o", str(out), *FAST]) == 130
+    assert f"complete results had been written to {out}" in capsys.readouterr().err
+    assert (out / "noise.json").is_file() and not (out / ".imubounds.lock").exists()
+    assert not [p for p in tmp_path.rglob(".*") if "imubounds" in p.name]

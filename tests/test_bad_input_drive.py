@@ -319,6 +319,32 @@ def _fixes_outside(d: Path) -> None:
     _csv(d, "gnss.csv", f)
 
 
+def _imu_col(col: str, value: float, rows: slice | int = slice(None)) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        def f(df: pd.DataFrame) -> None:
+            df.loc[rows, col] = value if not isinstance(rows, slice) else df[col] * 0 + value
+        _csv(d, "imu.csv", f)
+    return spoil
+
+
+def _scale_cols(cols: tuple[str, ...], k: float) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        def f(df: pd.DataFrame) -> None:
+            for c in cols:
+                df[c] = df[c] * k
+        _csv(d, "imu.csv", f)
+    return spoil
+
+
+def _one_fix_inside(d: Path) -> None:
+    def f(g: pd.DataFrame) -> pd.DataFrame:
+        last = g.iloc[-1:].copy()
+        late = last.copy()
+        late["time_s"] = late["time_s"] + 100.0
+        return pd.concat([last, late], ignore_index=True)
+    _csv(d, "gnss.csv", f)
+
+
 ODD = [
     Odd("04-gps-csv-ignored", _gps, "layout_ignored_files", ("gps.csv", "ignored")),
     Odd("12-fixes-on-one-spot", _one_spot, "gnss_one_spot", ("gnss.csv", "one spot")),
@@ -330,6 +356,17 @@ ODD = [
         ("imu.csv", "gyro_x", "t=60.000", "2000 deg/s")),
     Odd("14-gyro-stuck-while-turning", _stuck, "gyro_stuck",
         ("imu.csv", "gyro_z", "t=20.000 to t=60.000", "turns")),
+    Odd("36-accel-y-in-g", _scale_cols(("accel_y_mps2",), 1 / 9.80665), "accel_axis_units",
+        ("imu.csv", "accel_y", "1/10 of accel_z", "to be in g while read as m/s^2")),
+    Odd("36-one-1e300-accel-sample", _imu_col("accel_y_mps2", -1e300, 3000), "accel_spikes",
+        ("imu.csv", "accel_y", "t=60.000", "400 g", "data row 3001", "corrupt")),
+    Odd("36-gyro-y-converted-twice", _scale_cols(("gyro_y_rads",), np.pi / 180), "gyro_axis_units",
+        ("imu.csv", "gyro_y", "of gyro_z's", "57.3x too small for rad/s (converted twice?)",
+         "undo the second conversion")),
+    Odd("36-accel-x-all-nan", _imu_col("accel_x_mps2", np.nan), "imu_column_empty",
+        ("imu.csv", "accel_x_mps2", "no value", "accel_x is treated as absent")),
+    Odd("36-two-fixes-one-in-the-imu", _one_fix_inside, "gnss_single_epoch",
+        ("gnss.csv", "only one fix", "t=150.000")),
 ]
 
 
@@ -490,10 +527,13 @@ def test_13_a_later_run_replaces_the_earlier_runs_report_and_figures(
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.md").write_text("the user's notes")
-    assert _run(["static", str(p), "-o", str(out), "-q", "--models", "none"], capsys)[0] == 0
+    code, err = _run(["static", str(p), "-o", str(out), "-q", "--models", "none"], capsys)
+    assert code == 2 and "did not write: notes.md" in err and "--overwrite" in err
+    assert _run(["static", str(p), "-o", str(out), "-q", "--models", "none", "--overwrite"],
+                capsys)[0] == 0  # beside the user's notes, as they said
     first = {q.name for q in out.iterdir()}
     assert "report.html" in first and any(n.endswith(".png") for n in first)
-    assert _run(["static", str(p), "-o", str(out), *FAST_STATIC], capsys)[0] == 0
+    assert _run(["static", str(p), "-o", str(out), *FAST_STATIC, "--force"], capsys)[0] == 0
     now = {q.name for q in out.iterdir()}
     assert "report.html" not in now and not any(n.endswith((".png", ".svg")) for n in now)
     assert "noise.json" in now and (out / "notes.md").read_text() == "the user's notes"
@@ -549,11 +589,21 @@ _VALUES = st.one_of(
 )
 _TABLE_SPOILS = st.sampled_from([
     "none", "text-cell", "bool-column", "nan-time", "drop-time", "one-row", "huge", "dup-time",
+    # issue 36
+    "all-nan", "one-1e300", "swap-rows", "short-row",
 ])
+#: What the output folder holds before the run (issue 36: only "new", "empty" and the
+#: same command's results of the same input are written without --overwrite).
+_OUT_STATES = st.sampled_from(["new", "empty", "user-file", "other-results", "own-results"])
 
 
 def _spoil_table(d: Path, how: str, table: str) -> None:
     p = d / f"{table}.csv"
+    if how == "short-row":  # a row cut after its second field
+        lines = p.read_text().splitlines()
+        lines[5] = ",".join(lines[5].split(",")[:2])
+        p.write_text("\n".join(lines) + "\n")
+        return
     df = pd.read_csv(p)
     col = df.columns[1]
     if how == "text-cell":
@@ -571,24 +621,58 @@ def _spoil_table(d: Path, how: str, table: str) -> None:
         df[col] = df[col] * 1e300
     elif how == "dup-time":
         df.loc[5, "time_s"] = df.loc[4, "time_s"]
+    elif how == "all-nan":
+        df[col] = np.nan
+    elif how == "one-1e300":
+        df.loc[7, col] = 1e300
+    elif how == "swap-rows":
+        df.iloc[[3, 4]] = df.iloc[[4, 3]].to_numpy()
     df.to_csv(p, index=False)
+
+
+def _prepare_out(out: Path, state: str, d: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    if state == "new":
+        return
+    out.mkdir()
+    if state == "user-file":
+        (out / "mine.txt").write_text("the user's file")
+    elif state == "other-results":
+        (out / "noise.json").write_text("{}")
+        (out / "run.json").write_text(json.dumps({"command": "imubounds static x.csv",
+                                                  "command_name": "static",
+                                                  "files": ["noise.json"]}))
+    elif state == "own-results":  # an earlier convert of the same input
+        clean = Path(str(d) + "_clean")
+        _run(["convert", str(clean), "-o", str(out), "-q"], capsys)
+        rec = json.loads((out / "run.json").read_text())
+        rec["inputs"] = [str(d.resolve())]  # as if converted from this folder
+        (out / "run.json").write_text(json.dumps(rec))
+
+
+#: dynamic options that override a drive.yaml setting, with its range (issue 36)
+_DYN_OPTIONS = ["--heading-deviation", "--heading-noise", "--attitude-bound", "--max-tilt",
+                "--misalignment", "--scale", "--gnss-vel-sigma", "--declination"]
 
 
 @settings(max_examples=40, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     edits=st.dictionaries(st.sampled_from(_KEYS), _VALUES, max_size=3),
-    table=st.sampled_from(["imu", "gnss", "heading"]),
+    table=st.sampled_from(["imu", "gnss", "heading", "truth"]),
     how=_TABLE_SPOILS,
+    state=_OUT_STATES,
+    overwrite=st.booleans(),
 )
 def test_property_no_traceback_and_nothing_written_on_refusal(
     sim: Path, capsys: pytest.CaptureFixture[str],
-    edits: dict[str, object], table: str, how: str,
+    edits: dict[str, object], table: str, how: str, state: str, overwrite: bool,
 ) -> None:
     import yaml
 
     with tempfile.TemporaryDirectory() as tmp:
         d = _copy(sim, Path(tmp) / "drive")
+        if state == "own-results":
+            _copy(sim, Path(tmp) / "drive_clean")
         data = yaml.safe_load((d / "drive.yaml").read_text())
         for key, value in edits.items():
             section, _, name = key.partition(".")
@@ -601,18 +685,54 @@ def test_property_no_traceback_and_nothing_written_on_refusal(
         (d / "drive.yaml").write_text(yaml.safe_dump(data))
         _spoil_table(d, how, table)
         out = Path(tmp) / "out"
-        out.mkdir()
-        (out / "mine.txt").write_text("the user's file")
-        before, before_out = _snapshot(d), _snapshot(out)
-        code, err = _run(["convert", str(d), "-o", str(out), "-q"], capsys)
+        _prepare_out(out, state, d, capsys)
+        before = _snapshot(d)
+        before_out = _snapshot(out) if out.exists() else None
+        argv = ["convert", str(d), "-o", str(out), "-q", *(["--overwrite"] if overwrite else [])]
+        code, err = _run(argv, capsys)
         assert code in (0, 2), err
         assert _snapshot(d) == before
         if code == 2:
-            _one_error(err)
-            assert _snapshot(out) == before_out, "a refused run wrote into the output folder"
+            line = _one_error(err)
+            if str(out) in line:  # the folder, not an input, is refused: naming its files
+                assert "mine.txt" in line or "noise.json" in line, line
+            if before_out is None:
+                assert not out.exists(), "a refused run left its output folder"
+            else:
+                assert _snapshot(out) == before_out, "a refused run wrote into the output folder"
         else:
-            assert (out / "mine.txt").read_text() == "the user's file"
+            assert state not in ("user-file", "other-results") or overwrite, "not refused"
             assert (out / "drive.yaml").is_file()
+            if state == "user-file":
+                assert (out / "mine.txt").read_text() == "the user's file"
+            for w in (ln for ln in err.splitlines() if "warning:" in ln):
+                assert str(d) in w or "drive.yaml" in w, f"a warning naming no file: {w}"
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(opts=st.lists(st.tuples(st.sampled_from(_DYN_OPTIONS), st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.sampled_from(["", "abc", "1e999", "-0", "1000", "-1", "90", "180", "0.5"]))),
+    min_size=1, max_size=3))
+def test_property_dynamic_options_out_of_range_are_refused_when_parsed(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    opts: list[tuple[str, str]],
+) -> None:
+    """Whatever the values, an option is refused at parse time naming it, or taken; the
+    run is stopped at parse time by an invalid --max-windows after them, so that nothing
+    is computed: exit 2, one line naming one of the options, nothing written."""
+    out = tmp_path / "out"
+    flat = [x for o, v in opts for x in (o, f"={v}")]
+    argv = ["dynamic", str(sim), "-o", str(out), *[a + b if b.startswith("=") else a
+                                                     for a, b in zip(flat[::2], flat[1::2],
+                                                                     strict=True)],
+            "--max-windows", "0"]
+    code, err = _run(argv, capsys)
+    assert code == 2, err
+    line = _one_error(err)
+    assert any(f"argument {o}" in line for o, _ in opts) or "argument --max-windows" in line
+    assert not out.exists()
 
 
 # ----------------------------------------------------------------------------- real formats
@@ -646,7 +766,11 @@ def test_12_vn100_nan_yaw_and_frozen_fixes_are_counted(
     g["latitude"], g["longitude"] = g["latitude"].iloc[0], g["longitude"].iloc[0]
     g.to_csv(gps, index=False)
     drive = read_drive([imu, gps])
-    assert drive.counts["attitude_nan"] == df.shape[0] and drive.attitude is None
+    # the yaw is named and left out; the roll and pitch of every sentence are kept
+    assert drive.counts["attitude_yaw_nan"] == df.shape[0] and "attitude_nan" not in drive.counts
+    assert drive.attitude is not None and drive.attitude.yaw_rad is None
+    assert drive.attitude.t.size == df.shape[0]
+    assert any("yaw has no finite value" in w and imu.name in w for w in drive.warnings)
     assert drive.counts["gnss_one_spot"] == g.shape[0] - drive.counts.get("gnss_no_fix", 0)
     assert any("one spot" in w and gps.name in w for w in drive.warnings)
 
@@ -667,3 +791,299 @@ def test_a_drive_yaml_in_a_log_directory_is_read(
     assert drive.settings.vehicle.max_tilt_deg == 4.0
     assert not any("no drive.yaml" in a for a in drive.settings.assumed)
     assert "vehicle.max_tilt_deg" not in drive.settings.defaulted
+
+
+# ----------------------------------------------------------------------------- issue 36
+# `imubounds dynamic` on spoiled drives, from the command line: an error names the file or
+# option and the problem (exit 2, nothing written), a suspicious input is a warning naming
+# it (exit 0, even with -q), dynamic.json is strict JSON (no NaN, no Infinity), and no file
+# outside the run's output folder changes.
+DYN = ["--mode", "full", "--no-plot", "--no-report", "-q"]
+
+
+def _strict_json(p: Path) -> object:
+    def refuse(name: str) -> object:
+        raise AssertionError(f"{p.name} holds {name}")
+    return json.loads(p.read_text(), parse_constant=refuse)
+
+
+def _truth_lines(edit: Callable[[list[str]], None]) -> Callable[[Path], None]:
+    def spoil(d: Path) -> None:
+        lines = (d / "truth.csv").read_text().splitlines()
+        edit(lines)
+        (d / "truth.csv").write_text("\n".join(lines) + "\n")
+    return spoil
+
+
+def _swap_rows(lines: list[str]) -> None:
+    lines[20], lines[21] = lines[21], lines[20]
+
+
+def _repeat_row(lines: list[str]) -> None:
+    lines.insert(21, lines[20])
+
+
+def _cut_after_position(lines: list[str]) -> None:
+    """Data row 20 cut after east_m, north_m (a short row: the rest of it empty)."""
+    lines[20] = ",".join(lines[20].split(",")[:3])
+
+
+def _one_fix_beside_velocity(d: Path) -> None:
+    _csv(d, "gnss.csv", lambda g: g.iloc[:1])
+    t = pd.read_csv(d / "truth.csv")
+    pd.DataFrame({"time_s": t["time_s"], "u_mps": t["u_mps"], "v_mps": t["v_mps"]}).to_csv(
+        d / "velocity.csv", index=False)
+
+
+DYN_BAD = [
+    Bad("36-heading-deviation-1000", lambda d: None, ("--heading-deviation", "at most 180"),
+        command="dynamic", extra=("--heading-deviation", "1000")),
+    Bad("36-max-tilt-100", lambda d: None, ("--max-tilt", "at most 90"),
+        command="dynamic", extra=("--max-tilt", "100")),
+    Bad("36-gnss-velocity-sigma-0", lambda d: None, ("--gnss-vel-sigma", "> 0"),
+        command="dynamic", extra=("--gnss-vel-sigma", "0")),
+    Bad("36-truth-rows-out-of-order", _truth_lines(_swap_rows),
+        ("truth.csv", "not strictly increasing", "data row 21", "sort"), command="dynamic"),
+    Bad("36-truth-row-repeated", _truth_lines(_repeat_row),
+        ("truth.csv", "not strictly increasing", "data row 21"), command="dynamic"),
+    Bad("36-one-gyro-sample-1e300", _imu_col("gyro_x_rads", 1e300, 3000),
+        ("imu.csv", "gyro_x", "t=60.000", "data row 3001", "corrupt"), command="dynamic"),
+    Bad("36-one-accel-sample-1e300", _imu_col("accel_y_mps2", -1e300, 3000),
+        ("imu.csv", "accel_y", "400 g", "corrupt"), command="dynamic"),
+    Bad("36-gyro-x-y-in-deg-s", _scale_cols(("gyro_x_rads", "gyro_y_rads"), 180 / np.pi),
+        ("imu.csv", "gyro_x", "deg/s while read as rad/s", "convert gyro_x to rad/s"),
+        command="dynamic"),
+    Bad("36-gyro-x-in-deg-s", _scale_cols(("gyro_x_rads",), 180 / np.pi),
+        ("imu.csv", "gyro_x", "deg/s"), command="dynamic"),
+    Bad("36-gnss-all-nan", lambda d: _csv(d, "gnss.csv", lambda g: g.assign(lat_deg=np.nan)),
+        ("gnss.csv", "lat_deg", "no finite value"), command="dynamic"),
+    Bad("36-heading-stream-empty", lambda d: _csv(d, "heading.csv", lambda h: h.iloc[:0]),
+        ("heading.csv", "no data rows"), command="dynamic"),
+    Bad("36-drive-yaml-notes-mapping",
+        lambda d: (d / "drive.yaml").write_text((d / "drive.yaml").read_text()
+                                                + "notes: {a: 1}\n"),
+        ("drive.yaml", "notes must be a text or a list"), command="dynamic"),
+]
+
+
+@pytest.mark.parametrize("case", DYN_BAD, ids=[c.name for c in DYN_BAD])
+def test_36_dynamic_refuses_bad_drives_naming_file_and_problem(
+    case: Bad, sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = _copy(sim, tmp_path / "drive")
+    case.spoil(d)
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out"
+    code, err = _run(["dynamic", str(d), "-o", str(out), *DYN, *case.extra], capsys)
+    assert code == 2, f"{case.name}: exit {code}: {err}"
+    line = _one_error(err)
+    for needle in case.needles:
+        assert needle in line, f"{case.name}: {needle!r} not in {line!r}"
+    assert _snapshot(tmp_path) == before, "a file changed, or the refused run wrote one"
+
+
+@dataclass
+class Warned:
+    name: str
+    spoil: Callable[[Path], None]
+    needles: tuple[str, ...]
+    check: Callable[[dict[str, object]], None] | None = None
+
+
+def _heading_share_survives(doc: dict[str, object]) -> None:
+    enc = doc["modes"]["full"]["enclosure"]  # type: ignore[index]
+    assert enc.get("heading") is not None and enc["heading"] > 0.9, enc  # was dropped
+
+
+DYN_WARNED = [
+    Warned("36-gyro-z-all-nan", _imu_col("gyro_z_rads", np.nan),
+           ("imu.csv", "gyro_z_rads", "no value in any of its 7501 rows", "absent")),
+    Warned("36-one-gnss-fix-beside-heading-and-velocity", _one_fix_beside_velocity,
+           ("gnss.csv", "only one fix", "t=0.000")),
+    Warned("36-truth-short-row", _truth_lines(_cut_after_position),
+           ("truth.csv", "data row 20", "heading_deg", "short row"), _heading_share_survives),
+    # the neighbours: another gyro axis, an accelerometer axis, one NaN truth heading
+    Warned("36-gyro-x-all-nan", _imu_col("gyro_x_rads", np.nan),
+           ("imu.csv", "gyro_x_rads", "no value in any of its 7501 rows", "absent")),
+    Warned("36-accel-z-all-nan", _imu_col("accel_z_mps2", np.nan),
+           ("imu.csv", "accel_z_mps2", "no value in any of its 7501 rows", "absent")),
+    Warned("36-truth-one-nan-heading",
+           lambda d: _csv(d, "truth.csv", lambda t: t.assign(
+               heading_deg=t["heading_deg"].where(t.index != 300))),
+           ("truth.csv", "data row 301", "heading_deg", "left out of the truth check"),
+           _heading_share_survives),
+]
+
+
+@pytest.mark.parametrize("case", DYN_WARNED, ids=[c.name for c in DYN_WARNED])
+def test_36_dynamic_warns_naming_file_and_problem(
+    case: Warned, sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = _copy(sim, tmp_path / "drive")
+    case.spoil(d)
+    before = _snapshot(d)
+    out = tmp_path / "out"
+    code, err = _run(["dynamic", str(d), "-o", str(out), *DYN], capsys)
+    assert code == 0, f"{case.name}: exit {code}: {err}"
+    warned = [ln for ln in err.splitlines() if ln.startswith("imubounds: warning:")]
+    assert any(all(n in ln for n in case.needles) for ln in warned), (case.needles, err)
+    assert _snapshot(d) == before, "an input was changed"
+    doc = _strict_json(out / "dynamic.json")
+    assert any(all(n in w for n in case.needles)
+               for w in doc["input"]["warnings"])  # type: ignore[index]
+    if case.check is not None:
+        case.check(doc)  # type: ignore[arg-type]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive", "out"]
+
+
+def test_36_vn100_log_with_nan_yaw_on_every_row_is_named_by_dynamic(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = shared_data / "dynamic" / "vn100_bu353_circle"
+    d = tmp_path / "vn"
+    d.mkdir()
+    df = pd.read_csv(src / "circle_data_0_imu.csv")
+    df["raw_vnymr"] = df["raw_vnymr"].str.replace(
+        r"^\$VNYMR,[+-][0-9.]+,", "$VNYMR,nan,", regex=True)
+    df.to_csv(d / "circle_data_0_imu.csv", index=False)
+    shutil.copy(src / "circle_data_0_gps.csv", d)
+    before = _snapshot(d)
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    assert any("circle_data_0_imu.csv" in ln and "yaw has no finite value in 2530 row(s)" in ln
+               for ln in err.splitlines() if ln.startswith("imubounds: warning:")), err
+    assert _snapshot(d) == before
+    _strict_json(tmp_path / "out" / "dynamic.json")
+
+
+def test_36_the_truth_check_projects_at_the_truths_altitude() -> None:
+    """A truth in lat/lon/alt_m at 1,600 m and an estimator origin 2 km away at 1,610 m:
+    truth_at gives the ENU the GNSS frame has (pymap3d, independently), to a millimetre.
+    Projected at h = 0, as before, it was 0.5 m off at 2 km (the 49.9 % of the issue on
+    a longer trip)."""
+    import pymap3d
+
+    from imubounds.dynamic.estimator.result import truth_at
+    from imubounds.io.drive import Drive
+    from imubounds.io.drive.layout import truth_from_table
+
+    t = np.arange(0.0, 300.0, 1.0)
+    ang = 2 * np.pi * t / 300.0
+    e, n, u = 3000 * np.cos(ang), 3000 * np.sin(ang), 20 * np.sin(3 * ang)
+    org = (45.0, 7.0, 1600.0)
+    lat, lon, alt = pymap3d.enu2geodetic(e, n, u, *org)
+    heading = np.degrees(ang) % 360
+    heading[40] = np.nan  # one NaN heading row: the rest keeps its share
+    df = pd.DataFrame({"time_s": t, "lat_deg": lat, "lon_deg": lon, "alt_m": alt,
+                       "heading_deg": heading})
+    drive = Drive(truth=truth_from_table(df, "truth.csv"))
+    gnss_org = pymap3d.enu2geodetic(2000.0, 0.0, 10.0, *org)
+    tr = truth_at(drive, t[5:-5] + 0.5, gnss_org)
+    ee, nn, _ = pymap3d.geodetic2enu(lat, lon, alt, *gnss_org)
+    assert np.max(np.abs(tr["east"] - np.interp(t[5:-5] + 0.5, t, ee))) < 1e-3
+    assert np.max(np.abs(tr["north"] - np.interp(t[5:-5] + 0.5, t, nn))) < 1e-3
+    psi = tr["psi"]
+    assert np.isnan(psi[34]) and np.isnan(psi[35]) and np.isfinite(psi).sum() == psi.size - 2
+
+
+def _truth_at_1600_m_rtk(d: Path) -> None:
+    """The drive moved to 1,600 m, its truth written as lat_deg, lon_deg, alt_m and its GNSS
+    replaced by 2 cm fixes of the truth (h_acc_m 0.02): boxes of about 0.1 m."""
+    import pymap3d
+
+    tr = pd.read_csv(d / "truth.csv")
+    org = (float(tr["origin_lat_deg"][0]), float(tr["origin_lon_deg"][0]), 1600.0)
+    lat, lon, alt = pymap3d.enu2geodetic(tr["east_m"], tr["north_m"], tr["up_m"], *org)
+    out = tr.drop(columns=["east_m", "north_m", "origin_lat_deg", "origin_lon_deg",
+                           "origin_alt_m", "up_m"])
+    out.insert(1, "lat_deg", lat)
+    out.insert(2, "lon_deg", lon)
+    out.insert(3, "alt_m", alt)
+    out.to_csv(d / "truth.csv", index=False)
+    rng = np.random.default_rng(4)
+
+    def f(g: pd.DataFrame) -> None:
+        e = np.interp(g["time_s"], tr["time_s"], tr["east_m"]) + rng.normal(0, 0.02, len(g))
+        n = np.interp(g["time_s"], tr["time_s"], tr["north_m"]) + rng.normal(0, 0.02, len(g))
+        u = np.interp(g["time_s"], tr["time_s"], tr["up_m"])
+        g["lat_deg"], g["lon_deg"], g["alt_m"] = pymap3d.enu2geodetic(e, n, u, *org)
+        g["h_acc_m"] = 0.02
+    _csv(d, "gnss.csv", f)
+
+
+def test_36_the_truth_check_of_dynamic_at_1600_m(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """From the command line: 2 cm GNSS boxes at 1,600 m, truth in lat/lon/alt_m. The check
+    projected the truth at h = 0 and printed "truth inside: position 87.4%" (the boxes
+    hold the truth: the check was wrong); at the truth's own height it is 100 %."""
+    d = _copy(sim, tmp_path / "drive")
+    _truth_at_1600_m_rtk(d)
+    before = _snapshot(d)
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    enc = _strict_json(tmp_path / "out" / "dynamic.json")["modes"]["full"]["enclosure"]  # type: ignore[index]
+    assert enc["position"] == 1.0, enc
+    assert _snapshot(d) == before
+
+
+def test_36_drive_yaml_notes_may_be_one_text(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """notes as one text (the docs do not forbid it) was refused; now read as one note, from
+    the command line too (convert writes it back, the input untouched)."""
+    import yaml
+
+    d = _copy(sim, tmp_path / "drive")
+    (d / "drive.yaml").write_text((d / "drive.yaml").read_text() + "notes: logged by Ana\n")
+    assert "logged by Ana" in read_drive(d).notes
+    before = _snapshot(d)
+    code, err = _run(["convert", str(d), "-o", str(tmp_path / "out"), "-q"], capsys)
+    assert code == 0, err
+    assert "logged by Ana" in yaml.safe_load((tmp_path / "out" / "drive.yaml").read_text())[
+        "notes"]
+    assert _snapshot(d) == before
+
+
+def test_36_the_budget_says_where_each_number_came_from(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """GNSS velocities with the receiver's accuracy at every other fix: the budget row of
+    the velocity sigma names the receiver for those and drive.yaml's 0.1 m/s for the rest
+    (it said "0.1, drive.yaml" while the per-fix accuracies were used); a setting the
+    drive.yaml leaves out is "default (drive.yaml silent)", never "drive.yaml"."""
+    d = _copy(sim, tmp_path / "drive")
+    tr = pd.read_csv(d / "truth.csv")
+
+    def f(g: pd.DataFrame) -> None:
+        g["vel_e_mps"] = np.interp(g["time_s"], tr["time_s"], tr["vel_e_mps"])
+        g["vel_n_mps"] = np.interp(g["time_s"], tr["time_s"], tr["vel_n_mps"])
+        g["vel_acc_mps"] = np.where(np.arange(len(g)) % 2 == 0, 0.05, np.nan)
+    _csv(d, "gnss.csv", f)
+    _yaml(d, "  cep_m: 3.0\n", "")
+    code, err = _run(["dynamic", str(d), "-o", str(tmp_path / "out"), *DYN], capsys)
+    assert code == 0, err
+    doc = _strict_json(tmp_path / "out" / "dynamic.json")
+    budget = doc["modes"]["full"]["aiding_budget"]  # type: ignore[index]
+    rows = {t["term"]: t for t in budget["gnss_velocity"]}
+    sigma = rows["velocity sigma per component"]
+    n = len(pd.read_csv(d / "gnss.csv"))
+    assert sigma["source"] == (f"receiver's vel_acc_mps at {(n + 1) // 2} of {n} fixes "
+                               "(median); drive.yaml 0.1 m/s at the others"), sigma
+    assert sigma["value"] == pytest.approx(0.05 if n % 2 else 0.075)
+    cep = {t["term"]: t for t in budget["gnss_position"]}["CEP at HDOP 1"]
+    assert cep["source"] == "default (drive.yaml silent)", cep
+
+
+def test_36_simulate_refuses_options_that_make_an_unreadable_drive_yaml(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--misalignment 100 (a sigma: the bound written is 334 deg) used to write a layout
+    that every reader refused; now the option is named and nothing is written."""
+    out = tmp_path / "sim"
+    code, err = _run(["simulate", "--duration", "150", "--distance", "1500", "--rate", "20",
+                      "-o", str(out), "--misalignment", "100", "-q"], capsys)
+    assert code == 2
+    line = _one_error(err)
+    assert "--misalignment" in line and "imu.misalignment_deg must be at most 90" in line
+    assert list(tmp_path.iterdir()) == []

@@ -312,15 +312,19 @@ def test_terminal_table_columns_are_separated(
                  "--models", "none"])  # fmt: skip
     assert code == 0
     out = capsys.readouterr().out
-    rows = [ln for ln in out.splitlines() if ln.startswith(("channel", "gyro", "accel"))]
-    assert len(rows) == 4  # a header and a row per sensor kind
-    for header, row in ((rows[0], rows[1]), (rows[2], rows[3])):
+    rows = [ln for ln in out.splitlines() if ln.startswith(("gyro", "accel"))]
+    # the answer: a header and a row per sensor kind, N B K in datasheet and SI units;
+    # then the IEEE 952 units with sigma_min and the bounds
+    assert len(rows) == 8, out
+    for header, row, n in ((rows[0], rows[1], 7), (rows[2], rows[3], 7),
+                           (rows[4], rows[5], 7), (rows[6], rows[7], 7)):  # fmt: skip
         cells_h = re.split(r"\s{2,}", header.strip())
         cells_r = re.split(r"\s{2,}", row.strip())
-        assert len(cells_h) == len(cells_r) == 10, (cells_h, cells_r)
+        assert len(cells_h) == len(cells_r) == n, (cells_h, cells_r)
         assert len(header) == len(row)
-    assert "deg/h^0.5" in rows[0] and "deg/s/sqrt(Hz)" in rows[0]
-    assert "ug/sqrt(Hz)" in rows[2]
+    assert "deg/s/sqrt(Hz)" in rows[0] and "rad/s^0.5" in rows[0]
+    assert "ug/sqrt(Hz)" in rows[2] and "m/s^1.5" in rows[2]
+    assert "deg/h^0.5" in rows[4]
 
 
 def test_robust_needs_the_in_memory_path(

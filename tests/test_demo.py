@@ -15,6 +15,7 @@ import yaml
 
 from imubounds.cli import main
 from imubounds.export import FORMATS
+from imubounds.io import bundled_static_log
 
 FIRST_SCREEN_PROBE = """<script>
 window.addEventListener('load', function () {
@@ -65,7 +66,32 @@ def test_demo_tells_one_story_and_its_report_answers_first(
     for fmt in FORMATS:  # every format, stationary and in motion, loads as YAML
         for name in (f"{fmt}.yaml", f"{fmt}_motion.yaml"):
             assert isinstance(yaml.safe_load((out / "filter" / name).read_text()), dict), name
+    # one set of defaults: the demo's noise figures are a plain 'imubounds static''s
+    plain = Path("plain")
+    assert main(["static", str(bundled_static_log()), "-o", str(plain), "--no-plot",
+                 "--no-report", "-q"]) == 0  # fmt: skip
+    demo_doc = json.loads((out / "static" / "noise.json").read_text())
+    plain_doc = json.loads((plain / "noise.json").read_text())
+    assert demo_doc["settings"] == plain_doc["settings"]
+    assert json.dumps(demo_doc["channels"], sort_keys=True) == json.dumps(
+        plain_doc["channels"], sort_keys=True)
+    # a verdict within 5 % of its band is marked fragile, in dynamic.json and the report
+    full = dyn["modes"]["full"]
+    for ch in full["fragile_verdicts"]:
+        assert full["verdict_detail"][ch]["fragile_detail"].startswith("FRAGILE")
     html = (out / "report.html").read_text()
+    for ch in full["fragile_verdicts"]:
+        assert f"{full['verdict'][ch]} — FRAGILE (not decided)" in html
+    # every command of the run, the simulation and each export included
+    reproduce = html[html.index("id='reproduce'"):]
+    for step in ("imubounds demo", "imubounds static", "imubounds simulate",
+                 "imubounds dynamic"):  # fmt: skip
+        assert step in reproduce, step
+    assert reproduce.count("imubounds export") == 2 * len(FORMATS)
+    from imubounds.report.html import build_report
+
+    again = build_report(out)  # 'imubounds report out' later: the commands from run.json
+    assert again[again.index("id='reproduce'"):].count("imubounds export") == 2 * len(FORMATS)
     assert "Summary — adis16405_imu1_extract.csv.gz" in html
     assert "Stationary characterisation" in html and "Dynamic error margins" in html
     assert html.count("<section id='dynamic") == 1

@@ -183,3 +183,30 @@ def test_every_code_reference_of_the_dynamic_method_exists() -> None:
     assert _resolve_code_ref("smoother.no_such_function") not in (None, "ok")
     assert _resolve_code_ref("inputs.gnss_outliers") not in (None, "ok")
     assert _resolve_code_ref("sensors.gnss.gnss_outliers") == "ok"
+
+
+def test_a_broken_link_or_anchor_fails_the_docs_build(tmp_path: Path) -> None:
+    """The site's link checks (mkdocs.yml ``validation``: every kind at ``warn``, and
+    ``strict``) make a broken anchor or a link to a missing page an error of ``make docs``:
+    a two-page site with those settings fails on each and builds without them."""
+    conf = yaml.safe_load((REPO / "mkdocs.yml").read_text(encoding="utf-8"))
+    assert conf["strict"] is True
+    assert conf["validation"] == {k: "warn" for k in (
+        "omitted_files", "absolute_links", "unrecognized_links", "anchors")}
+
+    def build(link: str) -> subprocess.CompletedProcess[str]:
+        site = tmp_path / link.replace("/", "_").replace("#", "_").replace(".", "_")
+        (site / "docs").mkdir(parents=True)
+        (site / "docs" / "index.md").write_text(f"# Home\n\nSee [there]({link}).\n")
+        (site / "docs" / "other.md").write_text("# Other\n\n## A section {#kept}\n")
+        (site / "mkdocs.yml").write_text(yaml.safe_dump({
+            "site_name": "t", "strict": True, "validation": conf["validation"],
+            "markdown_extensions": ["attr_list"], "nav": ["index.md", "other.md"]}))
+        return subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f",
+                               str(site / "mkdocs.yml"), "-d", str(site / "site")],
+                              capture_output=True, text=True, timeout=300)  # fmt: skip
+
+    assert build("other.md#kept").returncode == 0
+    bad_anchor = build("other.md#gone")
+    assert bad_anchor.returncode != 0 and "does not contain an anchor" in bad_anchor.stderr
+    assert build("missing.md").returncode != 0

@@ -167,7 +167,7 @@ def test_convert_refuses_to_overwrite_and_writes_nothing_on_error(
     (out / "imu.csv").write_text("mine\n")
     src = str(DRIVES / "vn100_drive_ros2")
     assert main(["convert", src, "-o", str(out)]) == 2
-    assert "imubounds did not write" in capsys.readouterr().err
+    assert "imubounds did not write: imu.csv" in capsys.readouterr().err
     assert (out / "imu.csv").read_text() == "mine\n"
     assert main(["convert", src, "-o", str(out), "--force", "-q"]) == 0
     assert (out / "imu.csv").read_text().startswith("time_s,")

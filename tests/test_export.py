@@ -3,8 +3,9 @@
 The noise.json below is made by hand (known N, K, B per axis, one K unresolved), so
 each exported number is checked against its definition: continuous-time densities
 for Kalibr/OpenVINS/GTSAM, per-sample figures for VINS and ROS (sqrt of the rate).
-No filter's own parser (Kalibr, OpenVINS/OpenCV FileStorage, GTSAM) is installed in
-the test environment, so each file is loaded with yaml.safe_load only.
+Here each file is loaded with yaml.safe_load; tests/test_export_parsers.py reads them with
+the consumers' own parsers (OpenCV FileStorage, GTSAM, rosbags) and propagates the
+consumers' covariances.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import yaml
 import imubounds as ib
 from imubounds.cli import main
 from imubounds.errors import InputError, OptionError
+from imubounds.export import FORMATS
 
 RATE = 200.0  # Hz
 
@@ -59,6 +61,27 @@ def known_noise() -> dict[str, Any]:
     }
 
 
+def explained(text: str, key: str) -> str:
+    """The comment lines just before ``key`` (its unit and conversion) and the key's line."""
+    lines = text.splitlines()
+    i = next(j for j, ln in enumerate(lines) if ln.strip().startswith(f"{key}:"))
+    j = i
+    while j > 0 and lines[j - 1].strip().startswith("#"):
+        j -= 1
+    return "\n".join(lines[j : i + 1])
+
+
+def test_no_comment_inside_a_value() -> None:
+    """Comments on their own lines: OpenCV reads an unquoted text value to the end of its
+    line (a comment beside 'rostopic: /imu0' became part of the topic)."""
+    for fmt in FORMATS:
+        for motion in (None, {"format": "imubounds.motion/1", "channels": {"gyro_y": {"F": 2.0}}}):
+            text = ib.export_noise(known_noise(), fmt, motion=motion)
+            for ln in text.splitlines():
+                if not ln.strip().startswith("#"):
+                    assert "#" not in ln, (fmt, ln)
+
+
 def _kind(kind: str, i: int) -> list[float]:
     return [TRUE[f"{kind}_{a}"][i] for a in "xyz"]
 
@@ -82,7 +105,7 @@ def test_kalibr_and_openvins_are_continuous_time_densities_of_the_worst_axis() -
 
 def test_the_unresolved_random_walk_is_its_upper_bound_flagged() -> None:
     text = ib.export_noise(known_noise(), "kalibr")
-    line = next(x for x in text.splitlines() if x.startswith("gyroscope_random_walk"))
+    line = explained(text, "gyroscope_random_walk")
     assert "gyro_z" in line and "UPPER BOUND" in line
     # discrete form written beside it: sigma_bd = sigma_b / sqrt(f)
     assert f"{5.0e-6 / math.sqrt(RATE):.6e}" in line
@@ -90,11 +113,11 @@ def test_the_unresolved_random_walk_is_its_upper_bound_flagged() -> None:
     assert "bias instability" in text and "B gyro_x" in text
 
 
-def test_vins_is_per_sample_sigma() -> None:
+def test_vins_is_per_sample_sigma_with_its_mid_point_factor() -> None:
     v = yaml.safe_load(ib.export_noise(known_noise(), "vins"))
-    sq = math.sqrt(RATE)  # sigma_d = N * sqrt(f); acc_w = K * sqrt(f)
-    assert v["acc_n"] == pytest.approx(4.0e-3 * sq, rel=1e-6)
-    assert v["gyr_n"] == pytest.approx(3.0e-4 * sq, rel=1e-6)
+    sq = math.sqrt(RATE)  # acc_n = sqrt(2) N sqrt(f) (its mid-point rule); acc_w = K sqrt(f)
+    assert v["acc_n"] == pytest.approx(math.sqrt(2) * 4.0e-3 * sq, rel=1e-6)
+    assert v["gyr_n"] == pytest.approx(math.sqrt(2) * 3.0e-4 * sq, rel=1e-6)
     assert v["acc_w"] == pytest.approx(9.0e-5 * sq, rel=1e-6)
     assert v["gyr_w"] == pytest.approx(5.0e-6 * sq, rel=1e-6)
 
@@ -133,8 +156,8 @@ def test_motion_factor_multiplies_n_and_k() -> None:
     # the worst axis has no in-motion factor: its line says so (it is no in-motion bound)
     unanalysed = {"format": "imubounds.motion/1", "channels": {"gyro_x": {"F": 2.0}}}
     text = ib.export_noise(known_noise(), "kalibr", motion=unanalysed)
-    line = next(ln for ln in text.splitlines() if ln.startswith("gyroscope_noise_density"))
-    assert "of gyro_y" in line and "NO FACTOR for gyro_y" in line, line
+    line = explained(text, "gyroscope_noise_density")
+    assert "of axis gyro_y" in line and "NO FACTOR for gyro_y" in line, line
     # in-motion figures of another noise model are refused, naming the channel
     other = {"format": "imubounds.motion/1",
              "channels": {"gyro_y": {"F": 3.0, "N_static": 1.0e-3}}}  # fmt: skip
@@ -150,7 +173,11 @@ def test_cli_export_writes_the_file_and_a_summary(tmp_path: Path, capsys: Any) -
     nj.write_text(json.dumps(known_noise()), encoding="utf-8")
     out = tmp_path / "imu.yaml"
     assert main(["export", str(tmp_path), "--format", "kalibr", "-o", str(out)]) == 0
-    assert "wrote" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "wrote" in printed
+    # the values it wrote, each with its unit
+    assert "gyroscope_noise_density: 3.000000e-04  [rad/s/sqrt(Hz)]" in printed
+    assert "update_rate: 200  [Hz]" in printed
     assert yaml.safe_load(out.read_text())["update_rate"] == RATE
     assert main(["export", str(nj), "--format", "bogus"]) == 2
     assert main(["export", str(tmp_path / "nothing"), "--format", "ros"]) == 2

@@ -350,7 +350,8 @@ def test_cli_fleet_writes_run_json_last_and_the_report_shows_the_command(
     assert main(argv) == 0  # an earlier run of another command in the same folder
     argv = ["fleet", str(fleet_dir / "unit0[01].csv.gz"), "-o", str(out), "--workers", "0",
             "-q", "--no-plot"]  # fmt: skip
-    assert main(argv) == 0
+    assert main(argv) == 2  # another command's results there: refused, unless --overwrite
+    assert main([*argv, "--overwrite"]) == 0
     run = json.loads((out / "run.json").read_text())
     assert run["command_name"] == "fleet" and run["complete"] is True
     assert run["command"].startswith("imubounds fleet ") and "--workers 0" in run["command"]

@@ -44,8 +44,11 @@ def test_foreign_file_is_not_overwritten_without_force(tmp_path: Path) -> None:
 
 def test_rerun_overwrites_its_own_files_and_keeps_others(tmp_path: Path) -> None:
     _run(tmp_path, ["a.txt"])
+    _run(tmp_path, ["a.txt", "c.txt"])  # its own files only: no question asked
     (tmp_path / "notes.md").write_text("user")
-    _run(tmp_path, ["a.txt", "b.txt"])
+    with pytest.raises(OutputError, match=r"did not write: notes.md; .*--overwrite"):
+        _run(tmp_path, ["a.txt", "b.txt"])
+    _run(tmp_path, ["a.txt", "b.txt"], force=True)  # --overwrite: written beside them
     assert (tmp_path / "notes.md").read_text() == "user"
     assert json.loads((tmp_path / "run.json").read_text())["files"] == ["a.txt", "b.txt"]
 
@@ -120,8 +123,8 @@ def test_output_file_interrupted_leaves_nothing(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------- a run killed in the middle of its commit
-def _set(target: Path, tag: str, names: list[str]) -> None:
-    with OutputSet(target) as out:
+def _set(target: Path, tag: str, names: list[str], force: bool = False) -> None:
+    with OutputSet(target, force=force) as out:
         for n in names:
             write_text(out.path(n), f"{tag}:{n}")
         out.record(["test", tag], command_name="test")
@@ -180,7 +183,7 @@ def test_kill_at_every_step_of_a_commit_never_leaves_a_set_that_looks_complete(
 
             os.replace = dying  # type: ignore[assignment]
             try:
-                _set(target, "new", tags["new"])
+                _set(target, "new", tags["new"], force=True)
             finally:
                 os._exit(0)
         os.waitpid(pid, 0)
@@ -188,7 +191,7 @@ def test_kill_at_every_step_of_a_commit_never_leaves_a_set_that_looks_complete(
         assert (target / "notes.md").read_text() == "the user's notes"
         assert tag in (None, "old", "new"), k
         # the next run recognises every file of both runs: no refusal, a clean directory
-        _set(target, "again", tags["new"])
+        _set(target, "again", tags["new"], force=True)
         assert _check_complete_or_absent(target, {**tags, "again": tags["new"]}) == "again"
         hidden = sorted(p.name for p in target.iterdir() if p.name.startswith("."))
         assert hidden == [], (k, hidden)
@@ -261,12 +264,15 @@ def _kill_runs(
             else:
                 assert f"complete results had been written to {target}" in err, err
                 assert now is not None and now != before
-    # a last run without --force: every earlier file is recognised, nothing is left over
+    # a last run: nothing of the interrupted runs is left over beside its set
     final = subprocess.run([sys.executable, "-m", "imubounds", *argv_of("a")],
                            capture_output=True, text=True, check=False)
     assert final.returncode == 0, final.stderr
-    check_set(json.loads((target / "run.json").read_text())["command"])
+    rec = json.loads((target / "run.json").read_text())
+    check_set(rec["command"])
     assert (target / "notes.md").read_text() == "the user's notes"
+    left = {str(p.relative_to(target)) for p in target.rglob("*") if p.is_file()}
+    assert left == {*rec["files"], "run.json", "notes.md"}, left
     assert not [p for p in target.iterdir() if p.name.startswith(".imubounds")]
     assert not [p for p in parent.iterdir() if p.name.startswith(f".{target.name}.imubounds-")]
 
@@ -295,7 +301,7 @@ def test_static_killed_at_random_points_leaves_old_set_or_new_set(tmp_path: Path
 
     def argv_of(tag: str) -> list[str]:
         return ["static", str(tmp_path / f"log_{tag}.csv"), "-o", str(target), "-q",
-                "--models", "none"]
+                "--models", "none", "--overwrite"]  # beside the user's notes
 
     def check_set(command: str) -> None:
         tag = "a" if "log_a.csv" in command else "b"
@@ -313,7 +319,7 @@ def test_simulate_killed_at_random_points_leaves_old_set_or_new_set(tmp_path: Pa
 
     def argv_of(tag: str) -> list[str]:
         return ["simulate", "--seed", "1" if tag == "a" else "2", "--duration", "200",
-                "--distance", "2000", "-o", str(target), "-q"]
+                "--distance", "2000", "-o", str(target), "-q", "--overwrite"]
 
     def check_set(command: str) -> None:
         seed = 1 if "--seed 1" in command else 2
@@ -321,3 +327,157 @@ def test_simulate_killed_at_random_points_leaves_old_set_or_new_set(tmp_path: Pa
         assert scen["config"]["seed"] == seed, "scenario.json of another run"
 
     _kill_runs(tmp_path, argv_of, target, check_set, KILL_PLAN[:3])
+
+
+# ------------------------------------- Ctrl-C injected at every step of the commit sequence
+class _InterruptAt:
+    """Patch the file-system calls of a commit (rename, unlink, open, mkdir, rmdir) so
+    that call number ``k`` raises KeyboardInterrupt (once), as a Ctrl-C at that instant
+    would if nothing held it back; ``k = 0`` only counts."""
+
+    NAMES = ("replace", "unlink", "open", "mkdir", "rmdir")
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, k: int) -> None:
+        self.k, self.calls = k, 0
+        for name in self.NAMES:
+            real = getattr(os, name)
+            monkeypatch.setattr(os, name, self._wrap(real))
+
+    def _wrap(self, real: Callable[..., object]) -> Callable[..., object]:
+        def call(*a: object, **kw: object) -> object:
+            self.calls += 1
+            if self.calls == self.k:
+                raise KeyboardInterrupt
+            return real(*a, **kw)
+        return call
+
+
+def _tree(d: Path) -> dict[str, str]:
+    return {str(p.relative_to(d)): p.read_text() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def _set_of(d: Path) -> dict[str, str]:
+    """The files of ``d`` with run.json reduced to its command and file list."""
+    out = _tree(d)
+    if "run.json" in out:
+        rec = json.loads(out["run.json"])
+        out["run.json"] = f"{rec['command']} {rec['files']} {rec['complete']}"
+    return out
+
+
+def test_ctrl_c_at_every_step_of_a_commit_leaves_old_or_new_set_and_no_lock(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The old set has a.txt, sub/b.txt, c.txt; the new one rewrites a.txt and sub/b.txt,
+    adds d.txt and supersedes c.txt. A KeyboardInterrupt at any single file-system call,
+    from taking the lock to removing it, leaves exactly the old set or exactly the new
+    one, the user's file, no lock, no staging or backup folder, and a message-worthy
+    ``committed`` flag that says which."""
+    def setup(target: Path) -> None:
+        _set(target, "old", ["a.txt", "sub/b.txt", "c.txt"])
+        (target / "notes.md").write_text("the user's notes")
+
+    probe = tmp_path / "probe"
+    setup(probe)
+    old = _set_of(probe)
+    with monkeypatch.context() as m:
+        counter = _InterruptAt(m, 0)
+        _set(probe, "new", ["a.txt", "sub/b.txt", "d.txt"], force=True)
+    new = _set_of(probe)
+    assert "c.txt" not in new and new["d.txt"] == "new:d.txt"
+    assert counter.calls > 15
+    seen = set()
+    for k in range(1, counter.calls + 1):
+        target = tmp_path / f"t{k}"
+        setup(target)
+        out = None
+        with monkeypatch.context() as m:
+            _InterruptAt(m, k)
+            try:
+                out = OutputSet(target, force=True)
+                with out:
+                    for n in ("a.txt", "sub/b.txt", "d.txt"):
+                        write_text(out.path(n), f"new:{n}")
+                    out.record(["test", "new"], command_name="test")
+            except KeyboardInterrupt:
+                pass
+        now = _set_of(target)
+        base = {n: v for n, v in now.items() if n != "notes.md"}
+        want = old if not (out is not None and out.committed) else new
+        assert base == {n: v for n, v in want.items() if n != "notes.md"}, k
+        seen.add("new" if want is new else "old")
+        assert now["notes.md"] == "the user's notes"
+        assert not (target / LOCK_NAME).exists(), f"lock left at step {k}"
+        hidden = [p.name for p in target.iterdir() if p.name.startswith(".")]
+        assert hidden == [], (k, hidden)
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(f".t{k}.")], k
+    assert seen == {"old", "new"}
+
+
+def test_ctrl_c_at_every_step_of_a_single_file_leaves_old_or_new_and_no_lock(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from imubounds.io.outputs import FILES_RECORD, output_file
+
+    def write(dest: Path, text: str) -> None:
+        with output_file(dest) as tmp:
+            tmp.write_text(text)
+
+    probe = tmp_path / "probe"
+    probe.mkdir()
+    write(probe / "x.yaml", "old")
+    with monkeypatch.context() as m:
+        counter = _InterruptAt(m, 0)
+        write(probe / "x.yaml", "new")
+    for k in range(1, counter.calls + 1):
+        d = tmp_path / f"t{k}"
+        d.mkdir()
+        write(d / "x.yaml", "old")
+        with monkeypatch.context() as m:
+            _InterruptAt(m, k)
+            try:
+                write(d / "x.yaml", "new")
+            except KeyboardInterrupt:
+                pass
+        assert (d / "x.yaml").read_text() in ("old", "new"), k
+        names = sorted(p.name for p in d.iterdir())
+        assert names == [FILES_RECORD, "x.yaml"], (k, names)
+        write(d / "x.yaml", "again")  # still recognised as imubounds' own file
+        assert (d / "x.yaml").read_text() == "again"
+
+
+def test_a_set_is_refused_beside_other_files_other_commands_and_other_inputs(
+    tmp_path: Path,
+) -> None:
+    """What an output folder may hold without --overwrite: only the same command's
+    earlier results of the same input, unchanged."""
+    log_a, log_b = tmp_path / "a.csv", tmp_path / "b.csv"
+    log_a.write_text("a")
+    log_b.write_text("b")
+    out = tmp_path / "out"
+
+    def run(cmd: str, log: Path, names: list[str], force: bool = False) -> None:
+        with OutputSet(out, command=cmd, inputs=[log], force=force) as o:
+            for n in names:
+                write_text(o.path(n), f"{cmd}:{log.name}:{n}")
+            o.record(["test", cmd, str(log)])
+
+    run("static", log_a, ["noise.json", "fig.png"])
+    run("static", log_a, ["noise.json"])  # a re-run: fig.png superseded, no question
+    assert sorted(p.name for p in out.iterdir()) == ["noise.json", "run.json"]
+    before = _tree(out)
+    with pytest.raises(OutputError, match=r"other results: noise.json \(the results of .imub"):
+        run("static", log_b, ["noise.json"])  # another log's results
+    with pytest.raises(OutputError, match=r"holds other results: noise.json"):
+        run("simulate", log_a, ["imu.csv"])  # another command's results
+    (out / "noise.json").write_text("edited by the user")
+    before = _tree(out)
+    with pytest.raises(OutputError, match=r"changed since imubounds wrote them: noise.json"):
+        run("static", log_a, ["noise.json"])  # a result the user edited is the user's
+    assert _tree(out) == before
+    run("static", log_b, ["noise.json", "x.txt"], force=True)
+    assert (out / "noise.json").read_text() == "static:b.csv:noise.json"
+    for junk in (".DS_Store", "Thumbs.db"):  # what an operating system leaves is no file
+        (out / junk).write_text("")
+    run("static", log_b, ["noise.json"])
+    assert not (out / "x.txt").exists()

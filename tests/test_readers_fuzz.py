@@ -179,6 +179,39 @@ def test_csv_reader_never_crashes_hangs_or_writes(
     _fuzz_file(suffix, data, lambda p: _read_everything(p, on_gap))
 
 
+UNIT_TOKENS = st.sampled_from(["s", "ms", "rad/s", "deg/s", "[deg/s]", "(g)", "m/s^2", "mg",
+                                "", "-", "units", "furlong"])
+
+
+@given(units=st.lists(UNIT_TOKENS, min_size=3, max_size=3), nrows=st.integers(20, 60),
+       sep=st.sampled_from([",", ";", "\t"]), ooc=st.booleans())
+@settings(max_examples=40, deadline=None)
+def test_a_units_row_is_named_and_never_read_as_data(
+    units: list[str], nrows: int, sep: str, ooc: bool
+) -> None:
+    """Issue 36: a row of units under the header was read silently. Whatever its
+    tokens: the read fails with one line, or the log has exactly the data rows and, when
+    the row was taken as units, a warning names its line."""
+    lines = [sep.join(["time", "gyro_x", "accel_z"]), sep.join(units)]
+    lines += [sep.join([f"{i / 100:.2f}", f"{0.01 * (i % 7):.3f}", f"{9.8 + 0.01 * (i % 3):.3f}"])
+              for i in range(nrows)]
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "log.csv"
+        p.write_text("\n".join(lines) + "\n")
+        try:
+            log = open_chunked(p) if ooc else read_imu(p)
+        except ImuboundsError as err:
+            assert "\n" not in str(err)
+            return
+        warnings = list(log.warnings)
+        if ooc:
+            n = sum(next(iter(b.values())).size for b in log.iter_chunks(7))
+        else:
+            n = log.t.size
+        assert n == nrows, "the units row was read as data (or a row was lost)"
+        assert any("line 2 under the header is a row of units" in w for w in warnings), warnings
+
+
 @given(data=st.binary(max_size=300), suffix=st.sampled_from([".csv", ".dat", ".log"]))
 @settings(max_examples=60, deadline=None)
 def test_arbitrary_bytes_never_crash_the_readers(data: bytes, suffix: str) -> None:

@@ -106,12 +106,15 @@ def test_dynamic_content(run_dir: Path, page: str) -> None:
 
 def test_figures_embedded_and_self_contained(run_dir: Path, page: str) -> None:
     imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    # the key figures first, open (Figures), then the details' figures once each
     expected = [run_dir / "static" / "allan.png"]
+    if VN100.is_dir():
+        expected += [run_dir / "dynamic" / f"{s}.png" for s in ("windows", "motion")]
     if (run_dir / "static" / "stationarity.png").is_file():
         expected.append(run_dir / "static" / "stationarity.png")
     if VN100.is_dir():
         expected += [run_dir / "dynamic" / f"{s}.png" for s in
-                     ("margins", "motion", "windows", "trajectory", "intervals")]
+                     ("margins", "trajectory", "intervals")]
     assert len(imgs) == len(expected)
     for data, path in zip(imgs, expected, strict=True):
         assert base64.b64decode(data) == path.read_bytes()
@@ -384,3 +387,47 @@ def test_static_checks_misfit_record_length_stationarity_timing(tmp_path: Path) 
     assert (f"<td class='l'>gyro_z</td><td>{tm['median_step_s']:.4g} s</td><td>"
             f"{100 * tm['jitter_rel']:.3g} %</td><td>{100 * tm['bound_rel_max']:.3g} %</td>"
             f"<td>{tm['gaps']} (") in details
+
+
+SUMMARY_PROBE = """<script>
+window.addEventListener('load', function () {
+  function box(el) { var r = el.getBoundingClientRect();
+    return [Math.round(r.top), Math.round(r.bottom), Math.round(r.height)]; }
+  var s = document.getElementById('summary');
+  var f = document.getElementById('figures');
+  var imgs = f ? Array.prototype.slice.call(f.querySelectorAll('img')).map(box) : [];
+  console.log('SUMMARY ' + JSON.stringify({
+    first: document.querySelector('main > section').id, summary: box(s),
+    table: box(s.querySelector('table')), figures: f ? box(f) : null, imgs: imgs,
+    open: document.querySelectorAll('details[open]').length,
+    height: window.innerHeight}));
+});
+</script>"""
+
+
+def test_browser_shows_the_summary_first_and_the_key_figures_open(
+    run_dir: Path, tmp_path: Path
+) -> None:
+    """A 1400x900 screenshot of the report as written: the summary is the first section,
+    at the top, its N/B/K table wholly on the first screen; the key figures (Allan curves,
+    the verdicts' windows, the in-motion figures) come next, laid out without a click;
+    the details stay collapsed."""
+    from PIL import Image
+
+    probed = tmp_path / "summary.html"
+    probed.write_text((run_dir / "report.html").read_text().replace(
+        "</body>", SUMMARY_PROBE + "</body>"))
+    lines = _render(probed, tmp_path / "first.png", tmp_path / "profile", size="1400,900")
+    probe = [ln for ln in lines if "SUMMARY " in ln]
+    assert len(probe) == 1, lines
+    info = json.loads(re.search(r"SUMMARY (\{.*\})", probe[0]).group(1))  # type: ignore[union-attr]
+    assert info["first"] == "summary", info
+    assert 0 <= info["summary"][0] < 200 and info["table"][1] <= info["height"], info
+    assert info["figures"] is not None and info["figures"][0] >= info["summary"][1], info
+    assert len(info["imgs"]) == (3 if VN100.is_dir() else 1), info
+    assert all(h > 150 for _, _, h in info["imgs"]), info  # drawn open, not collapsed
+    assert info["open"] == 0
+    shot = np.asarray(Image.open(tmp_path / "first.png").convert("RGB"), dtype=float)
+    assert shot.shape == (900, 1400, 3)
+    top = shot[info["summary"][0]: info["table"][1]]
+    assert (top < 128).mean() > 0.01  # the summary's text is on the first screen

@@ -161,7 +161,7 @@ def allan(
     *,
     rate: float | None = None,
     estimator: str = "overlapping",
-    taus: str | int | Sequence[float] | np.ndarray = "octave",
+    taus: str | int | Sequence[float] | np.ndarray = "points:40",
     confidence: float = 0.683,
     noise: str | int = "auto",
     robust: bool = False,
@@ -180,8 +180,9 @@ def allan(
         ``"overlapping"`` (default), ``"non-overlapping"``, ``"modified"``,
         ``"hadamard"``, ``"non-overlapping-hadamard"`` or ``"total"``.
     taus : str, int or sequence of float
-        ``"octave"`` (default), ``"decade"``, ``"all"``, a number of log-spaced points,
-        or averaging times in s.
+        ``"points:40"`` (default: 40 log-spaced points, the grid of :func:`characterize`
+        and ``imubounds static``), ``"octave"``, ``"decade"``, ``"all"``, ``"points:K"``
+        or a number K of log-spaced points, or averaging times in s.
     confidence : float
         Two-sided level of the intervals, in (0, 1); 0.683 = 1 sigma.
     noise : "auto", int or str
@@ -346,7 +347,7 @@ def characterize(
     data: ImuLog | pd.DataFrame | Mapping[str, ArrayLike] | np.ndarray | PathType,
     rate_hz: float | None = None,
     *,
-    taus: str | int | Sequence[float] = "octave",
+    taus: str | int | Sequence[float] = "points:40",
     estimator: str = "overlapping",
     confidence: float = 0.683,
     k_sigma: float = 3.0,
@@ -381,7 +382,8 @@ def characterize(
     rate_hz : float, optional
         Sample rate of a table without a time column (or of a file without one).
     taus, estimator, confidence
-        The Allan curve (see :func:`allan`).
+        The Allan curve (see :func:`allan`); the τ grid defaults to 40 log-spaced points
+        (``"points:40"``, as ``imubounds static`` and :func:`allan`).
     k_sigma : float
         The k of the per-sample bound ``k·σ_c``.
     averaging_time_s : float, optional

@@ -2,7 +2,9 @@
 
 :func:`export_noise` turns a static result (``noise.json``, optionally with the
 in-motion figures of ``motion.json``) into the text of one file a filter reads. Each
-number is written with its unit and the conversion that made it, as a YAML comment.
+number is written with its unit and the conversion that made it, in YAML comments on
+the lines before it (never beside a value: OpenCV's FileStorage, the reader of OpenVINS
+and VINS, would read such a comment into a text value).
 
 The conventions (``update_rate`` = the log's sample rate ``f`` in Hz, ``dt = 1/f``):
 
@@ -19,8 +21,9 @@ The conventions (``update_rate`` = the log's sample rate ``f`` in Hz, ``dt = 1/f
   GTSAM and ROS take per-axis diagonals.
 
 Formats: ``kalibr`` (imu.yaml), ``openvins`` (kalibr_imu_chain.yaml), ``vins``
-(the IMU block of a VINS-Mono/Fusion config: per-sample ``acc_n = N*sqrt(f)`` and
-``acc_w = K*sqrt(f)``, as its IntegrationBase uses them), ``gtsam``
+(the IMU block of a VINS-Mono/Fusion config: ``acc_n = sqrt(2)*N*sqrt(f)`` and
+``acc_w = K*sqrt(f)``, derived from its mid-point propagation, :data:`VINS_WHITE_FACTOR`),
+``gtsam``
 (``PreintegrationCombinedParams`` covariances ``N^2`` and ``K^2``) and ``ros``
 (``sensor_msgs/Imu`` covariances ``(N*sqrt(f))^2``, for robot_localization).
 """
@@ -173,6 +176,10 @@ def _motion_doc(path: Any) -> Mapping[str, Any]:
 
 
 # ---------------------------------------------------------------- the formats
+#
+# Every comment sits on a line of its own, before the key it explains: OpenCV's
+# FileStorage (the reader of OpenVINS and VINS) reads an unquoted text value up to the end
+# of its line, so a comment beside ``rostopic: /imu0`` would become part of the topic.
 
 
 def _e(x: float) -> str:
@@ -192,40 +199,58 @@ def _status(ax: AxisTerms, term: str) -> str:
     return txt
 
 
-def _header(fn: FilterNoise, title: str) -> list[str]:
+class _Doc:
+    """YAML lines with every comment on its own line (none inside a value)."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def comment(self, text: str, indent: str = "") -> None:
+        self.lines.append(f"{indent}# {text}" if text else f"{indent}#")
+
+    def key(self, key: str, value: str, *comments: str, indent: str = "") -> None:
+        for c in comments:
+            self.comment(c, indent)
+        self.lines.append(f"{indent}{key}: {value}")
+
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+
+def _header(doc: _Doc, fn: FilterNoise, title: str, yaml_directive: bool = False) -> None:
     from imubounds import __version__
 
-    lines = [
-        f"# {title}",
-        f"# written by imubounds {__version__} from {fn.source}",
-        f"# update_rate f = {fn.rate_hz:g} Hz (the log's sample rate; dt = 1/f = "
-        f"{1.0 / fn.rate_hz:g} s)",
-        "# N = white-noise density (Allan: sigma(1 s) of the white part), K = rate random "
-        "walk (continuous time);",
-        "# B (bias instability) has no parameter here: it is listed below as a comment.",
-    ]
+    if yaml_directive:  # OpenCV's FileStorage wants its YAML files to say so
+        doc.lines += ["%YAML 1.0", "---"]
+    doc.comment(title)
+    doc.comment(f"written by imubounds {__version__} from {fn.source}")
+    doc.comment(f"update_rate f = {fn.rate_hz:g} Hz (the log's sample rate; dt = 1/f = "
+                f"{1.0 / fn.rate_hz:g} s)")
+    doc.comment("N = white-noise density (Allan: sigma(1 s) of the white part), K = rate random "
+                "walk (continuous time);")
+    doc.comment("B (bias instability) has no parameter here: it is listed at the end as a "
+                "comment.")
     if fn.motion:
-        lines.append(
-            "# IN MOTION: N and K are the stationary ones times the channel's motion factor F "
-            "(motion.json): F x the stationary band contains the guaranteed in-motion error"
-        )
-    return lines
+        doc.comment("IN MOTION: N and K are the stationary ones times the channel's motion "
+                    "factor F (motion.json): F x the stationary band contains the guaranteed "
+                    "in-motion error")
 
 
-def _b_notes(fn: FilterNoise) -> list[str]:
-    out = []
+def _tail(doc: _Doc, fn: FilterNoise) -> None:
+    b_lines = []
     for kind, _name, unit in _KINDS:
         for ax in fn.axes(kind):
             if ax.B is not None:
-                out.append(
-                    f"#   B {ax.channel}: {_e(ax.B)} {unit} ({ax.B_status.replace('_', ' ')}); "
+                b_lines.append(
+                    f"  B {ax.channel}: {_e(ax.B)} {unit} ({ax.B_status.replace('_', ' ')}); "
                     "not a random walk: a filter modelling the bias as a random walk uses K"
                 )
-    return ["# bias instability (not exported, for reference):", *out] if out else []
-
-
-def _tail(fn: FilterNoise) -> list[str]:
-    return [*_b_notes(fn), *(f"# note: {n}" for n in fn.notes)]
+    if b_lines:
+        doc.comment("bias instability (not exported, for reference):")
+        for ln in b_lines:
+            doc.comment(ln)
+    for n in fn.notes:
+        doc.comment(f"note: {n}")
 
 
 def _need(fn: FilterNoise, kind: str, term: str, key: str) -> tuple[float, AxisTerms]:
@@ -238,101 +263,142 @@ def _need(fn: FilterNoise, kind: str, term: str, key: str) -> tuple[float, AxisT
     return w
 
 
-def _kalibr_lines(fn: FilterNoise, indent: str = "") -> list[str]:
-    f = fn.rate_hz
-    sq = math.sqrt(f)
-    lines = []
+def _kalibr_keys(doc: _Doc, fn: FilterNoise, indent: str = "", strict: bool = True) -> None:
+    """The four continuous-time densities of Kalibr's imu.yaml (also OpenVINS's)."""
+    sq = math.sqrt(fn.rate_hz)
     for kind, name, unit in _KINDS:
-        n, ax = _need(fn, kind, "N", f"{name}_noise_density")
-        lines.append(
-            f"{indent}{name}_noise_density: {_e(n)}  # [{unit}/sqrt(Hz)] sigma = N of "
-            f"{ax.channel} (largest axis), {_status(ax, 'N')}; per sample sigma_d = sigma*sqrt(f)"
-            f" = {_e(n * sq)} {unit}"
-        )
-        k, ax = _need(fn, kind, "K", f"{name}_random_walk")
         du = "m/s^3" if kind == "accel" else "rad/s^2"
-        lines.append(
-            f"{indent}{name}_random_walk: {_e(k)}  # [{du}/sqrt(Hz)] sigma_b = K of "
-            f"{ax.channel} (largest axis), {_status(ax, 'K')}; per sample the bias steps by "
-            f"sigma_bd = sigma_b/sqrt(f) = {_e(k / sq)} {unit}"
-        )
-    return lines
+        for term, key, what in (("N", f"{name}_noise_density", "noise density"),
+                                ("K", f"{name}_random_walk", "bias random walk")):
+            if not strict and fn.worst(kind, term) is None:
+                doc.comment(f"{key}: not written (no {kind} channel gave a positive {term})",
+                            indent)
+                continue
+            v, ax = _need(fn, kind, term, key)
+            if term == "N":
+                conv = (f"per sample sigma_d = sigma*sqrt(f) = {_e(v * sq)} {unit}")
+                u = f"{unit}/sqrt(Hz)"
+            else:
+                conv = (f"per sample the bias steps by sigma_bd = sigma_b/sqrt(f) = "
+                        f"{_e(v / sq)} {unit}")
+                u = f"{du}/sqrt(Hz)"
+            doc.key(key, _e(v), f"[{u}] {what} = {term} of axis {ax.channel} (largest axis), "
+                    f"{_status(ax, term)}; {conv}", indent=indent)
+
+
+#: Kalibr's four keys: (key, kind, term, SI unit)
+KALIBR_KEYS: tuple[tuple[str, str, str, str], ...] = (
+    ("gyroscope_noise_density", "gyro", "N", "rad/s/sqrt(Hz)"),
+    ("gyroscope_random_walk", "gyro", "K", "rad/s^2/sqrt(Hz)"),
+    ("accelerometer_noise_density", "accel", "N", "m/s^2/sqrt(Hz)"),
+    ("accelerometer_random_walk", "accel", "K", "m/s^3/sqrt(Hz)"),
+)
+
+
+def kalibr_values(fn: FilterNoise) -> dict[str, tuple[float, AxisTerms]]:
+    """Kalibr's (and OpenVINS's) four densities as written: per key the value (SI) and the
+    axis it comes from (the largest); a key no channel gives is left out."""
+    out = {}
+    for key, kind, term, _unit in KALIBR_KEYS:
+        w = fn.worst(kind, term)
+        if w is not None:
+            out[key] = w
+    return out
+
+
+def kalibr_text(fn: FilterNoise, strict: bool = True) -> str:
+    """Kalibr's imu.yaml; with ``strict=False`` a key no channel can give is named in a
+    comment instead of refused (``imubounds static`` on a subset of the channels)."""
+    doc = _Doc()
+    _header(doc, fn, "Kalibr IMU noise model (imu.yaml): continuous-time densities")
+    doc.comment("Kalibr (ImuParameters): sigma_d = sigma/sqrt(dt) per measurement; the bias is "
+                "a random walk of density sigma_b")
+    _kalibr_keys(doc, fn, strict=strict)
+    doc.key("rostopic", "/imu0", "set to your IMU topic")
+    doc.key("update_rate", f"{fn.rate_hz:g}", "[Hz]")
+    _tail(doc, fn)
+    return doc.text()
 
 
 def _kalibr(fn: FilterNoise) -> str:
-    lines = _header(fn, "Kalibr IMU noise model (imu.yaml): continuous-time densities")
-    lines.append(
-        "# Kalibr wiki 'IMU Noise Model': sigma_d = sigma/sqrt(dt), sigma_bd = sigma_b*sqrt(dt)"
-    )
-    lines += _kalibr_lines(fn)
-    lines.append("rostopic: /imu0  # set to your IMU topic")
-    lines.append(f"update_rate: {fn.rate_hz:g}  # [Hz]")
-    return "\n".join(lines + _tail(fn)) + "\n"
+    return kalibr_text(fn)
 
 
-_IDENT = "[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]"
+def _matrix(rows: list[list[float]]) -> str:
+    """A matrix as nested rows (a YAML sequence of sequences: OpenVINS reads m[r][c])."""
+    return "[" + ", ".join("[" + ", ".join(_num(x) for x in r) + "]" for r in rows) + "]"
+
+
+def _num(x: float) -> str:
+    return "0.0" if x == 0 else ("1.0" if x == 1 else _e(x))
+
+
+_I3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+_Z3 = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
 
 
 def _openvins(fn: FilterNoise) -> str:
-    lines = ["%YAML 1.0", "---"]
-    lines += _header(fn, "OpenVINS kalibr_imu_chain.yaml: continuous-time densities")
-    lines.append(
-        "# OpenVINS propagation: discrete covariance sigma^2/dt for the white noise and "
-        "sigma_b^2*dt for the bias random walk"
-    )
-    lines.append("imu0:")
-    lines.append("  T_i_b: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], "
-                 "[0.0, 0.0, 0.0, 1.0]]")
-    lines += _kalibr_lines(fn, indent="  ")
-    lines.append('  model: "kalibr"')
-    lines.append("  rostopic: /imu0  # set to your IMU topic")
-    lines.append("  time_offset: 0.0")
-    lines.append(f"  update_rate: {fn.rate_hz:g}  # [Hz]")
-    lines.append("  # IMU intrinsics are not estimated by imubounds: identity (no correction)")
+    doc = _Doc()
+    _header(doc, fn, "OpenVINS kalibr_imu_chain.yaml: continuous-time densities", True)
+    doc.comment("OpenVINS propagation: discrete covariance sigma^2/dt for the white noise and "
+                "sigma_b^2*dt for the bias random walk")
+    doc.lines.append("imu0:")
+    doc.key("T_i_b", _matrix([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0],
+                              [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]), indent="  ")
+    _kalibr_keys(doc, fn, indent="  ")
+    doc.key("model", '"kalibr"', indent="  ")
+    doc.key("rostopic", "/imu0", "set to your IMU topic", indent="  ")
+    doc.key("time_offset", "0.0", indent="  ")
+    doc.key("update_rate", f"{fn.rate_hz:g}", "[Hz]", indent="  ")
+    doc.comment("IMU intrinsics are not estimated by imubounds: identity (no correction), "
+                "3x3 as nested rows", "  ")
     for key in ("Tw", "R_IMUtoGYRO", "Ta", "R_IMUtoACC"):
-        lines.append(f"  {key}: {_IDENT}")
-    lines.append("  Tg: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]")
-    return "\n".join(lines + _tail(fn)) + "\n"
+        doc.key(key, _matrix(_I3), indent="  ")
+    doc.key("Tg", _matrix(_Z3), indent="  ")
+    _tail(doc, fn)
+    return doc.text()
+
+
+#: VINS's mid-point propagation (IntegrationBase::midPointIntegration) enters each sample's
+#: noise twice per step with weight dt/2, as if independent: velocity variance
+#: 2 * (acc_n * dt/2)^2 = acc_n^2 dt^2 / 2 per step, acc_n^2 dt / 2 per second. The
+#: continuous model gives N^2 per second: acc_n = sqrt(2) * N * sqrt(f) (gyr_n alike).
+VINS_WHITE_FACTOR = math.sqrt(2.0)
+
+#: The g_norm written into the VINS block: standard gravity (imubounds measures no local
+#: gravity); the comment says to replace it.
+STANDARD_GRAVITY = 9.80665
 
 
 def _vins(fn: FilterNoise) -> str:
     f = fn.rate_hz
     sq = math.sqrt(f)
-    lines = ["%YAML 1.0", "---"]
-    lines += _header(fn, "VINS-Mono / VINS-Fusion IMU noise block (merge into your config)")
-    lines.append(
-        "# VINS's IntegrationBase puts acc_n^2 into the noise of each sample and acc_w^2*dt^2 "
-        "into each bias step: acc_n is a per-sample sigma_d = N*sqrt(f), acc_w = K*sqrt(f)"
-    )
-    lines.append(
-        "# (its mid-point rule averages two samples per step: with acc_n = N*sqrt(f) the "
-        "velocity variance per step is N^2*dt/2; x sqrt(2) matches the continuous N^2*dt)"
-    )
+    doc = _Doc()
+    _header(doc, fn, "VINS-Mono / VINS-Fusion IMU block (merge into your config)", True)
+    doc.comment("VINS's IntegrationBase (mid-point rule) takes acc_n^2 as the variance of each "
+                "of the two samples of a step, weighted dt/2 each:")
+    doc.comment("velocity variance per step 2*(acc_n*dt/2)^2 = acc_n^2*dt^2/2, so over 1 s "
+                "acc_n^2*dt/2; the continuous model gives N^2*(1 s):")
+    doc.comment("acc_n = sqrt(2)*N*sqrt(f) (gyr_n alike, for the angle). The bias step "
+                "(acc_w*dt)^2 gives acc_w^2*dt per second = K^2: acc_w = K*sqrt(f).")
+    doc.key("imu", "1", "VINS reads the IMU block only with imu: 1")
+    doc.key("imu_topic", '"/imu0"', "set to your IMU topic")
     names = {"accel": ("acc_n", "acc_w", "m/s^2", "m/s^3"),
              "gyro": ("gyr_n", "gyr_w", "rad/s", "rad/s^2")}
     for kind, _name, _unit in _KINDS:
         kn, kw, un, uw = names[kind]
         n, ax = _need(fn, kind, "N", kn)
-        lines.append(
-            f"{kn}: {_e(n * sq)}  # [{un}] = N*sqrt(f) = {_e(n)} {un}/sqrt(Hz) x "
-            f"sqrt({f:g} Hz); N of {ax.channel} (largest axis), {_status(ax, 'N')}"
-        )
+        doc.key(kn, _e(VINS_WHITE_FACTOR * n * sq),
+                f"[{un}] = sqrt(2)*N*sqrt(f) = sqrt(2) x {_e(n)} {un}/sqrt(Hz) x sqrt({f:g} Hz);"
+                f" N of axis {ax.channel} (largest axis), {_status(ax, 'N')}")
         k, ax = _need(fn, kind, "K", kw)
-        lines.append(
-            f"{kw}: {_e(k * sq)}  # [{uw}] = K*sqrt(f) = {_e(k)} {uw}/sqrt(Hz) x "
-            f"sqrt({f:g} Hz); K of {ax.channel} (largest axis), {_status(ax, 'K')}"
-        )
-    lines.append("# g_norm (local gravity) is not measured here; keep your config's value")
-    return "\n".join(lines + _tail(fn)) + "\n"
-
-
-def _diag(vals: list[float]) -> str:
-    rows = []
-    for i, v in enumerate(vals):
-        row = [0.0, 0.0, 0.0]
-        row[i] = v
-        rows.append("[" + ", ".join(_e(x) if x else "0.0" for x in row) + "]")
-    return "[" + ", ".join(rows) + "]"
+        doc.key(kw, _e(k * sq),
+                f"[{uw}] = K*sqrt(f) = {_e(k)} {uw}/sqrt(Hz) x sqrt({f:g} Hz); K of axis "
+                f"{ax.channel} (largest axis), {_status(ax, 'K')}")
+    doc.key("g_norm", f"{STANDARD_GRAVITY:g}",
+            "[m/s^2] standard gravity: imubounds does not measure the local gravity; put yours")
+    _tail(doc, fn)
+    return doc.text()
 
 
 def _axis_values(
@@ -349,19 +415,20 @@ def _axis_values(
     return [float(getattr(a, term)) for a in axes], axes
 
 
+def _diag(vals: list[float]) -> list[list[float]]:
+    return [[v if r == c else 0.0 for c in range(3)] for r, v in enumerate(vals)]
+
+
 def _gtsam(fn: FilterNoise) -> str:
-    lines = _header(fn, "GTSAM PreintegrationCombinedParams: continuous-time covariances")
-    lines.append(
-        "# GTSAM PreintegrationParams: accelerometerCovariance / gyroscopeCovariance are "
-        "continuous-time, sigma in m/s^2/sqrt(Hz) | rad/s/sqrt(Hz): cov = N^2 per axis;"
-    )
-    lines.append(
-        "# PreintegrationCombinedParams: biasAccCovariance / biasOmegaCovariance = K^2 "
-        "(continuous bias random walk). Python:"
-    )
-    lines.append("#   p = gtsam.PreintegrationCombinedParams.MakeSharedU(g)")
-    lines.append("#   p.setAccelerometerCovariance(np.array(d['accelerometerCovariance'])) ...")
-    lines.append("#   integrationCovariance is a modelling choice of yours (not measured here)")
+    doc = _Doc()
+    _header(doc, fn, "GTSAM PreintegrationCombinedParams: continuous-time covariances")
+    doc.comment("GTSAM PreintegrationParams: accelerometerCovariance / gyroscopeCovariance are "
+                "continuous-time, sigma in m/s^2/sqrt(Hz) | rad/s/sqrt(Hz): cov = N^2 per axis;")
+    doc.comment("PreintegrationCombinedParams: biasAccCovariance / biasOmegaCovariance = K^2 "
+                "(continuous bias random walk). Python:")
+    doc.comment("  p = gtsam.PreintegrationCombinedParams.MakeSharedU(g)")
+    doc.comment("  p.setAccelerometerCovariance(np.array(d['accelerometerCovariance'])) ...")
+    doc.comment("integrationCovariance is a modelling choice of yours (not measured here)")
     spec = (
         ("accelerometerCovariance", "accel", "N", "(m/s^2)^2/Hz"),
         ("gyroscopeCovariance", "gyro", "N", "(rad/s)^2/Hz"),
@@ -373,22 +440,21 @@ def _gtsam(fn: FilterNoise) -> str:
         why = ", ".join(
             f"{a.channel} {_e(v)} ({_status(a, term)})" for v, a in zip(vals, axes, strict=True)
         )
-        lines.append(f"# {key}: diag({term}^2) [{unit}], {term} = {why}")
-        lines.append(f"{key}: {_diag([v * v for v in vals])}")
-    return "\n".join(lines + _tail(fn)) + "\n"
+        doc.key(key, _matrix(_diag([v * v for v in vals])),
+                f"[{unit}] {key} = diag({term}^2), {term} = {why}")
+    _tail(doc, fn)
+    return doc.text()
 
 
 def _ros(fn: FilterNoise) -> str:
     f = fn.rate_hz
-    lines = _header(fn, "sensor_msgs/Imu covariances (robot_localization reads them per message)")
-    lines.append(
-        "# row-major 3x3, per-sample variance at the log's rate: sigma_d^2 = (N*sqrt(f))^2 "
-        f"= N^2 * {f:g} Hz; a driver publishing at another rate f' uses N^2 * f'"
-    )
-    lines.append(
-        "# the bias (B, K) is not a per-sample noise: it is not in these covariances"
-    )
-    lines.append("imu:")
+    doc = _Doc()
+    _header(doc, fn, "sensor_msgs/Imu covariances (robot_localization reads them per message)")
+    doc.comment("row-major 3x3, per-sample variance at the log's rate: sigma_d^2 = "
+                f"(N*sqrt(f))^2 = N^2 * {f:g} Hz; a driver publishing at another rate f' uses "
+                "N^2 * f'")
+    doc.comment("the bias (B, K) is not a per-sample noise: it is not in these covariances")
+    doc.lines.append("imu:")
     for key, kind, unit in (
         ("angular_velocity_covariance", "gyro", "(rad/s)^2"),
         ("linear_acceleration_covariance", "accel", "(m/s^2)^2"),
@@ -398,15 +464,37 @@ def _ros(fn: FilterNoise) -> str:
         why = ", ".join(
             f"{a.channel}: N {_e(v)} ({_status(a, 'N')})" for v, a in zip(vals, axes, strict=True)
         )
-        lines.append(f"  # {key} [{unit}] = N^2*f; {why}")
         flat = [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]]
-        lines.append(f"  {key}: [" + ", ".join(_e(x) if x else "0.0" for x in flat) + "]")
-    lines.append("  # no orientation estimate: orientation_covariance[0] = -1 (sensor_msgs/Imu)")
-    lines.append("  orientation_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]")
-    return "\n".join(lines + _tail(fn)) + "\n"
+        doc.key(key, "[" + ", ".join(_num(x) for x in flat) + "]",
+                f"[{unit}] {key} = N^2*f; {why}", indent="  ")
+    doc.key("orientation_covariance", "[-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]",
+            "no orientation estimate: orientation_covariance[0] = -1 (sensor_msgs/Imu)",
+            indent="  ")
+    _tail(doc, fn)
+    return doc.text()
 
 
 _WRITERS = {"kalibr": _kalibr, "openvins": _openvins, "vins": _vins, "gtsam": _gtsam, "ros": _ros}
+
+
+def written_values(text: str) -> list[str]:
+    """The ``key: value`` lines of an exported file with the unit its comment gives
+    (``[unit]``), comments and directives left out: what ``imubounds export`` prints after
+    writing it."""
+    out = []
+    unit = ""
+    for ln in text.splitlines():
+        s = ln.strip()
+        if s.startswith("#"):
+            body = s.lstrip("# ")
+            if body.startswith("[") and "]" in body:
+                unit = body[: body.index("]") + 1]
+            continue
+        if not s or s.startswith(("%", "---")):
+            continue
+        out.append(ln.rstrip() + (f"  {unit}" if unit and not s.endswith(":") else ""))
+        unit = ""
+    return out
 
 
 def export_noise(results: Any, format: str = "kalibr", *, motion: Any = None) -> str:
@@ -427,7 +515,8 @@ def export_noise(results: Any, format: str = "kalibr", *, motion: Any = None) ->
     Returns
     -------
     str
-        YAML text; every number has its unit and conversion in a comment.
+        YAML text; every number has its unit and conversion in comments on the lines
+        before it (none inside a value).
 
     Raises
     ------

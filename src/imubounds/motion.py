@@ -254,6 +254,13 @@ def plot_motion(motion: Mapping[str, Any], noise: Mapping[str, Any] | None = Non
         ax.set_xlabel("tau [s]")
         ax.set_ylabel(f"deviation [{unit}]")
         ax.grid(True, which="both", alpha=0.3)
-        if i == 0:
-            ax.legend(fontsize=7, loc="best")
+    handles, labels = [], []
+    for ax in fig.axes:  # one legend for the figure, below the panels (off the data)
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8,
+                   frameon=False)
     return fig

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -93,6 +95,30 @@ def declination(text: str) -> float:
     if not -180.0 <= x <= 180.0:
         raise argparse.ArgumentTypeError(f"must be within -180..180 deg, got {text}")
     return x
+
+
+def setting_value(key: str, unit: str) -> Callable[[str], float]:
+    """An option that overrides the drive.yaml setting ``key``: a finite number in that
+    setting's range (``--heading-deviation 1000`` is refused as ``heading.deviation_deg``
+    would be)."""
+    from imubounds.io.drive.settings import setting_range
+
+    lo, inclusive, hi = setting_range(key)
+
+    def parse(text: str) -> float:
+        x = _number(text)
+        if x < lo or (x == lo and not inclusive):
+            rel = ">=" if inclusive else ">"
+            raise argparse.ArgumentTypeError(f"must be {rel} {lo:g} {unit} ({key}), got {text}")
+        if hi is not None and x > hi:
+            raise argparse.ArgumentTypeError(
+                f"must be at most {hi:g} {unit} ({key} in drive.yaml has the same range), "
+                f"got {text}"
+            )
+        return x
+
+    parse.__name__ = key.replace(".", "_")
+    return parse
 
 
 def imu_spec(text: str) -> str:
@@ -195,11 +221,17 @@ def existing_dir(text: str) -> str:
 
 
 def add_force_option(p: argparse.ArgumentParser) -> None:
-    """``--force``: allow overwriting files in the output directory that imubounds did not write."""
+    """``--overwrite`` (``--force``, the same option): write into an output folder that
+    holds other files, and replace files there that imubounds did not write (never an
+    input of the run); ``args.force``."""
     p.add_argument(
+        "--overwrite",
         "--force",
+        dest="force",
         action="store_true",
-        help="overwrite files in the output directory that imubounds did not write",
+        help="write into an output folder that holds other files (they are kept) and "
+        "replace files of the same names that imubounds did not write (never an input); "
+        "--force is the same option",
     )
 
 
@@ -403,6 +435,87 @@ def parse_list(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, .
     return items
 
 
+class Steps:
+    """The progress line of a command of several steps, on a terminal only (stderr, gone
+    when the command ends): ``title: k/n step name (what the library reports) [elapsed]``.
+
+    With ``tick`` a thread redraws it twice a second, so that a step of many seconds is
+    seen moving (the elapsed time) even where the library reports nothing;
+    :meth:`paused` stops that thread for a while (a ``fork`` wants a single thread).
+    Without a terminal, or with ``--quiet``, every method does nothing.
+    """
+
+    def __init__(self, title: str, total: int, enabled: bool, tick: bool = True) -> None:
+        self._bar: Any = None
+        self._lock = threading.Lock()
+        self._title, self._total, self._k = title, total, 0
+        self._name = ""
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._tick = tick
+        self.started = time.monotonic()
+        if enabled:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, file=sys.stderr, leave=False,
+                             bar_format="{desc} [{elapsed}]",
+                             desc=f"{title}: 0/{total} starting")
+            self._start_ticker()
+
+    def _show(self, text: str) -> None:
+        self._bar.set_description_str(f"{self._title}: {self._k}/{self._total} {text}")
+
+    def _start_ticker(self) -> None:
+        if self._bar is None or not self._tick or self._thread is not None:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="imubounds-progress",
+                                        daemon=True)
+        self._thread.start()
+
+    def _stop_ticker(self) -> None:
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+            self._thread = None
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.5):
+            with self._lock:
+                if self._bar is not None:
+                    self._bar.refresh()
+
+    def step(self, name: str) -> None:
+        """Start the next step."""
+        if self._bar is None:
+            return
+        with self._lock:
+            self._k = min(self._k + 1, self._total)
+            self._name = name
+            self._show(name)
+
+    def sub(self, stage: str, done: int, total: int) -> None:
+        """A ``progress(stage, done, total)`` callback of the library, shown in the line."""
+        if self._bar is None:
+            return
+        with self._lock:
+            self._show(f"{self._name}: {stage} ({done}/{total})")
+
+    @contextmanager
+    def paused(self) -> Iterator[None]:
+        self._stop_ticker()
+        try:
+            yield
+        finally:
+            self._start_ticker()
+
+    def close(self) -> None:
+        self._stop_ticker()
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
 class Reporter:
     """Progress bars and messages on stderr; silent with ``--quiet``."""
 
@@ -444,3 +557,12 @@ class Reporter:
             yield self.progress
         finally:
             self.close()
+
+    @contextmanager
+    def steps(self, title: str, total: int, tick: bool = True) -> Iterator[Steps]:
+        """A :class:`Steps` line for the command, on a terminal and without ``--quiet``."""
+        s = Steps(title, total, enabled=not self.quiet and sys.stderr.isatty(), tick=tick)
+        try:
+            yield s
+        finally:
+            s.close()

@@ -43,6 +43,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.cli._common import Reporter
     from imubounds.io.drive.layout import (
         CALIBRATION_FILE,
         FILES,
@@ -55,7 +56,9 @@ def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
     opts = drive_read_options(args)
-    drive = read_drive(list(args.input), **opts)
+    with Reporter(args.quiet).steps("imubounds convert", 1) as steps:
+        steps.step("reading the drive")
+        drive = read_drive(list(args.input), **opts)
     from imubounds.dynamic.imu_mount import mount_warning
 
     if (w := mount_warning(drive)) is not None:
@@ -64,15 +67,17 @@ def run(args: argparse.Namespace) -> int:
         raise OptionError("--topic applies to ROS bags only")
     inputs = [*args.input, *([args.settings] if args.settings else [])]
     suffix = FORMATS[args.format]
-    with OutputSet(args.out, force=args.force, inputs=inputs) as out:
+    with OutputSet(args.out, force=args.force, inputs=inputs, command="convert",
+                   source=args.input) as out:
         extra = [CALIBRATION_FILE] if drive.settings.heading.calibration is not None else []
         extra += [NOISE_FILE] if drive.settings.imu.noise_json is not None else []
         out.check([f"{name}{suffix}" for name in FILES] + [SETTINGS_FILE, *extra])
         write_layout(drive, out.staging, fmt=args.format)
         out.record(getattr(args, "argv", None), command_name="convert")
-    if not args.quiet:
-        for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
-            print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
+    for line in summary(drive, args.out):  # the summary on stdout, warnings on stderr
+        if args.quiet and not line.startswith("imubounds: warning:"):
+            continue  # the warnings about the input even with --quiet
+        print(line, file=sys.stderr if line.startswith("imubounds: ") else sys.stdout)
     return 0
 
 

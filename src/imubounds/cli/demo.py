@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,8 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
-    with OutputSet(args.out, force=args.force) as outset:
+    with OutputSet(args.out, force=args.force, command="demo",
+                   subsets=("static", "sim", "dynamic", "filter")) as outset:
         outset.check(["report.html"])
         return _run(args, Path(args.out), outset)
 
@@ -43,8 +45,7 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
     steps: list[tuple[str, list[str]]] = [
         (
             "characterising the bundled ADIS16405 static log (45 min at 100 Hz)",
-            ["static", str(bundled_static_log()), "-o", static, "--tau", "points:40",
-             "--no-report"],
+            ["static", str(bundled_static_log()), "-o", static, "--no-report"],
         ),
         (
             "simulating the paper's 9.4 km / 792 s trip with that IMU's measured noise "
@@ -74,20 +75,25 @@ def _run(args: argparse.Namespace, out: Path, outset: Any) -> int:
 
     ensure_dir(filt)
     shown = [w for w, _ in steps if w] + ["writing the report"]
+    ran: list[str] = []  # every command, as run (the report's "How to reproduce")
     for what, argv in steps:
         if what and not args.quiet:
             print(f"[{shown.index(what) + 1}/{len(shown)}] {what}")
         # errors and Ctrl-C propagate, so the message names what was written
         quiet_step = quiet if argv[0] != "export" else ["--quiet"]
-        code = run_command([*argv, *quiet_step, *(["--force"] if args.force else [])])
+        full = [*argv, *quiet_step, *(["--overwrite"] if args.force else [])]
+        ran.append("imubounds " + shlex.join(full))
+        code = run_command(full)
         if code:
             return code
     from imubounds.report.html import write_report
 
     if not args.quiet:
         print(f"[{len(shown)}/{len(shown)}] writing the report")
-    write_report(out, dest=outset.path("report.html"))
-    outset.record(getattr(args, "argv", None), command_name="demo")
+    run_argv = getattr(args, "argv", None)
+    outset.record(run_argv, command_name="demo", commands=ran)
+    demo = "imubounds " + shlex.join(run_argv if run_argv is not None else ["demo", "-o", str(out)])
+    write_report(out, dest=outset.path("report.html"), commands=[demo, *ran])
     if not args.quiet:
         print(f"demo finished; open {out / 'report.html'}")
     return 0

@@ -25,6 +25,7 @@ from imubounds.cli._common import (
     positive_float,
     positive_int,
     probability,
+    setting_value,
 )
 from imubounds.errors import InputError
 
@@ -79,13 +80,15 @@ def register(sub: Any) -> None:
                    help="turn-on bias bound of the accelerometers")
     f.add_argument("--turn-on-gyro", type=nonneg_float, metavar="DEG/S",
                    help="turn-on bias bound of the gyros")
-    f.add_argument("--scale", type=nonneg_float, metavar="FRACTION",
+    f.add_argument("--scale", type=setting_value("imu.scale_factor", ""), metavar="FRACTION",
                    help="scale-factor error bound (0.005 = 0.5 %%)")
-    f.add_argument("--misalignment", type=nonneg_float, metavar="DEG",
+    f.add_argument("--misalignment", type=setting_value("imu.misalignment_deg", "deg"),
+                   metavar="DEG",
                    help="axis misalignment bound")
     f.add_argument("--imu-stamp", choices=("end", "start", "centre"),
                    help="where in its period an IMU sample is time-stamped (end)")
-    f.add_argument("--max-tilt", type=nonneg_float, metavar="DEG",
+    f.add_argument("--max-tilt", type=setting_value("vehicle.max_tilt_deg", "deg"),
+                   metavar="DEG",
                    help="roll/pitch bound when there is no attitude stream (vehicle.max_tilt_deg)")
     f.add_argument("--lateral-speed-bound", type=nonneg_float, metavar="M/S",
                    help="non-holonomic |lateral velocity| bound of a wheeled vehicle "
@@ -105,15 +108,19 @@ def register(sub: Any) -> None:
     f.add_argument("--max-ang-accel", type=positive_float, metavar="DEG/S2",
                    help="angular-acceleration bound (360)")
     f.add_argument("--gnss-cep", type=positive_float, metavar="M", help="CEP at HDOP 1")
-    f.add_argument("--gnss-vel-sigma", type=nonneg_float, metavar="M/S",
+    f.add_argument("--gnss-vel-sigma", type=setting_value("gnss.vel_sigma_mps", "m/s"),
+                   metavar="M/S",
                    help="1-sigma GNSS velocity error per component")
     f.add_argument("--velocity-bound", type=nonneg_float, metavar="M/S",
                    help="body-velocity sensor error bound")
-    f.add_argument("--attitude-bound", type=nonneg_float, metavar="DEG",
+    f.add_argument("--attitude-bound", type=setting_value("attitude.bound_deg", "deg"),
+                   metavar="DEG",
                    help="roll/pitch error bound of the attitude stream")
-    f.add_argument("--heading-noise", type=nonneg_float, metavar="DEG",
+    f.add_argument("--heading-noise", type=setting_value("heading.noise_deg", "deg"),
+                   metavar="DEG",
                    help="1-sigma compass noise")
-    f.add_argument("--heading-deviation", type=nonneg_float, metavar="DEG",
+    f.add_argument("--heading-deviation", type=setting_value("heading.deviation_deg", "deg"),
+                   metavar="DEG",
                    help="compass deviation bound after correction")
     f.add_argument("--declination", type=declination, metavar="DEG",
                    help="magnetic declination, east positive")
@@ -172,6 +179,15 @@ def load_drive(paths: list[str], mount: str = "auto") -> Any:
             raise InputError(f"{p}: no such file or directory")
     drive = read_drive(paths, mount=mount)
     drive.check()
+    from imubounds.io.drive.validate_imu import CORRUPT_SAMPLES
+
+    corrupt = drive.meta.get(CORRUPT_SAMPLES) or []
+    if corrupt:
+        more = f" (and {len(corrupt) - 1} more channel(s))" if len(corrupt) > 1 else ""
+        raise InputError(
+            f"{corrupt[0]}{more}: corrupt samples, which no error bound holds over; repair "
+            "or remove these rows (imubounds convert keeps them, with a warning)"
+        )
     from imubounds.dynamic.imu_mount import mount_warning
 
     if (w := mount_warning(drive)) is not None:
@@ -243,21 +259,41 @@ def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
     inputs = [*args.log, *(x for x in (args.static,) if x)]
-    with OutputSet(args.out, force=args.force, inputs=inputs) as outset:
+    with OutputSet(args.out, force=args.force, inputs=inputs, command="dynamic",
+                   source=args.log) as outset:
         outset.check(["dynamic.json", "motion.json", "margins.csv", "states.csv", "steps.csv",
                       "report.html"])
         messages = _run(args, outset)
-    if not args.quiet:
-        # the summary on stdout (as static's); notes on stderr
-        for m in messages:
-            note = m.startswith("imubounds: note:")
-            print(m, file=sys.stderr if note or args.json else sys.stdout)
+    for m in messages:
+        # the summary on stdout (as static's); notes and warnings on stderr, the warnings
+        # about the input even with --quiet
+        warning = m.startswith("imubounds: warning:")
+        if args.quiet and not warning:
+            continue
+        note = warning or m.startswith("imubounds: note:")
+        print(m, file=sys.stderr if note or args.json else sys.stdout)
     return 0
 
 
-def _run(args: argparse.Namespace, outset: Any) -> list[str]:
-    import numpy as np
+def _step_names(args: argparse.Namespace) -> list[str]:
+    modes = [args.mode] if args.mode else ["full", "paper"]
+    names = ["reading the drive", *(f"mode {m}" for m in modes), "writing the tables"]
+    if not args.no_plot:
+        names.append("drawing the figures")
+    if not args.no_report:
+        names.append("writing the report")
+    return names
 
+
+def _run(args: argparse.Namespace, outset: Any) -> list[str]:
+    from imubounds.cli._common import Reporter
+
+    with Reporter(args.quiet).steps("imubounds dynamic", len(_step_names(args))) as steps:
+        return _analyse(args, outset, steps)
+
+
+def _analyse(args: argparse.Namespace, outset: Any, steps: Any) -> list[str]:
+    steps.step("reading the drive")
     from imubounds.dynamic.estimator import SCHEMA_VERSION, dynamic_margins
     from imubounds.io.outputs import to_jsonable, write_json, write_with
 
@@ -266,14 +302,17 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     drive = load_drive(list(args.log), mount=args.mount)
     modes = [args.mode] if args.mode else ["full", "paper"]
     results: dict[str, Any] = {}
+    skipped: list[str] = []
     for mode in modes:
+        steps.step(f"mode {mode}")
         if mode == "full":
             results[mode] = dynamic_margins(drive, noise=args.static, mode=mode,
-                                            options=_full_options(args, drive.settings))
+                                            options=_full_options(args, drive.settings),
+                                            progress=steps.sub)  # fmt: skip
             continue
         opts = _paper_options(args)
         if drive.gnss is None:
-            say("imubounds: note: mode paper skipped: it needs GNSS fixes")
+            skipped.append("imubounds: note: mode paper skipped: it needs GNSS fixes")
             continue
         results[mode] = dynamic_margins(drive, noise=args.static, mode=mode, **opts)
     primary = "full" if "full" in results else next(iter(results))
@@ -297,107 +336,160 @@ def _run(args: argparse.Namespace, outset: Any) -> list[str]:
     }
     if full is not None and full.full.ctx.aiding.origin is not None:
         doc["input"]["origin_lat_lon_alt"] = list(full.full.ctx.aiding.origin)
+    steps.step("writing the tables")
     out = outset.staging
     write_json(out / "dynamic.json", doc)
+    motion: dict[str, Any] | None = None
     if full is not None and getattr(full, "full", None) is not None:
         from imubounds.motion import motion_figures
 
-        write_json(out / "motion.json", motion_figures(full, noise=args.static))
+        motion = motion_figures(full, noise=args.static)
+        write_json(out / "motion.json", motion)
     if full is not None:
         df = full.to_frame()
         write_with(out / "margins.csv", lambda p: df.to_csv(p, index=False, float_format="%.9g"))
         st = full.states_frame()
         write_with(out / "states.csv", lambda p: st.to_csv(p, index=False, float_format="%.9g"))
     if "paper" in results:
-        steps = _steps_table(results["paper"].paper)
-        write_with(out / "steps.csv", lambda p: steps.to_csv(p, index=False, float_format="%.9g"))
+        steps_df = _steps_table(results["paper"].paper)
+        write_with(out / "steps.csv",
+                   lambda p: steps_df.to_csv(p, index=False, float_format="%.9g"))
     if not args.no_plot:
-        from imubounds.report import dynamic_plots as P
-
-        title = f"{Path(str(drive.source)).name} ({drive.layout})"
-        if full is not None:
-            P.save(P.plot_margins(full.summary, title=title), out, "margins")
-            P.save(P.plot_windows(full, title=title), out, "windows")
-            P.save(P.plot_trajectory(full, drive, title=title), out, "trajectory")
-            from imubounds.motion import plot_motion, read_motion
-
-            noise_doc = None
-            if args.static:
-                noise_doc = json.loads(Path(args.static).read_text(encoding="utf-8"))
-            P.save(plot_motion(read_motion(out), noise_doc), out, "motion")
-        if "paper" in results:
-            P.save(P.plot_intervals(results["paper"].paper, title=title), out, "intervals")
+        steps.step("drawing the figures")
+        _figures(args, drive, results, out)
     outset.record(getattr(args, "argv", None), command_name="dynamic")
     if not args.no_report:
+        steps.step("writing the report")
         from imubounds.report.html import write_report
 
         write_report(out)
     if args.json:
         print(json.dumps(to_jsonable(doc), indent=2))
+    _summary(results, motion, say)
     for w in drive.warnings:
-        say(f"imubounds: note: {w}")
-    say(f"dynamic ({', '.join(results)}) -> {args.out}")
-    _summary(results, say)
-    del np
+        say(f"imubounds: warning: {w}")
+    messages += skipped
+    files = ["dynamic.json", *(["motion.json", "margins.csv", "states.csv"] if full else []),
+             *(["steps.csv"] if "paper" in results else [])]
+    say(f"wrote {', '.join(files)}{'' if args.no_plot else ', figures'}"
+        f"{'' if args.no_report else ', report.html'} to {args.out}")
     return messages
 
 
-def _summary(results: dict[str, Any], say: Any) -> None:
-    """The console summary of each mode: guarantee, violations, corrections applied,
-    verdicts with the tightest margin (or why none is decidable), the truth inside."""
+def _figures(args: argparse.Namespace, drive: Any, results: dict[str, Any], out: Path) -> None:
+    from imubounds.report import dynamic_plots as P
+
+    title = f"{Path(str(drive.source)).name} ({drive.layout})"
+    full = results.get("full")
+    if full is not None:
+        P.save(P.plot_margins(full.summary, title=title), out, "margins")
+        P.save(P.plot_windows(full, title=title), out, "windows")
+        P.save(P.plot_trajectory(full, drive, title=title), out, "trajectory")
+        from imubounds.motion import plot_motion, read_motion
+
+        noise_doc = None
+        if args.static:
+            noise_doc = json.loads(Path(args.static).read_text(encoding="utf-8"))
+        P.save(plot_motion(read_motion(out), noise_doc), out, "motion")
+    if "paper" in results:
+        P.save(P.plot_intervals(results["paper"].paper, title=title), out, "intervals")
+
+
+def _tightest(mode: str, ch: str, s: dict[str, Any]) -> tuple[str, list[str]]:
+    """The tightest decidable margin of a channel (or why none is decidable) and notes."""
+    rows = s.get("margins", {}).get(ch) or []
+    best = [x for x in rows if x.get("halfwidth_median") is not None]
+    if mode != "full" or not best:
+        return "", []
+    f, unit = (180 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
+    dec = [x for x in best if x.get("decidable_fraction", 0) > 0]
+    if dec:
+        x = min(dec, key=lambda x: x["halfwidth_median"])
+        return (f"+-{x['halfwidth_median'] * f:.3g} {unit} at tau {x['tau_s']:.3g} s "
+                f"(band {x['stationary'] * f:.3g})"), []
+    # nothing decidable: the narrowest margin against its band, and why
+    x = min(best, key=lambda x: x["halfwidth_median"] / max(x["stationary"], 1e-99))
+    notes = list((s.get("verdict_detail", {}).get(ch) or {}).get("notes") or [])
+    return (f"wider than the band at every tau (closest at tau {x['tau_s']:.3g} s: "
+            f"+-{x['halfwidth_median'] * f:.3g} {unit}, band {x['stationary'] * f:.3g})"),\
+        notes[:1]
+
+
+def _factor_text(mc: dict[str, Any] | None) -> str:
+    if not mc:
+        return "-"
+    F = mc.get("F")
+    taus = mc.get("resolved_taus") or []
+    if F is None:
+        return "not resolved"
+    return f"{F:.3g} (tau {min(taus):.3g}-{max(taus):.3g} s)" if taus else f"{F:.3g}"
+
+
+def _summary(results: dict[str, Any], motion: dict[str, Any] | None, say: Any) -> None:
+    """The answer first: per mode whether it is guaranteed (the failed checks when not),
+    the verdict of every channel the result holds (fragile ones marked), the in-motion
+    factor F (motion.json) and the tightest margin; then the corrections applied, the
+    truth inside and the dropped measurements."""
     from imubounds.dynamic.estimator.result import applied_corrections
 
+    mchans = (motion or {}).get("channels") or {}
     for mode, r in results.items():
         s = r.summary
-        tag = "guaranteed" if s.get("guaranteed") else "NOT guaranteed"
-        say(f"  mode {mode} ({tag}):")
-        viol = s.get("violations") or []
-        if viol:
-            say(f"    NOT GUARANTEED: {len(viol)} assumption check(s) failed (violations in "
-                "dynamic.json, column guaranteed of states.csv):")
-            for v in viol[:5]:
-                say(f"      {v['stream']}: {v['test']}: {v['detail']}")
-            if len(viol) > 5:
-                say(f"      ... and {len(viol) - 5} more")
+        verdicts = s.get("verdict") or {}
+        if mode != "full":
+            say(f"mode {mode} ({'guaranteed' if s.get('guaranteed') else 'NOT guaranteed'}): "
+                + ", ".join(f"{ch} {v}" for ch, v in verdicts.items()))
+        else:
+            _full_answer(s, mchans, say)
         for line in applied_corrections(s):
-            say(f"    {line}")
-        for ch, v in s.get("verdict", {}).items():
-            rows = s.get("margins", {}).get(ch) or []
-            best = [x for x in rows if x.get("halfwidth_median") is not None]
-            extra = ""
-            notes: list[str] = []
-            if mode == "full" and best:
-                f, unit = (180 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
-                dec = [x for x in best if x.get("decidable_fraction", 0) > 0]
-                if dec:
-                    x = min(dec, key=lambda x: x["halfwidth_median"])
-                    extra = (
-                        f"; tightest at tau {x['tau_s']:.3g} s: +-{x['halfwidth_median'] * f:.3g} "
-                        f"{unit} (band {x['stationary'] * f:.3g})"
-                    )
-                else:
-                    # nothing decidable: the narrowest margin against its band, and why
-                    x = min(best, key=lambda x: x["halfwidth_median"] / max(x["stationary"], 1e-99))
-                    extra = (
-                        f": the margins are wider than the band at every tau (closest at tau "
-                        f"{x['tau_s']:.3g} s: +-{x['halfwidth_median'] * f:.3g} {unit}, band "
-                        f"{x['stationary'] * f:.3g})"
-                    )
-                    notes = list((s.get("verdict_detail", {}).get(ch) or {}).get("notes") or [])
-            say(f"    {ch:8s} {v}{extra}")
-            for note in notes[:1]:
-                say(f"             {note}")
-        if "no reference" in s.get("verdict", {}).values():
+            say(f"  {line}")
+        if "no reference" in verdicts.values():
             from imubounds.dynamic.estimator.verdicts import HOW_TO_REFERENCE
 
-            say(f"    no reference to judge against: {HOW_TO_REFERENCE}")
+            say(f"  no reference to judge against: {HOW_TO_REFERENCE}")
         enc = s.get("enclosure")
         if enc:
             keys = [k for k in ("position", "heading", "u", "v") if enc.get(k) is not None]
-            say("    truth inside: " + ", ".join(f"{k} {100 * enc[k]:.1f}%" for k in keys))
+            say("  truth inside: " + ", ".join(f"{k} {100 * enc[k]:.1f}%" for k in keys))
         ei = s.get("empty_intersections")
         if ei and ei.get("count"):
-            say(f"    empty intersections: {ei['count']} (see dynamic.json)")
+            say(f"  empty intersections: {ei['count']} (see dynamic.json)")
+
+
+def _full_answer(s: dict[str, Any], mchans: dict[str, Any], say: Any) -> None:
+    """Mode full's guarantee, then a table: channel, verdict, in-motion F, tightest margin
+    (each row followed by why it is fragile or undecided)."""
+    viol = s.get("violations") or []
+    alpha = (s.get("alpha") or {}).get("alpha")
+    if s.get("guaranteed"):
+        tag = "guaranteed" + (f" with probability >= {1 - alpha:.4g} over the trip"
+                              if alpha else "")
+    else:
+        tag = f"NOT guaranteed: {len(viol)} assumption check(s) failed"
+    say(f"mode full ({tag}): the IMU's error in motion against its stationary band")
+    if viol:
+        say(f"  NOT GUARANTEED: {len(viol)} assumption check(s) failed (violations in "
+            "dynamic.json, column guaranteed of states.csv):")
+        for v in viol[:5]:
+            say(f"    {v['stream']}: {v['test']}: {v['detail']}")
+        if len(viol) > 5:
+            say(f"    ... and {len(viol) - 5} more")
+    details = s.get("verdict_detail", {}) or {}
+    rows: list[tuple[list[str], list[str]]] = []
+    for ch, v in (s.get("verdict") or {}).items():
+        det = details.get(ch) or {}
+        tight, notes = _tightest("full", ch, s)
+        sub = ([str(det.get("fragile_detail"))] if det.get("fragile") else []) + notes
+        rows.append(([ch, f"{v}, FRAGILE" if det.get("fragile") else str(v),
+                      _factor_text(mchans.get(ch)), tight], sub))
+    if not rows:
+        return
+    head = ["channel", "verdict", "in-motion F", "tightest margin (median window)"]
+    widths = [max(len(h), *(len(r[i]) for r, _ in rows)) for i, h in enumerate(head)]
+    for cells, sub in [(head, []), *rows]:
+        say("    " + "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)).rstrip())
+        for line in sub:
+            say(f"             {line}")
 
 
 def _steps_table(res: Any) -> Any:

@@ -33,12 +33,13 @@ def register(sub: Any) -> None:
     )
     p.add_argument("-o", "--out", metavar="FILE", help="output file (default: stdout)")
     add_force_option(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no summary")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no summary (by default the values written are printed)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from imubounds.export import export_noise
+    from imubounds.export import export_noise, written_values
 
     text = export_noise(Path(args.results), args.format, motion=args.motion)
     if args.out is None:
@@ -46,10 +47,16 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from imubounds.io.outputs import output_file
 
-    inputs = [args.results, *([args.motion] if args.motion else [])]
+    # the files read are inputs too (never overwritten): a folder's noise.json, motion.json
+    inputs = [args.results, str(Path(args.results) / "noise.json")]
+    if args.motion:
+        inputs += [args.motion, str(Path(args.motion) / "motion.json")]
     with output_file(args.out, force=args.force, inputs=inputs) as tmp:
         tmp.write_text(text, encoding="utf-8")
     if not args.quiet:
         what = "in-motion" if args.motion else "stationary"
-        print(f"wrote {args.out} ({args.format}, {what} figures)")
+        print(f"wrote {args.out} ({args.format}, {what} figures; units and conversions in "
+              "its comments):")
+        for line in written_values(text):
+            print(f"  {line}")
     return 0

@@ -15,6 +15,7 @@ from typing import Any
 
 from imubounds.cli._common import (
     Reporter,
+    add_force_option,
     add_log_options,
     nonneg_int,
     parse_taus,
@@ -22,6 +23,7 @@ from imubounds.cli._common import (
     positive_int,
     probability,
 )
+from imubounds.stationary.allan_grammar import DEFAULT_TAU_GRID
 
 #: Exit code when some units failed (the rest were analysed and written).
 EXIT_UNITS_FAILED = 1
@@ -47,6 +49,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument("logs", nargs="+", metavar="GLOB", help="log files or glob patterns")
     p.add_argument("-o", "--out", default="fleet", metavar="DIR", help="output directory")
+    add_force_option(p)
     p.add_argument("--scheduler", metavar="ADDRESS", help="running dask scheduler, tcp://h:8786")
     p.add_argument(
         "--workers", type=nonneg_int, default=2,
@@ -57,7 +60,8 @@ def register(sub: Any) -> None:
         "--spec", metavar="YAML",
         help="datasheet limits (max Q, N, B, K, R per kind; format in docs/fleet.md)",
     )  # fmt: skip
-    p.add_argument("--tau", default="octave", help="tau grid (as for static)")
+    p.add_argument("--tau", default=DEFAULT_TAU_GRID,
+                   help=f"tau grid (as for static; default {DEFAULT_TAU_GRID})")
     p.add_argument("--estimator", choices=ESTIMATORS, default="overlapping")
     p.add_argument(
         "--confidence", type=probability, default=0.683,
@@ -129,6 +133,12 @@ def run(args: argparse.Namespace) -> int:
     )
     parse_memory(args.max_memory, "--max-memory")
     task_bytes = parse_memory(args.task_size, "--task-size")
+    from imubounds.io.outputs import check_output_folder
+
+    # the fleet writes in place: the same rule as a result set (its own earlier results,
+    # the cache of every earlier run, or --overwrite); a re-run with more units is its own
+    check_output_folder(args.out, command="fleet", force=args.force, source=[],
+                        subsets=(".cache",))  # fmt: skip
     with rep.session() as progress:
         res = run_fleet(
             args.logs, args.out, settings, scheduler=args.scheduler, n_workers=args.workers,
@@ -141,7 +151,9 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     summ = res.summary()
     if args.json:
-        json.dump(summ, sys.stdout, indent=2, default=float)
+        from imubounds.io.outputs import to_jsonable
+
+        json.dump(to_jsonable(summ), sys.stdout, indent=2, allow_nan=False)
         print()
     elif not args.quiet:
         print(

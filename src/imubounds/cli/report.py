@@ -15,7 +15,7 @@ def register(sub: Any) -> None:
         help="write DIR/report.html from the results in DIR",
         description="Collect noise.json, dynamic.json, figures and run records found in DIR "
         "(or its static/ and dynamic/ sub-directories) into one self-contained DIR/report.html. "
-        "A report.html that imubounds did not write is not overwritten without --force.",
+        "A report.html that imubounds did not write is not overwritten without --overwrite.",
     )
     p.add_argument("dir", help="output directory of a previous run")
     add_force_option(p)

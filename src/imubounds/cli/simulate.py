@@ -288,15 +288,21 @@ def config_from_args(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from imubounds.cli._common import Reporter
     from imubounds.dynamic.scenario import OUTPUT_FILES, simulate, write_scenario
     from imubounds.io.outputs import OutputSet
 
     cfg = config_from_args(args)
     cfg.check()
-    with OutputSet(args.out, force=args.force) as outset:
+    inputs = [x for x in (args.imu_noise,) if x]
+    with OutputSet(args.out, force=args.force, command="simulate", inputs=inputs) as outset, \
+            Reporter(args.quiet).steps("imubounds simulate", 2) as steps:  # fmt: skip
         outset.check(OUTPUT_FILES)
+        steps.step(f"simulating the {cfg.variant} trip")
         res = simulate(cfg)
+        steps.step("writing the drive")
         write_scenario(res, outset.staging)
+        _check_written_settings(outset.staging)
         outset.record(getattr(args, "argv", None), command_name="simulate")
     if not args.quiet:
         d = res.drive
@@ -316,3 +322,31 @@ def run(args: argparse.Namespace) -> int:
             )
         print(res.record.summary())
     return 0
+
+
+#: drive.yaml settings the simulator writes from an option (a bound from its sigma)
+_SETTING_OPTIONS = {
+    "imu.misalignment_deg": "--misalignment",
+    "imu.scale_factor": "--scale-error",
+    "heading.noise_deg": "--compass-noise",
+    "attitude.bound_deg": "--attitude-sigma",
+}
+
+
+def _check_written_settings(staging: Any) -> None:
+    """The drive.yaml the simulator wrote must be one its reader takes: a setting out of
+    its range (a bound made of ``--misalignment 100``'s sigma) is an :class:`OptionError`
+    naming the option, and nothing is written."""
+    from imubounds.errors import InputError, OptionError
+    from imubounds.io.drive.settings import read_settings
+
+    try:
+        read_settings(staging)
+    except InputError as err:
+        text = str(err)
+        opt = next((o for k, o in _SETTING_OPTIONS.items() if k in text), None)
+        what = text.split(": ", 1)[-1]
+        raise OptionError(
+            f"{opt + ': ' if opt else ''}the drive.yaml it makes would be refused by "
+            f"every reader ({what}); give a smaller value"
+        ) from None

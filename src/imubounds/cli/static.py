@@ -35,7 +35,7 @@ MODELS = ("gm", "ar")
 
 
 def register(sub: Any) -> None:
-    from imubounds.stationary.allan_grammar import ESTIMATORS, TAU_GRAMMAR
+    from imubounds.stationary.allan_grammar import DEFAULT_TAU_GRID, ESTIMATORS, TAU_GRAMMAR
 
     p = sub.add_parser(
         "static",
@@ -57,9 +57,9 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--tau",
         type=tau_grid,
-        default="octave",
+        default=DEFAULT_TAU_GRID,
         metavar="GRID",
-        help=f"tau grid: {TAU_GRAMMAR} (default: octave)",
+        help=f"tau grid: {TAU_GRAMMAR} (default: {DEFAULT_TAU_GRID})",
     )
     p.add_argument(
         "--estimator",
@@ -130,6 +130,9 @@ def register(sub: Any) -> None:
     p.add_argument("--no-report", action="store_true", help="skip DIR/report.html")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages on stderr")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="also print every note of the analysis (by default their count and "
+                   "where they are: noise.json and report.html)")
     add_outofcore_options(p)
     add_log_options(p)
     p.add_argument(
@@ -357,97 +360,178 @@ def _fmt(v: float | None, status: str | None = None) -> str:
     return f"{mark}{v:.3g}"
 
 
-def table_lines(result: Any) -> list[str]:
-    """The terminal table: selected N, B, K (IEEE 952 and datasheet units), sigma_min,
-    the per-sample bound and the random-walk growth; '<' marks an upper bound."""
-    rows = []
-    for name, ch in result.channels.items():
-        js = ch.to_json()
-        sel = js["noise"]["selected"]
-        cells = [name]
-        for t in ("N", "B", "K"):
-            e = sel[t]
-            cells.append(_fmt(e["ieee"]["value"], e["status"]))
-            cells.append(_fmt(e["datasheet"]["value"], e["status"]))
-        sm = sel["sigma_min"]
-        cells.append(f"{_fmt(sm['datasheet']['value'])} @{sm['tau_s']:.3g}s")
-        cells.append(_fmt(js["bound"]["value"]))
-        cells.append(_fmt(js["random_walk_95"]["datasheet"]["value"]))
-        rows.append((ch.kind, cells))
+def _aligned(head: list[str], rows: list[list[str]]) -> list[str]:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    return ["  ".join(c.rjust(w) if i else c.ljust(w)
+                      for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+            for r in [head, *rows]]
+
+
+def table_lines(result: Any, flagged: set[str] | frozenset[str] = frozenset()) -> list[str]:
+    """The answer: per sensor kind, the selected N, B, K of each channel in datasheet and
+    SI units ('<' an upper bound); ``flagged`` channels get a '!' (a warning below)."""
     out: list[str] = []
     for kind in ("gyro", "accel"):
-        krows = [c for k, c in rows if k == kind]
-        if not krows:
+        chans = [(n, c.to_json()) for n, c in result.channels.items() if c.kind == kind]
+        if not chans:
             continue
-        ch0 = next(c for c in result.channels.values() if c.kind == kind).to_json()
-        sel0 = ch0["noise"]["selected"]
-        head = ["channel"]
+        sel0 = chans[0][1]["noise"]["selected"]
+        head = [kind]
         for t in ("N", "B", "K"):
-            head += [f"{t} [{sel0[t]['ieee']['unit']}]", f"{t} [{sel0[t]['datasheet']['unit']}]"]
-        head.append(f"sigma_min [{sel0['sigma_min']['datasheet']['unit']}]")
-        head.append(f"{ch0['bound']['k']:g}*sigma_c [{ch0['unit']}]")
-        head.append(f"RW95 [{ch0['random_walk_95']['datasheet']['unit']}]")
-        widths = [max(len(h), *(len(r[i]) for r in krows)) for i, h in enumerate(head)]
-        out.append("  ".join(h.rjust(w) if i else h.ljust(w) for i, (h, w) in
-                             enumerate(zip(head, widths, strict=True))))  # fmt: skip
-        for r in krows:
-            out.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in
-                                 enumerate(zip(r, widths, strict=True))))  # fmt: skip
-        out.append("")
-    est = result.settings.estimator
-    out.append(
-        f"selected terms (preferring the {result.settings.terms_from}) from the {est} curve; "
-        "'<' = upper bound (not resolved); sigma_min = lowest point of the curve; "
-        "RW95 = 1.96*N*sqrt(T) over the run (integrated error)"
-    )
+            head += [f"{t} [{sel0[t]['datasheet']['unit']}]", f"{t} [{sel0[t]['unit']}]"]
+        rows = []
+        for name, js in chans:
+            sel = js["noise"]["selected"]
+            cells = [name + (" !" if name in flagged else "")]
+            for t in ("N", "B", "K"):
+                e = sel[t]
+                cells += [_fmt(e["datasheet"]["value"], e["status"]), _fmt(e["value"], e["status"])]
+            rows.append(cells)
+        out += _aligned(head, rows)
     return out
 
 
+def kalibr_lines(doc: dict[str, Any]) -> list[str]:
+    """The filter parameters of imu.yaml (Kalibr / OpenVINS: the worst axis, SI), one line
+    per sensor after a title line."""
+    from imubounds.export import KALIBR_KEYS, filter_noise, kalibr_values
+
+    fn = filter_noise(doc)
+    vals = kalibr_values(fn)
+    out = [f"filter parameters (imu.yaml: Kalibr, OpenVINS; the worst axis; update_rate "
+           f"{fn.rate_hz:g} Hz; every format: imubounds export):"]
+    for kind in ("gyro", "accel"):
+        cells = []
+        for key, k, term, unit in KALIBR_KEYS:
+            if k == kind and key in vals:
+                v, ax = vals[key]
+                cells.append(f"{key} {_fmt(v, getattr(ax, f'{term}_status'))} {unit} "
+                             f"({ax.channel})")
+        if cells:
+            out.append("  " + "   ".join(cells))
+    return out
+
+
+def bounds_lines(result: Any) -> list[str]:
+    """The same terms in IEEE 952 units, sigma_min, the per-sample bound and the 95 %
+    random-walk growth over the run."""
+    out: list[str] = []
+    for kind in ("gyro", "accel"):
+        chans = [(n, c.to_json()) for n, c in result.channels.items() if c.kind == kind]
+        if not chans:
+            continue
+        js0 = chans[0][1]
+        sel0 = js0["noise"]["selected"]
+        head = [kind] + [f"{t} [{sel0[t]['ieee']['unit']}]" for t in ("N", "B", "K")]
+        head += [f"sigma_min [{sel0['sigma_min']['datasheet']['unit']}]",
+                 f"{js0['bound']['k']:g}*sigma_c [{js0['unit']}]",
+                 f"RW95 [{js0['random_walk_95']['datasheet']['unit']}]"]
+        rows = []
+        for name, js in chans:
+            sel = js["noise"]["selected"]
+            sm = sel["sigma_min"]
+            rows.append([name, *(_fmt(sel[t]["ieee"]["value"], sel[t]["status"])
+                                 for t in ("N", "B", "K")),
+                         f"{_fmt(sm['datasheet']['value'])} @{sm['tau_s']:.3g}s",
+                         _fmt(js["bound"]["value"]),
+                         _fmt(js["random_walk_95"]["datasheet"]["value"])])
+        out += _aligned(head, rows)
+    return out
+
+
+def answer_lines(result: Any, doc: dict[str, Any], flagged: set[str]) -> list[str]:
+    """What ``imubounds static`` prints first: the N/B/K table, the filter parameters and
+    the legend; then the IEEE 952 units and the bounds."""
+    est = result.settings.estimator
+    legend = (f"selected terms ({result.settings.terms_from} preferred) of the {est} curve; "
+              "'<' = upper bound (not resolved by the log)"
+              + ("; '!' = see the warnings below" if flagged else ""))
+    return [*table_lines(result, flagged), *kalibr_lines(doc), legend, "",
+            *bounds_lines(result),
+            "sigma_min = lowest point of the curve; RW95 = 1.96*N*sqrt(T) over the run "
+            "(integrated error)"]
+
+
 def print_table(result: Any) -> None:
-    print("\n".join(table_lines(result)))
+    print("\n".join(answer_lines(result, result.to_json(), set())))
+
+
+class Console:
+    """What ``imubounds static`` prints, in the order a reader wants it: the answer (the
+    N/B/K table and the filter parameters, stdout), then the warnings and the notes
+    (stderr: every warning; the notes counted, all of them with ``--verbose``), then the
+    files written. Collected while the work runs (a progress line may be on the terminal)
+    and printed when it is done; the warnings also when it fails."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.info: list[str] = []  # before the answer: what was read
+        self.answer: list[str] = []
+        self.warnings: list[str] = []
+        self.notes: list[str] = []
+
+    def flush(self, written: list[str] | None) -> None:
+        a = self.args
+        rep = Reporter(a.quiet)
+        for line in self.info:
+            rep.info(line)
+        if a.json:
+            pass  # the JSON summary is already on stdout
+        elif not a.quiet and self.answer:
+            print("\n".join(self.answer))
+        for w in self.warnings:
+            rep.warn(w)
+        if a.verbose:
+            for n in self.notes:
+                rep.info(n)
+        elif self.notes:
+            rep.info(f"{len(self.notes)} note(s) on the analysis (how each term was read, "
+                     "fits, decimation, models) in noise.json (channels.<ch>.notes, "
+                     "noise.fit.notes, noise.slope.notes, models.notes) and report.html; "
+                     "--verbose prints them")
+        if written is not None:
+            rep.info(f"wrote {', '.join(written)} to {a.out}")
 
 
 def run(args: argparse.Namespace) -> int:
     from imubounds.io.outputs import OutputSet
 
-    # The output directory is locked and checked before the analysis, not after it;
-    # the results land in it complete or not at all.
-    with OutputSet(args.out, force=args.force, inputs=[args.log]) as outset:
-        outset.check(["noise.json", "imu.yaml", "allan.png", "allan.svg", "report.html"])
-        written = _run(args, outset)
-    Reporter(args.quiet).info(f"wrote {', '.join(written)} to {args.out}")
+    con = Console(args)
+    written: list[str] | None = None
+    try:
+        # The output directory is locked and checked before the analysis, not after it;
+        # the results land in it complete or not at all.
+        with OutputSet(args.out, force=args.force, inputs=[args.log], command="static") as outset:
+            outset.check(["noise.json", "imu.yaml", "allan.png", "allan.svg", "report.html"])
+            written = _run(args, outset, con)
+    finally:
+        con.flush(written)
     return 0
 
 
-def _run(args: argparse.Namespace, outset: Any) -> list[str]:
-    with _frozen_heap():
-        return _analyse_and_write(args, outset)
+def _step_names(args: argparse.Namespace) -> list[str]:
+    return ["reading the log", "analysing", "writing noise.json and imu.yaml",
+            *([] if args.no_plot else ["drawing the figures"]),
+            *([] if args.no_report else ["writing the report"])]
 
 
-def _analyse_and_write(args: argparse.Namespace, outset: Any) -> list[str]:
-    import imubounds.io.table  # noqa: F401 - the reader, before the import thread starts
-    from imubounds.io.outputs import write_json, write_text
-    from imubounds.stationary.routing import format_bytes, parse_memory, route_outofcore
+def _run(args: argparse.Namespace, outset: Any, con: Console) -> list[str]:
+    with _frozen_heap(), Reporter(args.quiet).steps(
+        "imubounds static", len(_step_names(args))
+    ) as steps:
+        return _analyse_and_write(args, outset, con, steps)
 
-    rep = Reporter(args.quiet)
+
+def _settings(args: argparse.Namespace) -> Any:
+    from imubounds.stationary.pipeline import StaticSettings
+
     models = (
         ()
         if args.models.strip().lower() in ("", "none")
         else parse_list(args.models, MODELS, "--models")
     )
-    taus = parse_taus(args.tau)
-    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
-    with _importing(_later_imports(args)):  # while the log is routed and read
-        big = route_outofcore(
-            args.log, args.max_memory, force=args.out_of_core, channels=channels,
-            **_open_kwargs(args),
-        )  # fmt: skip
-        log = read_log_from_args(args.log, args) if big is None else None
-    _freeze_heap()
-    from imubounds.stationary.pipeline import StaticSettings, analyse_static
-
-    settings = StaticSettings(
-        taus=taus,
+    return StaticSettings(
+        taus=parse_taus(args.tau),
         estimator=args.estimator,
         confidence=args.confidence,
         k_sigma=args.k_sigma,
@@ -460,6 +544,28 @@ def _analyse_and_write(args: argparse.Namespace, outset: Any) -> list[str]:
         ar_max_order=args.ar_max_order,
         cut_warmup=args.cut_warmup,
     )
+
+
+def _analyse_and_write(
+    args: argparse.Namespace, outset: Any, con: Console, steps: Any
+) -> list[str]:
+    import imubounds.io.table  # noqa: F401 - the reader, before the import thread starts
+    from imubounds.io.outputs import write_json, write_text
+    from imubounds.stationary.routing import format_bytes, parse_memory, route_outofcore
+
+    parse_taus(args.tau)  # a bad grid is refused before the log is read
+    channels = [c.strip() for c in args.channels.split(",")] if args.channels else None
+    steps.step("reading the log")
+    with _importing(_later_imports(args)):  # while the log is routed and read
+        big = route_outofcore(
+            args.log, args.max_memory, force=args.out_of_core, channels=channels,
+            **_open_kwargs(args),
+        )  # fmt: skip
+        log = read_log_from_args(args.log, args) if big is None else None
+    _freeze_heap()
+    from imubounds.stationary.pipeline import analyse_static
+
+    settings = _settings(args)
     if big is not None and args.robust:
         from imubounds.errors import OptionError
 
@@ -467,58 +573,58 @@ def _analyse_and_write(args: argparse.Namespace, outset: Any) -> list[str]:
             "--robust needs the samples in memory; this log takes the out-of-core path "
             "(raise --max-memory or drop --robust)"
         )
+    steps.step("analysing")
     if big is not None:
         from imubounds.stationary.stream import analyse_static_outofcore
 
-        rep.info(
+        con.info.append(
             f"out-of-core: {big.source}, channels {', '.join(big.channels)} at {big.rate_hz:g} Hz,"
             f" data buffers <= {format_bytes(parse_memory(args.max_memory))}"
         )
-        with rep.session() as progress:
-            result = analyse_static_outofcore(
-                big,
-                settings,
-                channels=channels,
-                memory_limit=args.max_memory,
-                tmpdir=args.tmpdir,
-                progress=progress,
-            )
-        for w in big.warnings:
-            rep.warn(w)
-        for note in result.notes:
-            rep.info(note)
+        result = analyse_static_outofcore(
+            big, settings, channels=channels, memory_limit=args.max_memory,
+            tmpdir=args.tmpdir, progress=steps.sub,
+        )  # fmt: skip
+        con.warnings += list(big.warnings)  # after the pass: the stream's checks add to them
+        con.notes += list(result.notes)
     else:
         assert log is not None
-        for w in log.warnings:
-            rep.warn(w)
-        rep.info(
+        con.warnings += list(log.warnings)
+        con.info.append(
             f"read {log.source}: {log.n_samples} samples at {log.rate_hz:g} Hz "
             f"({log.duration_s / 3600:.3g} h), channels {', '.join(log.channel_names())}"
         )
-        with rep.session() as progress:
-            result = analyse_static(log, settings, channels=channels, progress=progress)
+        result = analyse_static(log, settings, channels=channels, progress=steps.sub)
+    steps.step("writing noise.json and imu.yaml")
     outdir = outset.staging
-    write_json(outdir / "noise.json", result.to_json())
-    write_text(outdir / "imu.yaml", result.kalibr_yaml())
+    doc = result.to_json()
+    write_json(outdir / "noise.json", doc)
+    write_text(outdir / "imu.yaml", result.kalibr_yaml(doc))
     outset.record(getattr(args, "argv", None), command_name="static")
     written = ["noise.json", "imu.yaml", "run.json"]
     if not args.no_plot:
+        steps.step("drawing the figures")
         gc.freeze()  # the result too: the figures' passes skip it (and the forked child's)
-        written += save_figures(result, outdir)
+        with steps.paused():  # one thread: the figures are drawn in a forked child
+            written += save_figures(result, outdir)
+    flagged: set[str] = set()
     for name, ch in result.channels.items():
-        for w in ch.warnings:
-            rep.warn(w)
-        for note in ch.notes + ch.slope.notes + ch.fit.notes:
-            rep.info(f"{name}: {note}")
+        if ch.warnings:
+            flagged.add(name)
+        con.warnings += list(ch.warnings)
+        con.notes += [f"{name}: {n}" for n in ch.notes + ch.slope.notes + ch.fit.notes]
         if ch.models is not None:
-            for note in getattr(ch.models, "notes", []):
-                rep.info(f"{name}: {note}")
+            con.notes += [f"{name}: {n}" for n in getattr(ch.models, "notes", [])]
+    flagged |= {n for n in result.channels for w in con.warnings if w.startswith(f"{n}:")}
     if args.json:
-        json.dump(summary(result), sys.stdout, indent=2, default=float)
+        from imubounds.io.outputs import to_jsonable
+
+        json.dump(to_jsonable(summary(result)), sys.stdout, indent=2, allow_nan=False)
         print()
-    elif not args.quiet:
-        print_table(result)
+    else:
+        con.answer = answer_lines(result, doc, flagged)
     if not args.no_report:
+        steps.step("writing the report")
         from imubounds.report.html import write_report
 
         write_report(outdir)

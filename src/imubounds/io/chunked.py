@@ -456,6 +456,7 @@ def _open_text(o: _Opening) -> ChunkedLog:
     except OSError as err:
         raise InputError(f"{p}: cannot read the file ({err.strerror or err})") from err
     layout = _detect_layout(p, _read_head(p, gz))
+    warnings.extend(layout.notes)
     plan = plan_columns(layout.header, src, columns=cols, channels=chans)
     label = _line_finder(p, gz, layout)
     tinfo = None

@@ -1,157 +1,99 @@
-"""Atomic writing of result files and of whole result sets.
+"""Which files imubounds may write, and result sets that land complete or not at all.
 
 Every file is first written next to its destination under a temporary name and
-then moved into place with :func:`os.replace`, so an interrupted run never
-leaves a half-written ``noise.json`` or figure behind.
+then moved into place with :func:`os.replace` (:mod:`imubounds.io.atomic`), so an
+interrupted run never leaves a half-written ``noise.json`` or figure behind.
 
-How imubounds recognises the files it wrote (and so may overwrite):
+How imubounds recognises the files it wrote (and so may overwrite; the records are read in
+:mod:`imubounds.io.records`):
 
 * a **result set** (:class:`OutputSet`: ``static``, ``dynamic``, ``simulate``,
-  ``demo``) is staged beside its directory, moved in at the end and listed in
-  the directory's ``run.json``, written last: a directory whose ``run.json``
-  lists its files is complete, and the files it lists are imubounds' (and so
-  are those of earlier runs it did not replace, listed apart as
-  ``earlier_files``: never part of the complete set). A later run of the *same*
-  command removes the files the earlier run listed and it did not rewrite (a
-  report and figures beside a ``--no-plot`` run's results), so that a folder
-  holds one run's results; files of another command stay, as ``earlier_files``.
-  While a
-  set is being moved in, ``.imubounds-commit.json`` lists the old and the new
-  set, so that a run killed in the middle of the move is still recognised
-  (the directory has no ``run.json`` then: it does not look complete);
+  ``convert``, ``demo``) is staged beside its directory, moved in at the end and
+  listed in the directory's ``run.json`` (written last, with each file's size and
+  modification time, the command and its inputs): a directory whose ``run.json``
+  lists its files is complete. A set is written only into a new or empty
+  directory, or one that holds the earlier results of the *same* command on the
+  same input as imubounds left them; anything else there (the user's notes, a
+  log, another command's or another log's results, a result the user edited) is
+  refused unless ``--overwrite`` (then kept; only files of the names the set
+  writes are replaced). A later run of the same command removes the files the
+  earlier run listed and it did not rewrite (a report and figures beside a
+  ``--no-plot`` run's results), so that a folder holds one run's results; files
+  of another command stay, as ``earlier_files``. The commit puts the old files
+  aside in a backup folder before moving the new ones in and undoes everything
+  on any exception (Ctrl-C held back meanwhile); a run killed in the middle
+  leaves ``.imubounds-commit.json``, from which the next run restores the old set;
 * a **single file** (:func:`output_file`: ``simulate-noise -o FILE``,
-  ``--save-spec``, ``report DIR``'s ``report.html``) is recorded with its size
-  and modification time in ``.imubounds-files.json`` in its folder; a file
-  counts as imubounds' only while both still match (a file the user edited
-  since is the user's).
+  ``--save-spec``, ``export -o FILE``, ``report DIR``'s ``report.html``) is
+  recorded with its size and modification time in ``.imubounds-files.json`` in
+  its folder; a file counts as imubounds' only while both still match (a file
+  the user edited since is the user's).
 
 Anything else (a file imubounds did not write, or one the user changed) is
-never overwritten without ``--force``, and an input of the same run never,
-even with ``--force``. Another run writing the same directory holds
-``.imubounds.lock`` there. :func:`committed_outputs` lists what this process
-has committed, so that an interrupted command can say truthfully what was
-written.
+never overwritten without ``--overwrite`` (``--force`` is the same option), and
+an input of the same run never, even with ``--overwrite``. Another run writing
+the same directory holds ``.imubounds.lock`` there; it is taken and removed with
+Ctrl-C held back, so that no lock is left behind. :func:`committed_outputs` lists
+what this process has committed, so that an interrupted command can say
+truthfully what was written.
 """
 
 from __future__ import annotations
 
 import glob
-import json
-import math
 import os
-import signal
+import shutil
 import tempfile
-import threading
-import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-import numpy as np
+from imubounds.errors import OutputError
+from imubounds.io.atomic import (
+    atomic_open,
+    atomic_path,
+    ensure_dir,
+    to_jsonable,
+    umask_mode,
+    write_json,
+    write_text,
+    write_with,
+)
+from imubounds.io.locks import acquire_lock, lock_owner, pid_alive, signals_held
+from imubounds.io.records import (
+    BACKUP_PREFIX,
+    BOOKKEEPING,
+    COMMIT_RECORD,
+    FILES_LOCK,
+    FILES_RECORD,
+    LOCK_NAME,
+    RUN_RECORD,
+    committed_outputs,
+    files_record,
+    files_under,
+    fingerprint,
+    fingerprints,
+    is_input,
+    journal,
+    listed_files,
+    names_written,
+    read_json,
+    recorded_files,
+    remove_stale_parts,
+    reset_committed_outputs,
+    unchanged,
+    written_by_imubounds,
+)
 
-from imubounds.errors import OptionError, OutputError
-
-
-def _umask_mode() -> int:
-    """File mode an ordinary ``open()`` would give (0o666 less the umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-def ensure_dir(path: str | os.PathLike[str]) -> Path:
-    """Create ``path`` (and parents) if needed; a clear error if it is a file."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise OptionError(f"output path {p} exists and is not a directory; choose another -o")
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise OptionError(f"cannot create output directory {p}: {err.strerror}") from err
-    return p
-
-
-@contextmanager
-def atomic_path(dest: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path beside ``dest``; move it onto ``dest`` on success."""
-    dest = Path(dest)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part", dir=dest.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        os.chmod(tmp_path, _umask_mode())
-        os.replace(tmp_path, dest)
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
-
-
-@contextmanager
-def atomic_open(dest: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``dest`` for writing; replace ``dest`` on success."""
-    with atomic_path(dest) as tmp, open(tmp, mode, encoding=None if "b" in mode else "utf-8") as f:
-        yield f
-
-
-def _clean(obj: Any) -> Any:
-    """Make numpy scalars/arrays JSON-able and turn non-finite floats into None."""
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, np.generic):
-        return _clean(obj.item())
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def to_jsonable(obj: Any) -> Any:
-    """Public form of the JSON cleaner (numpy -> Python, nan/inf -> null)."""
-    return _clean(obj)
-
-
-def write_json(dest: str | os.PathLike[str], data: Any, *, indent: int | None = 2) -> Path:
-    """Write ``data`` as JSON (nan/inf become null) atomically: indented, or compact
-    with ``indent=None`` (a cache file: the C encoder, several times faster)."""
-    text = json.dumps(_clean(data), indent=indent, allow_nan=False,
-                      separators=None if indent is not None else (",", ":"))  # fmt: skip
-    with atomic_open(dest) as f:
-        f.write(text)
-        f.write("\n")
-    return Path(dest)
-
-
-def write_text(dest: str | os.PathLike[str], text: str) -> Path:
-    with atomic_open(dest) as f:
-        f.write(text)
-    return Path(dest)
-
-
-def write_with(dest: str | os.PathLike[str], writer: Callable[[Path], None]) -> Path:
-    """Call ``writer(tmp_path)`` and move the result onto ``dest`` atomically.
-
-    The temporary path keeps ``dest``'s suffix so that writers choosing a
-    format by extension (matplotlib's ``savefig``) do the right thing.
-    """
-    dest = Path(dest)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=dest.suffix, dir=dest.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        writer(tmp_path)
-        os.chmod(tmp_path, _umask_mode())
-        os.replace(tmp_path, dest)
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
-    return dest
+__all__ = [
+    "BOOKKEEPING", "COMMIT_RECORD", "FILES_RECORD", "LOCK_NAME", "RUN_RECORD", "OutputSet",
+    "atomic_open", "atomic_path", "check_output_file", "check_output_folder",
+    "committed_outputs", "ensure_dir",
+    "listed_files", "output_file", "record_written_files", "recorded_files",
+    "reset_committed_outputs", "to_jsonable", "write_json", "write_run_record", "write_text",
+    "write_with", "written_by_imubounds",
+]
 
 
 def write_run_record(outdir: str | os.PathLike[str], argv: list[str] | None, **extra: Any) -> Path:
@@ -175,18 +117,6 @@ def write_run_record(outdir: str | os.PathLike[str], argv: list[str] | None, **e
     return write_json(Path(outdir) / "run.json", record)
 
 
-def listed_files(target: str | os.PathLike[str]) -> set[str]:
-    """Relative names of the files the last imubounds run in ``target`` listed as its own
-    (its ``run.json``, and an interrupted commit's record)."""
-    return _written_by_imubounds(Path(target))
-
-
-def recorded_files(folder: str | os.PathLike[str]) -> set[str]:
-    """Names of the files an imubounds run recorded in ``folder`` as its own (its
-    ``run.json`` and the single-file record), whether or not they still exist."""
-    return _written_by_imubounds(Path(folder)) | set(_files_record(Path(folder)))
-
-
 def record_written_files(
     target: str | os.PathLike[str],
     argv: Sequence[str] | None,
@@ -208,164 +138,6 @@ def record_written_files(
     return write_run_record(t, list(argv) if argv is not None else None, files=names,
                             complete=complete, **({"earlier_files": old} if old else {}),
                             **extra)  # fmt: skip
-
-
-# ----------------------------------------------------------------------------- records
-RUN_RECORD = "run.json"
-LOCK_NAME = ".imubounds.lock"
-#: Written before a result set is moved in, removed after its run.json is written.
-COMMIT_RECORD = ".imubounds-commit.json"
-#: Single files imubounds wrote in a folder, with their size and modification time.
-FILES_RECORD = ".imubounds-files.json"
-FILES_LOCK = ".imubounds-files.lock"
-
-_JOURNAL: list[str] = []
-
-
-def committed_outputs() -> list[str]:
-    """What this process has written completely so far (directories and files)."""
-    return list(_JOURNAL)
-
-
-def reset_committed_outputs() -> None:
-    """Forget :func:`committed_outputs` (the CLI does this at the start of a command)."""
-    _JOURNAL.clear()
-
-
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-
-
-def _written_by_imubounds(target: Path) -> set[str]:
-    """Relative names that the last imubounds run in ``target`` wrote: those its run.json
-    lists, and those of a commit that was interrupted (``.imubounds-commit.json``)."""
-    names: set[str] = set()
-    rec = _read_json(target / RUN_RECORD)
-    for key in ("files", "earlier_files"):
-        files = rec.get(key) if isinstance(rec, dict) else None
-        if isinstance(files, list):
-            names |= {str(f) for f in files}
-    intent = _read_json(target / COMMIT_RECORD)
-    if isinstance(intent, dict):
-        for key in ("old", "new"):
-            if isinstance(intent.get(key), list):
-                names |= {str(f) for f in intent[key]}
-    return names | {RUN_RECORD} if names else names
-
-
-def _fingerprint(path: Path) -> list[int]:
-    st = path.stat()
-    return [int(st.st_size), int(st.st_mtime_ns)]
-
-
-def _files_record(folder: Path) -> dict[str, list[int]]:
-    rec = _read_json(folder / FILES_RECORD)
-    files = rec.get("files") if isinstance(rec, dict) else None
-    if not isinstance(files, dict):
-        return {}
-    return {
-        str(k): [int(x) for x in v]
-        for k, v in files.items()
-        if isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) for x in v)
-    }
-
-
-def written_by_imubounds(path: str | os.PathLike[str]) -> bool:
-    """True when ``path`` is a file imubounds wrote (see the module docstring)."""
-    p = Path(path)
-    if not p.is_file():
-        return False
-    if p.name in _written_by_imubounds(p.parent):
-        return True
-    rec = _files_record(p.parent).get(p.name)
-    try:
-        return rec is not None and rec == _fingerprint(p)
-    except OSError:
-        return False
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return a.resolve() == b.resolve()
-
-
-def _is_input(path: Path, inputs: Iterable[Path]) -> bool:
-    return any(_same_file(path, i) for i in inputs)
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _lock_owner(lock: Path) -> int:
-    """Process id of a live holder of ``lock`` other than this process, else 0."""
-    try:
-        pid = int(lock.read_text().strip() or "0")
-    except (OSError, ValueError):
-        return 0
-    return pid if pid and pid != os.getpid() and _pid_alive(pid) else 0
-
-
-def _acquire(lock: Path, what: Path, *, wait_s: float = 0.0) -> None:
-    """Create ``lock`` holding this process id; a stale lock (dead process) is taken over."""
-    deadline = time.monotonic() + wait_s
-    for _ in range(10_000):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            pid = _lock_owner(lock)
-            if pid:
-                if time.monotonic() < deadline:
-                    time.sleep(0.05)
-                    continue
-                raise OutputError(
-                    f"another imubounds run (process {pid}) is writing {what}; "
-                    "wait for it or choose another -o"
-                ) from None
-            lock.unlink(missing_ok=True)  # stale: its process is gone
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        return
-    raise OutputError(f"cannot lock {what} for writing")
-
-
-def _remove_stale_parts(folder: Path, names: Iterable[str]) -> None:
-    """Temporary files of ``names`` (``.NAME.XXXX.part``) left by a killed run; only
-    called while holding the lock under which they are written."""
-    for name in names:
-        for p in folder.glob(glob.escape(f".{name}.") + "*.part"):
-            p.unlink(missing_ok=True)
-
-
-@contextmanager
-def _sigint_held() -> Iterator[None]:
-    """Hold Ctrl-C (and SIGTERM) back for a few renames; deliver it afterwards."""
-    main = threading.current_thread() is threading.main_thread()
-    pending: list[int] = []
-    held = (signal.SIGINT, signal.SIGTERM)
-    old = {s: signal.getsignal(s) for s in held} if main else {}
-    if main:
-        for s in held:
-            signal.signal(s, lambda num, frame: pending.append(num))
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
-    if pending:
-        signal.raise_signal(pending[0])
 
 
 # ----------------------------------------------------------------------------- single files
@@ -395,6 +167,9 @@ def check_output_file(
         raise OutputError(f"{option} is empty; give a file name")
     if text.endswith(("/", os.sep)) or d.is_dir():
         raise OutputError(f"{who} is a directory; give a file name inside it")
+    if d.name in BOOKKEEPING:
+        raise OutputError(f"{who}: {d.name} is imubounds' record of a folder's results; "
+                          f"{advice}")
     parent = d.parent
     try:
         if not parent.is_dir():
@@ -402,7 +177,7 @@ def check_output_file(
             raise OutputError(f"{who}: folder {parent} {what}; create it or {advice}")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise OutputError(f"{who}: folder {parent} is not writable; {advice}")
-        if _is_input(d, [Path(i) for i in inputs if os.fspath(i)]):
+        if is_input(d, [Path(i) for i in inputs if os.fspath(i)]):
             raise OutputError(
                 f"{who} is an input of this run; imubounds will not overwrite it ({advice})"
             )
@@ -415,9 +190,9 @@ def check_output_file(
             if not force and not written_by_imubounds(d):
                 raise OutputError(
                     f"{who} exists and imubounds did not write it (or it was changed since); "
-                    f"imubounds will not overwrite it ({advice}, or pass --force)"
+                    f"imubounds will not overwrite it ({advice}, or pass --overwrite)"
                 )
-        pid = _lock_owner(parent / LOCK_NAME)
+        pid = lock_owner(parent / LOCK_NAME)
     except OSError as err:  # an over-long name, a loop of links ...
         raise OutputError(f"{who}: cannot be written ({err.strerror or err})") from err
     if pid:
@@ -454,28 +229,55 @@ def output_file(
     tmp_path = Path(tmp)
     try:
         yield tmp_path
-        os.chmod(tmp_path, _umask_mode())
+        os.chmod(tmp_path, umask_mode())
         folder = d.parent
         lock = folder / FILES_LOCK
-        _acquire(lock, folder, wait_s=10.0)
+        with signals_held():  # taken and removed with Ctrl-C held back: never left behind
+            acquire_lock(lock, folder, wait_s=10.0)
         try:
-            _remove_stale_parts(folder, (FILES_RECORD,))
+            remove_stale_parts(folder, (FILES_RECORD,))
             check_output_file(d, force=force, inputs=inputs, option=option, advice=advice)
-            with _sigint_held():
-                os.replace(tmp_path, d)
-                rec = {
-                    k: v for k, v in _files_record(folder).items() if (folder / k).is_file()
-                }
-                rec[d.name] = _fingerprint(d)
-                write_json(folder / FILES_RECORD, {"format": "imubounds.files/1", "files": rec})
-                _JOURNAL.append(str(d))
+            with signals_held():
+                _replace_recorded(tmp_path, d)
+                journal(str(d))
         except OSError as err:
             raise OutputError(f"{who}: cannot be written ({err.strerror or err})") from err
         finally:
-            lock.unlink(missing_ok=True)
+            with signals_held():
+                _remove_file(lock)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def _replace_recorded(tmp: Path, d: Path) -> None:
+    """Move ``tmp`` onto ``d`` and record it in the folder's single-file record, as one
+    step: the old ``d`` is set aside first and put back if anything fails."""
+    folder = d.parent
+    bak = None
+    if d.exists() or d.is_symlink():
+        fd, name = tempfile.mkstemp(prefix=f".{d.name}.", suffix=".old.part", dir=folder)
+        os.close(fd)
+        bak = Path(name)
+    aside = placed = False
+    try:
+        if bak is not None:
+            os.replace(d, bak)
+            aside = True
+        os.replace(tmp, d)
+        placed = True
+        rec = {k: v for k, v in files_record(folder).items() if (folder / k).is_file()}
+        rec[d.name] = fingerprint(d)
+        write_json(folder / FILES_RECORD, {"format": "imubounds.files/1", "files": rec})
+    except BaseException:
+        if placed:
+            os.replace(d, tmp)  # the new file back where it came from
+        if aside and bak is not None:
+            os.replace(bak, d)
+        raise
+    finally:
+        if bak is not None:
+            _remove_file(bak)
 
 
 # ----------------------------------------------------------------------------- output sets
@@ -483,29 +285,41 @@ class OutputSet:
     """A set of result files that lands in a directory complete or not at all.
 
     Files are written into a staging directory beside ``target``; on success
-    they are moved into ``target`` and ``run.json`` (written last) lists them:
-    a directory whose ``run.json`` lists a file set is complete. Rules:
+    they are moved into ``target`` and ``run.json`` (written last) lists them
+    with their sizes and modification times: a directory whose ``run.json``
+    lists a file set is complete. Rules:
 
-    * a file in ``target`` that imubounds did not write (not listed in the
-      previous ``run.json``), or an input of the same run, is never
-      overwritten unless ``force`` (an input never): :class:`OutputError`
-      names it, and nothing is written;
+    * ``target`` must be new, empty, or hold only the results of an earlier run of
+      the same ``command`` on the same ``source`` (its inputs by default) as
+      imubounds left them; anything else (the user's files, another command's or
+      another input's results, a result the user edited) is refused when the set
+      is opened, naming a few, unless ``force`` (``--overwrite``): then they are
+      kept, and only files of the names this set writes are replaced;
+    * an input of the run is never overwritten, even with ``force``;
     * another run writing the same directory holds ``target/.imubounds.lock``:
-      :class:`OutputError` names its process;
+      :class:`OutputError` names its process; the lock is taken and removed with
+      Ctrl-C held back, so that it is never left behind;
     * on an exception (Ctrl-C included) before the commit, the staging
       directory is removed and ``target`` is untouched (``committed`` stays
-      False, so the caller can say so truthfully); Ctrl-C during the commit
-      is held back until the set is complete;
+      False, so the caller can say so truthfully). The commit moves the old
+      versions of the files it replaces or supersedes into a backup folder inside
+      ``target``, then the new files in, then writes ``run.json``; an exception at
+      any step moves everything back (the old set, complete), and Ctrl-C is held
+      back until the commit is done or undone;
     * a run killed outright (SIGKILL, power loss) leaves at worst a hidden
       staging directory (removed by the next run into ``target``) or, in the
-      middle of the commit, a directory without ``run.json`` whose files the
-      next run still recognises (``.imubounds-commit.json``).
+      middle of the commit, a directory without ``run.json`` and its
+      ``.imubounds-commit.json``: the next run into ``target`` restores the old
+      set from the backup first.
 
     Usage::
 
-        with OutputSet(out_dir, inputs=[log_path], force=args.force) as out:
+        with OutputSet(out_dir, command="static", inputs=[log_path], force=args.force) as out:
             write_json(out.path("noise.json"), doc)
-            out.record(argv, command_name="static")
+            out.record(argv)
+
+    ``subsets``: top-level sub-folders that other commands of the same run write as
+    their own sets (``demo``): not judged here.
     """
 
     def __init__(
@@ -514,11 +328,18 @@ class OutputSet:
         *,
         force: bool = False,
         inputs: Iterable[str | os.PathLike[str]] = (),
+        command: str | None = None,
+        source: Iterable[str | os.PathLike[str]] | None = None,
+        subsets: Iterable[str] = (),
     ) -> None:
         self._empty = not os.fspath(target).strip()  # Path("") would be "." silently
         self.target = Path(target)
         self.force = force
         self.inputs = [Path(p) for p in inputs if os.fspath(p)]
+        self.command = command
+        src = self.inputs if source is None else [Path(p) for p in source if os.fspath(p)]
+        self.source = sorted(str(p.resolve()) for p in src)
+        self.subsets = tuple(subsets)
         self.committed = False
         self._record: dict[str, Any] | None = None
         self._staging: Path | None = None
@@ -535,16 +356,21 @@ class OutputSet:
                 raise OutputError(
                     f"output path {t} exists and is not a directory; choose another -o"
                 )
-            if t.exists() and _is_input(t, self.inputs):
+            if t.exists() and is_input(t, self.inputs):
                 raise OutputError(
                     f"output directory {t} is an input of this run; choose another -o"
                 )
             if not t.exists():
                 t.mkdir(parents=True)
                 self._created_target = True
-            self._take_lock()
+            with signals_held():  # the lock is held exactly when self._lock says so
+                acquire_lock(t / LOCK_NAME, t)
+                self._lock = t / LOCK_NAME
+            self._restore_interrupted_commit()
             self._remove_stale_staging()
-            _remove_stale_parts(t, (RUN_RECORD, COMMIT_RECORD))
+            remove_stale_parts(t, (RUN_RECORD, COMMIT_RECORD))
+            if not self.force:
+                self._refuse_others()
             self._staging = Path(
                 tempfile.mkdtemp(prefix=self._staging_prefix(os.getpid()), dir=self._parent())
             )
@@ -585,7 +411,9 @@ class OutputSet:
     def record(self, argv: list[str] | None, **extra: Any) -> None:
         """Write ``run.json`` (command, version, platform) now; the commit rewrites it last,
         with the list of files, so that a directory with a ``run.json`` is complete."""
-        self._record = {"argv": argv, **extra}
+        if self.command is not None:
+            extra.setdefault("command_name", self.command)
+        self._record = {"argv": argv, **extra, "inputs": self.source}
         write_run_record(self.staging, argv, complete=False, **extra)
 
     # -- internals ------------------------------------------------------------
@@ -597,65 +425,125 @@ class OutputSet:
 
     def _remove_stale_staging(self) -> None:
         """Staging directories of runs into this target whose process is gone (killed)."""
-        import shutil
-
         head = f".{self.target.resolve().name}.imubounds-"
         for d in self._parent().glob(glob.escape(head) + "*"):
             pid_text = d.name[len(head):].split("-", 1)[0]
-            if d.is_dir() and pid_text.isdigit() and not _pid_alive(int(pid_text)):
+            if d.is_dir() and pid_text.isdigit() and not pid_alive(int(pid_text)):
                 shutil.rmtree(d, ignore_errors=True)
 
-    def _take_lock(self) -> None:
-        lock = self.target / LOCK_NAME
-        _acquire(lock, self.target)
-        self._lock = lock
-
     def _release(self) -> None:
-        if self._staging is not None:
-            import shutil
-
-            shutil.rmtree(self._staging, ignore_errors=True)
-            self._staging = None
-        if self._lock is not None:
-            self._lock.unlink(missing_ok=True)
-            self._lock = None
-        if self._created_target and not self.committed:
+        with signals_held():  # a second Ctrl-C here must not leave the lock behind
             try:
-                self.target.rmdir()  # only if still empty
-            except OSError:
-                pass
+                if self._staging is not None:
+                    staging, self._staging = self._staging, None
+                    _remove_tree(staging)
+            finally:
+                if self._lock is not None:
+                    lock, self._lock = self._lock, None
+                    _remove_file(lock)
+                if self._created_target and not self.committed:
+                    try:
+                        self.target.rmdir()  # only if still empty
+                    except OSError:
+                        pass
 
     def _staged(self) -> list[str]:
         root = self.staging
         names = (str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
         return sorted(n for n in names if n != RUN_RECORD)
 
+    def _own_files(self) -> set[str]:
+        """Files in ``target`` that the earlier run of this command on this source wrote
+        and nobody changed since (all files imubounds listed, for a set without a
+        ``command``)."""
+        rec = read_json(self.target / RUN_RECORD)
+        if self.command is None:
+            return names_written(self.target) | set(files_record(self.target))
+        if not isinstance(rec, dict) or rec.get("command_name") != self.command:
+            return set()
+        if isinstance(rec.get("inputs"), list) and sorted(map(str, rec["inputs"])) != self.source:
+            return set()
+        files = rec.get("files")
+        names = [str(f) for f in files] if isinstance(files, list) else []
+        return {n for n in names if unchanged(self.target, n, rec)}
+
+    def _refuse_others(self) -> None:
+        """:class:`OutputError` if ``target`` holds anything but this command's own earlier
+        results (see the class docstring)."""
+        own = self._own_files()
+        others: list[str] = []
+        for name in files_under(self.target, skip=self.subsets):
+            if name not in own:
+                others.append(name)
+                if len(others) >= 200:  # enough to say what is there
+                    break
+        if not others:
+            return
+        rec = read_json(self.target / RUN_RECORD)
+        listed = names_written(self.target) | set(files_record(self.target))
+        changed = [n for n in others if n in listed and not written_by_imubounds(
+            self.target / n)]
+        theirs = [n for n in others if n in listed and n not in changed]
+        kinds = [k for k, there in (
+            ("files imubounds did not write", len(theirs) + len(changed) < len(others)),
+            ("files changed since imubounds wrote them", bool(changed)),
+            ("other results", bool(theirs))) if there]
+        run = ""
+        if theirs and isinstance(rec, dict) and rec.get("command"):
+            cmd = str(rec["command"])
+            ins = rec.get("inputs")
+            if rec.get("command_name") and isinstance(ins, list):
+                on = ", ".join(Path(str(x)).name for x in ins[:2]) + (", ..." if len(ins) > 2
+                                                                      else "")
+                run = f" (the results of 'imubounds {rec['command_name']}'" + (
+                    f" on {on})" if on else ")")
+            else:
+                run = f" (the results of '{cmd if len(cmd) <= 70 else cmd[:67] + '...'}')"
+        first = [n for n in others if n not in listed] + changed + theirs  # the user's first
+        shown = ", ".join(
+            n + (" (an input of this run)" if is_input(self.target / n, self.inputs) else "")
+            for n in first[:3]) + (", ..." if len(first) > 3 else "")
+        raise OutputError(
+            f"output directory {self.target} holds {' and '.join(kinds)}: {shown}{run}; "
+            "imubounds writes its results only into a new or empty folder or over its own "
+            "earlier results of the same command and input: choose another -o, or pass "
+            "--overwrite (the files there are kept; those of the names this run writes are "
+            "replaced)"
+        )
+
     def _conflicts(self, names: list[str]) -> list[str]:
-        ours = _written_by_imubounds(self.target)
+        listed = bool(names_written(self.target))
         out: list[str] = []
         for name in names:
             dest = self.target / name
-            if dest.exists() and _is_input(dest, self.inputs):
+            if not (dest.exists() or dest.is_symlink()):
+                continue
+            if is_input(dest, self.inputs):
                 out.append(
                     f"{dest} is an input of this run; imubounds will not overwrite it "
                     "(choose another -o)"
                 )
-            elif dest.exists() and name not in ours and not self.force:
+            elif not self.force and not (
+                (name == RUN_RECORD and listed) or written_by_imubounds(dest)
+            ):
                 what = "a directory" if dest.is_dir() else "a file imubounds did not write"
                 out.append(
-                    f"{dest} exists and is {what}; imubounds will not overwrite it "
-                    "(choose another -o, or pass --force)"
+                    f"{dest} exists and is {what} (or was changed since); imubounds will not "
+                    "overwrite it (choose another -o, or pass --overwrite)"
                 )
         return out
 
     def _superseded(self, names: list[str]) -> list[str]:
-        """Files the previous complete run of the *same command* listed in ``run.json`` that
-        this set does not rewrite (a report and figures beside a later ``--no-plot`` run's
-        results): removed at the commit, so that the folder holds one run's results. Files
-        of another command, inputs of this run and files not listed are never removed."""
-        rec = _read_json(self.target / RUN_RECORD)
-        mine = (self._record or {}).get("command_name")
+        """Files the previous complete run of the *same command* on the same source listed
+        that this set does not rewrite (a report and figures beside a later ``--no-plot``
+        run's results) and that nobody changed since: removed at the commit, so that the
+        folder holds one run's results. Files of another command or source, changed
+        files, inputs of this run and files not listed are never removed."""
+        rec = read_json(self.target / RUN_RECORD)
+        mine = (self._record or {}).get("command_name", self.command)
         if not isinstance(rec, dict) or mine is None or rec.get("command_name") != mine:
+            return []
+        if isinstance(rec.get("inputs"), list) and sorted(map(str, rec["inputs"])) != self.source:
             return []
         files = rec.get("files")
         if not isinstance(files, list):
@@ -671,7 +559,8 @@ class OutputSet:
                 or ".." in Path(name).parts
                 or not dest.is_file()
                 or dest.is_symlink()
-                or _is_input(dest, self.inputs)
+                or is_input(dest, self.inputs)
+                or not unchanged(self.target, name, rec)
             ):
                 continue
             out.append(name)
@@ -685,34 +574,140 @@ class OutputSet:
         problems = self._conflicts(names_all)
         if problems:
             raise OutputError(problems[0])
-        old = sorted(_written_by_imubounds(self.target))
+        old = sorted(names_written(self.target))
         superseded = self._superseded(names_all)
-        # Ctrl-C is held back for the few renames of the commit, so that the set is
-        # either the old one or the new one, and the message can say which.
+        # Ctrl-C is held back for the renames of the commit, and any exception undoes
+        # them, so that the set is either the old one or the new one, and the message
+        # can say which.
         try:
-            with _sigint_held():
-                write_json(self.target / COMMIT_RECORD,
-                           {"pid": os.getpid(), "old": old, "new": names_all})
-                (self.target / RUN_RECORD).unlink(missing_ok=True)  # the old set is incomplete
-                for name in names:
-                    dest = self.target / name
-                    dest.parent.mkdir(parents=True, exist_ok=True)
-                    os.replace(self.staging / name, dest)
-                for name in superseded:  # the earlier run's report and figures
-                    (self.target / name).unlink(missing_ok=True)
-                if self._record is not None:
-                    extra = dict(self._record)
-                    argv = extra.pop("argv", None)
-                    # files of earlier runs that this set did not replace stay imubounds'
-                    # (overwritable later) without being part of this complete set
-                    earlier = sorted(
-                        n for n in old
-                        if n not in names_all and (self.target / n).is_file()
-                    )
-                    write_run_record(self.target, argv, files=names, complete=True,
-                                     **({"earlier_files": earlier} if earlier else {}), **extra)
-                (self.target / COMMIT_RECORD).unlink(missing_ok=True)
-                self.committed = True
-                _JOURNAL.append(str(self.target))
+            with signals_held():
+                self._swap(names, superseded, old, names_all)
         except OSError as err:
             raise OutputError(f"cannot write to {self.target}: {err.strerror or err}") from err
+
+    def _swap(self, names: list[str], superseded: list[str], old: list[str],
+              names_all: list[str]) -> None:
+        t = self.target
+        backup = Path(tempfile.mkdtemp(prefix=f"{BACKUP_PREFIX}{os.getpid()}-", dir=t))
+        moved_out: list[str] = []
+        moved_in: list[str] = []
+        try:
+            write_json(t / COMMIT_RECORD, {"pid": os.getpid(), "old": old, "new": names_all,
+                                           "backup": backup.name})  # fmt: skip
+            for name in [RUN_RECORD, *names, *superseded]:  # the old set aside, whole
+                src = t / name
+                if src.is_file() or src.is_symlink():
+                    (backup / name).parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(src, backup / name)
+                    moved_out.append(name)
+            for name in names:
+                dest = t / name
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(self.staging / name, dest)
+                moved_in.append(name)
+            if self._record is not None:
+                extra = dict(self._record)
+                argv = extra.pop("argv", None)
+                # files of earlier runs that this set did not replace stay imubounds'
+                # (overwritable later) without being part of this complete set
+                earlier = sorted(n for n in old if n not in names_all and (t / n).is_file())
+                write_run_record(t, argv, files=names, complete=True,
+                                 fingerprints=fingerprints(t, [*names, *earlier]),
+                                 **({"earlier_files": earlier} if earlier else {}), **extra)
+            (t / COMMIT_RECORD).unlink()
+        except BaseException:
+            self._undo(backup, moved_in, moved_out)
+            raise
+        self.committed = True
+        journal(str(t))
+        _remove_tree(backup)
+
+    def _undo(self, backup: Path, moved_in: list[str], moved_out: list[str]) -> None:
+        """Put the old set back after a failed commit (the new files go back to the
+        staging directory); if that fails too, the commit record stays for the next run
+        (:meth:`_restore_interrupted_commit`)."""
+        t = self.target
+        try:
+            for name in moved_in:
+                os.replace(t / name, self.staging / name)
+                _prune(t, name)
+            if RUN_RECORD in moved_out:  # then any run.json there is the new one
+                (t / RUN_RECORD).unlink(missing_ok=True)
+            for name in moved_out:
+                (t / name).parent.mkdir(parents=True, exist_ok=True)
+                os.replace(backup / name, t / name)
+            (t / COMMIT_RECORD).unlink(missing_ok=True)
+            shutil.rmtree(backup, ignore_errors=True)
+        except OSError:
+            pass
+
+    def _restore_interrupted_commit(self) -> None:
+        """A commit killed outright (its ``.imubounds-commit.json`` and backup folder are
+        still there, and its process is gone, since this one holds the lock): take its new
+        files out and put the old set back from the backup. A backup folder without a
+        commit record is what a killed run left after its commit: removed."""
+        t = self.target
+        intent = read_json(t / COMMIT_RECORD)
+        backup = t / str(intent.get("backup", "")) if isinstance(intent, dict) else None
+        if backup is not None and backup.name.startswith(BACKUP_PREFIX) and backup.is_dir():
+            for name in (intent or {}).get("new") or []:
+                p = t / str(name)
+                if ".." not in Path(str(name)).parts and (p.is_file() or p.is_symlink()):
+                    p.unlink()
+                    _prune(t, str(name))
+            for p in sorted(backup.rglob("*")):
+                if p.is_file() or p.is_symlink():
+                    dest = t / p.relative_to(backup)
+                    dest.parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(p, dest)
+            (t / COMMIT_RECORD).unlink(missing_ok=True)
+        for d in t.glob(glob.escape(BACKUP_PREFIX) + "*"):
+            if d.is_dir() and not d.is_symlink():
+                shutil.rmtree(d, ignore_errors=True)
+
+
+def check_output_folder(
+    target: str | os.PathLike[str],
+    *,
+    command: str,
+    force: bool = False,
+    inputs: Iterable[str | os.PathLike[str]] = (),
+    source: Iterable[str | os.PathLike[str]] | None = None,
+    subsets: Iterable[str] = (),
+) -> None:
+    """The rule of :class:`OutputSet` for a command that writes its files in place
+    (``fleet``): :class:`OutputError` if ``target`` holds anything but that command's own
+    earlier results of ``source``, unless ``force``."""
+    if force or not Path(target).is_dir():
+        return
+    OutputSet(target, inputs=inputs, command=command, source=source,
+              subsets=subsets)._refuse_others()  # fmt: skip
+
+
+def _remove_tree(p: Path) -> None:
+    """``shutil.rmtree`` that finishes even when an exception interrupts it (re-raised)."""
+    try:
+        shutil.rmtree(p, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(p, ignore_errors=True)
+        raise
+
+
+def _remove_file(p: Path) -> None:
+    """``unlink`` that is done even when an exception interrupts it (re-raised)."""
+    try:
+        p.unlink(missing_ok=True)
+    except BaseException:
+        p.unlink(missing_ok=True)
+        raise
+
+
+def _prune(root: Path, name: str) -> None:
+    """Remove the folders of ``name`` under ``root`` that are now empty."""
+    p = (root / name).parent
+    while p != root and root in p.parents:
+        try:
+            p.rmdir()
+        except OSError:
+            return
+        p = p.parent

@@ -83,6 +83,7 @@ class _Layout:
         self.quoted = quoted
         self.decimal = decimal  # "," for decimal commas (with ; or tab delimiters)
         self.units_line = units_line  # 1-based line of a units row under the header
+        self.notes: list[str] = []  # what the reader must say about the layout (warnings)
 
 
 def _is_number(text: str) -> bool:
@@ -211,7 +212,15 @@ def _detect_layout(path: Path, head: str) -> _Layout:
                       and not lines[j].lstrip().startswith("#")), None)
         first_row = [] if after is None else [c.strip() for c in _split(lines[after], delim)]
     decimal = "," if delim not in (",", None) and _uses_decimal_comma(first_row) else "."
-    return _Layout(header, delim, skip, header_line, '"' in head, first_row, decimal, units_line)
+    layout = _Layout(header, delim, skip, header_line, '"' in head, first_row, decimal,
+                     units_line)
+    if units is not None and units_line is not None:
+        shown = ", ".join(u or "-" for u in units)
+        layout.notes.append(
+            f"{path}: line {units_line} under the header is a row of units ({shown}): read "
+            "as the columns' units (where a name states none), not as data"
+        )
+    return layout
 
 
 def _guess_delim(line: str) -> str | None:
@@ -572,7 +581,8 @@ def read_text_table(path: Path, opts: ReadOptions) -> list[ImuLog]:
     if time is not None and time.values.dtype.kind == "i" and _is_datetime_text(layout, plan):
         if opts.time_unit is None:
             time.unit = "ns"
-    return assemble_logs(str(path), time, chans, opts, row_label=label, notes=plan.notes)
+    return assemble_logs(str(path), time, chans, opts, row_label=label,
+                         notes=[*layout.notes, *plan.notes])
 
 
 def read_parquet(path: Path, opts: ReadOptions) -> list[ImuLog]:

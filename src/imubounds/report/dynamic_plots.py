@@ -62,7 +62,7 @@ def plot_margins(summary: dict[str, Any], ax: Any = None, title: str = "") -> Fi
     accelerometers and the gyros side by side."""
     margins = summary.get("margins") or {}
     if ax is None:
-        fig = Figure(figsize=(12, 4.8))
+        fig = Figure(figsize=(12, 5.8))
         axes = {"accel": fig.add_subplot(1, 2, 1), "gyro": fig.add_subplot(1, 2, 2)}
     else:
         fig = ax.figure
@@ -98,7 +98,13 @@ def plot_margins(summary: dict[str, Any], ax: Any = None, title: str = "") -> Fi
                 "gyros" if kind == "gyro" else "accelerometers", fontsize=10
             )
         a.grid(True, which="both", alpha=0.3)
-        a.legend(fontsize=7, loc="upper right")
+        handles, labels = a.get_legend_handles_labels()
+        handles += [Line2D([], [], color="0.3", lw=1.0, ls=":"),
+                    Line2D([], [], color="0.3", lw=1.0, ls="--")]
+        labels += ["worst window", "stationary band (shaded below)"]
+        # below the axes, off the data (the plateaus sit at the top left)
+        a.legend(handles, labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16),
+                 ncol=2, frameon=False)
         if ax is not None:
             break
     fig.suptitle(
@@ -152,11 +158,10 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
         fin = np.isfinite(lo) & np.isfinite(hi)
         ax.fill_between(t, -lv.band * f, lv.band * f, color="tab:green", alpha=0.25, step="mid",
                         label="stationary band")
+        for sign in (-1.0, 1.0):  # its edges, which the windows are judged against
+            ax.step(t, sign * lv.band * f, where="mid", color="tab:green", lw=0.8)
         if fin.any():
-            segs = np.stack([np.column_stack([t[fin], lo[fin]]),
-                             np.column_stack([t[fin], hi[fin]])], 1)
-            ax.add_collection(LineCollection(list(segs), colors="0.35", linewidths=1.2,
-                                             label="guaranteed interval"))
+            _window_segments(ax, t, lo, hi, fin, lv)
             span = np.concatenate([lo[fin], hi[fin], lv.band * f, -lv.band * f])
             a, b = np.percentile(span, [1, 99])
             pad = 0.1 * (b - a) + 1e-12
@@ -175,11 +180,11 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
             ax.text(0.01, 0.05, "undecided: the aided interval is wider than the band",
                     transform=ax.transAxes, fontsize=7, color="0.3")
         ax.set_xlim(float(np.min(lv.t_start)), float(np.max(lv.t_start + lv.tau)))
-        ax.set_title(
-            f"{ch}: windows of τ = {lv.tau_s:.3g} s ({m.verdict})", fontsize=8, loc="left"
-        )
+        verdict = m.verdict + (", FRAGILE" if m.fragile else "")
+        ax.set_title(f"{ch}: windows of τ = {lv.tau_s:.3g} s ({verdict})", fontsize=8,
+                     loc="left")
         # above the panel, off the data
-        ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3,
+        ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=5,
                   frameon=False, borderaxespad=0.1)
     if chans:
         fig.axes[-1].set_xlabel("time [s] (window centre, relative to the first IMU sample)")
@@ -191,11 +196,33 @@ def plot_windows(result: Any, title: str = "", tau_target: float = 10.0) -> Figu
         bottom = 0.03
     fig.suptitle(
         (title + ": " if title else "")
-        + "guaranteed intervals of the window-mean IMU error (grey) and stationary band (green)",
+        + "guaranteed intervals of the window-mean IMU error (decided dark, undecided dotted, "
+        "fragile orange) and stationary band (green)",
         fontsize=10,
     )
     fig.tight_layout(rect=(0, bottom, 1, 1))
     return fig
+
+
+def _window_segments(ax: Any, t: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                     fin: np.ndarray, lv: Any) -> None:
+    """The windows' intervals in three kinds, each with its count in the legend: decided
+    (dark), undecided (the aided interval wider than the band: light, dotted) and fragile
+    (the window's test turns with the band 5 % narrower or wider: orange)."""
+    fragile = np.asarray(lv.fragile) & fin
+    undecided = ~np.asarray(lv.decidable) & fin & ~fragile
+    decided = fin & ~fragile & ~undecided
+    for mask, color, lw, ls, what in (
+        (decided, "0.25", 1.2, "solid", "decided"),
+        (undecided, "0.65", 0.9, "dotted", "undecided (aiding wider than the band)"),
+        (fragile, "tab:orange", 1.5, "solid", "fragile (±5 % of the band)"),
+    ):
+        if not mask.any():
+            continue
+        segs = np.stack([np.column_stack([t[mask], lo[mask]]),
+                         np.column_stack([t[mask], hi[mask]])], 1)
+        ax.add_collection(LineCollection(list(segs), colors=color, linewidths=lw,
+                                         linestyles=ls, label=f"{what}: {int(mask.sum())}"))
 
 
 def plot_trajectory(result: Any, drive: Any, title: str = "") -> Figure:
@@ -338,7 +365,8 @@ def plot_intervals(res: Any, title: str = "") -> Figure:
             ax.set_ylim(a - pad, b + pad)
         ax.set_ylabel(f"{name} [{unit}]", fontsize=8)
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7, ncol=3,
+                  frameon=False, borderaxespad=0.1)  # above the panel, off the data
         ax.set_xlim(t[0] - 1, t[-1] + 1)
     fig.axes[-1].set_xlabel("time since start [s]")
     fig.suptitle(

@@ -46,6 +46,8 @@ details>summary::before{content:"▸ ";color:#1f3a5f} details[open]>summary::bef
 #summary table{font-size:.92em}
 pre{padding:8px 10px;overflow-x:auto}
 .muted{color:#666;font-size:.85em}
+.fragile{color:#9a4d00;font-weight:600;background:#fff1e0;padding:0 3px;border-radius:3px}
+#figures figure img{max-width:100%}
 """
 
 TERM_ORDER = ("Q", "N", "B", "K", "R")
@@ -267,13 +269,7 @@ def _static_section(d: Path, noise: dict[str, Any]) -> tuple[str, list[str], lis
             "off by more than ×1.5; the fit rate and AR order are chosen to achieve that.</p>"
         )
     if _listed(d, "allan.png"):
-        parts.append(
-            _img(
-                d / "allan.png",
-                "Allan deviation per channel with confidence intervals, the noise-term lines and "
-                "the fitted curve (and fitted stochastic models where asked).",
-            )
-        )
+        parts.append(ABOVE.format(name="allan.png"))
     parts.append(checks_block(d, channels))
     parts.append(_run_block(d))
     parts.append("</details></section>")
@@ -296,7 +292,9 @@ DYN_FIGURES = (
     (
         "windows",
         "Mode full: the guaranteed intervals of the window-mean error over the trip at one τ "
-        "per channel (grey) against the stationary band (green); red marks: windows that "
+        "per channel against the stationary band (green): decided windows dark, undecided "
+        "ones (aided interval wider than the band) light and dotted, fragile ones (their "
+        "test turns with the band 5 % narrower or wider) orange; red marks: windows that "
         "lie entirely outside the band.",
     ),
     ("trajectory", "Mode full: GNSS boxes, smoothed position boxes and the truth where known."),
@@ -305,6 +303,31 @@ DYN_FIGURES = (
         "Mode paper (NOT guaranteed): the paper's per-step aided intervals (its Figs. 5-6).",
     ),
 )
+
+
+#: The figures the reader must look at, shown open under "Figures" after the summary (the
+#: first dynamic run's; the static run's Allan figure): the verdicts' windows and the
+#: in-motion figures. The details refer to them instead of repeating them.
+KEY_DYNAMIC_FIGURES = ("windows", "motion")
+ALLAN_CAPTION = ("Allan deviation per channel with confidence intervals, the noise-term lines "
+                 "and the fitted curve (and fitted stochastic models where asked).")
+ABOVE = "<p class='muted'>{name}: shown under <a href='#figures'>Figures</a>, at the top.</p>"
+
+
+def _figures_section(static_dir: Path | None, dyn_dir: Path | None) -> str:
+    """The key figures, open: the Allan curves, the windows of the verdicts (decided,
+    undecided and fragile windows marked apart) and the in-motion figures."""
+    figs = []
+    if static_dir is not None and _listed(static_dir, "allan.png"):
+        figs.append(_img(static_dir / "allan.png", ALLAN_CAPTION))
+    if dyn_dir is not None:
+        captions = dict(DYN_FIGURES)
+        for stem in KEY_DYNAMIC_FIGURES:
+            if _listed(dyn_dir, f"{stem}.png"):
+                figs.append(_img(dyn_dir / f"{stem}.png", captions[stem]))
+    if not figs:
+        return ""
+    return "<section id='figures'><h2>Figures</h2>" + "".join(figs) + "</section>"
 
 
 def _kv_table(items: dict[str, Any], per_row: int = 1) -> str:
@@ -330,6 +353,18 @@ def _ch_factor(ch: str) -> tuple[float, str]:
     return (180.0 / math.pi, "deg/s") if ch.startswith("gyro") else (1.0, "m/s^2")
 
 
+def _verdict_class(v: str | None, det: dict[str, Any]) -> str:
+    """decided verdicts green/red; undecided, not analysed and fragile ones apart."""
+    if det.get("fragile"):
+        return "fragile"
+    return "ok" if v == "consistent" else "bad" if v == "exceeds" else "muted"
+
+
+def _verdict_text(v: str | None, det: dict[str, Any]) -> str:
+    return f"{v or 'not analysed'} — FRAGILE (not decided)" if det.get("fragile") else (
+        v or "not analysed")
+
+
 def _verdict_items(mode: dict[str, Any]) -> str:
     items = []
     for ch, v in (mode.get("verdict") or {}).items():
@@ -345,10 +380,14 @@ def _verdict_items(mode: dict[str, Any]) -> str:
                 f"{_num(r['halfwidth_median'] * f, 3)} {unit} against a stationary band of "
                 f"±{_num(r['stationary'] * f, 3)} {unit}"
             )
-        detail = ((mode.get("verdict_detail") or {}).get(ch) or {}).get("reason", "")
-        cls = "bad" if v == "exceeds" else "ok" if v == "consistent" else "muted"
+        det = (mode.get("verdict_detail") or {}).get(ch) or {}
+        detail = det.get("reason", "")
+        cls = _verdict_class(v, det)
+        fragile = (f" <span class='fragile'>{_e(det.get('fragile_detail', 'FRAGILE'))}</span>"
+                   if det.get("fragile") else "")
         items.append(
-            f"<li><b>{_e(ch)}</b>: <span class='{cls}'>{_e(v)}</span>{_e(extra)}"
+            f"<li><b>{_e(ch)}</b>: <span class='{cls}'>{_e(_verdict_text(v, det))}</span>"
+            f"{_e(extra)}{fragile}"
             + (f" <span class='muted'>({_e(detail)})</span>" if detail else "")
             + "</li>"
         )
@@ -586,7 +625,9 @@ def _dynamic_section(
     shown = set()
     for stem, caption in DYN_FIGURES:
         if _listed(d, f"{stem}.png"):
-            parts.append(_img(d / f"{stem}.png", caption))
+            key = not label and stem in KEY_DYNAMIC_FIGURES  # shown open, under Figures
+            parts.append(ABOVE.format(name=f"{stem}.png") if key else _img(d / f"{stem}.png",
+                                                                            caption))
             shown.add(stem)
     if isinstance(modes.get("paper"), dict):
         parts.append(_paper_block(modes["paper"], warnings))
@@ -676,11 +717,14 @@ def _summary_section(
             res = [r for r in mc.get("rows", []) if r.get("resolved")]
             infl = [r["bound_resolved"] / r["stationary"] for r in res
                     if r.get("bound_resolved") is not None and r.get("stationary")]
-            cls = "ok" if v == "consistent" else "bad" if v == "exceeds" else "muted"
+            det = (full.get("verdict_detail") or {}).get(ch) or {}
+            cls = _verdict_class(v, det)
             sel = (((channels.get(ch) or {}).get("noise") or {}).get("selected") or {})
+            if det.get("fragile"):
+                not_guaranteed.append(f"{ch}: {det.get('fragile_detail', 'fragile verdict')}")
             rows.append([
                 _e(ch),
-                f"<span class='{cls}'>{_e(v or 'not analysed')}</span>",
+                f"<span class='{cls}'>{_e(_verdict_text(v, det))}</span>",
                 _num(F, 3) if F is not None else "—",
                 (f"{_num(min(infl), 3)} – {_num(max(infl), 3)}" if infl else "—"),
                 (f"{_num(res[0]['tau_s'], 3)} – {_num(res[-1]['tau_s'], 3)} s" if res else "—"),
@@ -721,39 +765,59 @@ def _summary_section(
 
 def _filter_block(noise: dict[str, Any], motion: dict[str, Any] | None) -> str:
     """Kalibr's four densities, stationary and in motion (the worst axis of each sensor)."""
-    import yaml
-
     from imubounds.errors import ImuboundsError
-    from imubounds.export import export_noise
+    from imubounds.export import KALIBR_KEYS, filter_noise, kalibr_values
 
     try:
-        stat = yaml.safe_load(export_noise(noise, "kalibr"))
-        mot_text = export_noise(noise, "kalibr", motion=motion) if motion else ""
-        mot = yaml.safe_load(mot_text) if motion else None
+        stat = kalibr_values(filter_noise(noise))
+        mot = kalibr_values(filter_noise(noise, motion=motion)) if motion else None
     except ImuboundsError as err:
         return f"<h3>Filter parameters</h3><p class='muted'>not exported: {_e(err)}</p>"
     units = {
         "gyroscope_noise_density": "rad/s/√Hz", "gyroscope_random_walk": "rad/s²/√Hz",
         "accelerometer_noise_density": "m/s²/√Hz", "accelerometer_random_walk": "m/s³/√Hz",
     }
-    # an axis the trip gave no in-motion factor keeps its stationary figure: say so
-    no_factor = {ln.split(":", 1)[0] for ln in mot_text.splitlines() if "NO FACTOR" in ln}
 
     def moving(k: str) -> str:
-        if not mot:
+        if mot is None or k not in mot:
             return "—"
-        note = " <span class='muted'>(no in-motion factor)</span>" if k in no_factor else ""
-        return _num(mot.get(k)) + note
+        v, ax = mot[k]
+        # an axis the trip gave no in-motion factor keeps its stationary figure: say so
+        note = (" <span class='muted'>(no in-motion factor)</span>"
+                if ax.motion_F is None else "")
+        return _num(v) + note
 
-    rows = [[_e(k), _num(stat.get(k)), moving(k), _e(u)] for k, u in units.items()]
+    rows = [[_e(k), _num(stat[k][0]) if k in stat else "—", moving(k), _e(units[k])]
+            for k, *_ in KALIBR_KEYS]
+    rate = (noise.get("input") or {}).get("sample_rate_hz")
     return (
         "<h3>Filter parameters (Kalibr / OpenVINS, continuous time, worst axis)</h3>"
         + _table(["key", "stationary", "in motion", "unit"], rows)
-        + f"<p class='muted'>update_rate {_num(stat.get('update_rate'))} Hz. Every format "
+        + f"<p class='muted'>update_rate {_num(rate)} Hz. Every format "
         "(kalibr, openvins, vins, gtsam, ros) with its units and conversions: "
         "<code>imubounds export STATIC_DIR --format F [--motion DYNAMIC_DIR] -o FILE</code>"
         " (the demo wrote them to filter/).</p>"
     )
+
+
+def _commands(root: Path, found: list[str]) -> list[str]:
+    """Every command of the run, in the order they ran: the commands a run.json of the
+    folder lists (``imubounds demo`` records its steps: static, simulate, dynamic and every
+    export), else the command of each run.json in the folder and its sub-folders
+    (static, sim, dynamic, ...) by the time they finished, and those of the sections."""
+    top = _load_json(root / "run.json")
+    if isinstance(top, dict) and top.get("commands"):
+        return [str(top.get("command", "")), *(str(c) for c in top["commands"])]
+    runs = []
+    for d in (root, *sorted(p for p in root.iterdir() if p.is_dir() and p.name[:1] != ".")):
+        try:
+            rec = _load_json(d / "run.json")
+        except InputError:  # a folder that is not an imubounds output: not a command
+            continue
+        if isinstance(rec, dict) and rec.get("command"):
+            runs.append((str(rec.get("finished_utc", "")), str(rec["command"])))
+    out = [c for _, c in sorted(runs)]
+    return out + [c for c in found if c not in out]
 
 
 def _result_json(path: Path) -> dict[str, Any]:
@@ -782,14 +846,17 @@ def _unexpected(path: Path) -> Iterator[None]:
         ) from err
 
 
-def build_report(directory: str | Path) -> str:
-    """Return the HTML text of the report for ``directory``."""
+def build_report(directory: str | Path, commands: list[str] | None = None) -> str:
+    """Return the HTML text of the report for ``directory``; ``commands``: every command
+    of the run, when the caller knows them (``imubounds demo``; otherwise they are read
+    from the run.json files)."""
     root = Path(directory)
+    commands_given = commands
     if not root.is_dir():
         raise InputError(f"{root}: not a directory; give the -o directory of a previous run")
     sections: list[str] = []
     warnings: list[str] = []
-    commands: list[str] = []
+    found: list[str] = []
     static_dir = _find(root, "noise.json", ("static",))
     dyn_dirs = [root] if (root / "dynamic.json").is_file() else []
     dyn_dirs += sorted(p for p in root.iterdir() if p.is_dir() and (p / "dynamic.json").is_file())
@@ -811,7 +878,7 @@ def build_report(directory: str | Path) -> str:
             html_s, w, c = _static_section(static_dir, noise)
         sections.append(html_s)
         warnings += w
-        commands += c
+        found += c
     for i, dyn_dir in enumerate(dyn_dirs):
         dyn = _result_json(dyn_dir / "dynamic.json")
         label = "" if i == 0 else dyn_dir.name
@@ -819,12 +886,13 @@ def build_report(directory: str | Path) -> str:
             html_d, w, c = _dynamic_section(dyn_dir, dyn, label)
         sections.append(html_d)
         warnings += [f"{dyn_dir.name}: {x}" if label else x for x in w]
-        commands += c
+        found += c
     warn_html = (
         "".join(f"<div class='warn'>{_e(w)}</div>" for w in warnings)
         if warnings
         else "<p class='ok'>No warnings.</p>"
     )
+    commands = list(commands_given) if commands_given is not None else _commands(root, found)
     cmd_html = (
         "<pre>" + "\n".join(_e(c) for c in commands) + "</pre>"
         if commands
@@ -833,10 +901,10 @@ def build_report(directory: str | Path) -> str:
     if static_dir is not None or dyn_dirs:
         noise_doc = _load_json(static_dir / "noise.json") if static_dir is not None else None
         with _unexpected(root):
-            sections.insert(
-                1 if fleet_json.is_file() else 0,
-                _summary_section(noise_doc, static_dir, dyn_dirs, root),
-            )
+            at = 1 if fleet_json.is_file() else 0
+            sections.insert(at, _summary_section(noise_doc, static_dir, dyn_dirs, root))
+            sections.insert(at + 1, _figures_section(static_dir, dyn_dirs[0] if dyn_dirs
+                                                     else None))  # fmt: skip
     now = datetime.now(UTC).isoformat(timespec="seconds")
     shown = _real_root(root)
     return (
@@ -855,10 +923,13 @@ def build_report(directory: str | Path) -> str:
     )
 
 
-def write_report(directory: str | Path, dest: str | Path | None = None) -> Path:
+def write_report(
+    directory: str | Path, dest: str | Path | None = None, commands: list[str] | None = None
+) -> Path:
     """Write the report of ``directory`` to ``dest`` (default ``directory/report.html``)
-    atomically and return its path."""
+    atomically and return its path (``commands``: see :func:`build_report`)."""
     from imubounds.io.outputs import write_text
 
     root = Path(directory)
-    return write_text(Path(dest) if dest is not None else root / "report.html", build_report(root))
+    return write_text(Path(dest) if dest is not None else root / "report.html",
+                      build_report(root, commands))

@@ -274,13 +274,14 @@ def plot_channel(ax: Any, ch: ChannelResult, terms_from: str = "fit") -> None:
     ax.set_xlabel("averaging time τ (s)")
     ax.set_ylabel(f"{STAT_LABEL.get(a.estimator, 'Allan deviation')} ({unit})")
     ax.grid(True, which="both", alpha=0.3)
+    # the terms below the axes, off the data
     ax.text(
-        0.03,
-        0.03,
+        0.0,
+        -0.2,
         _format_terms(ch),
         transform=ax.transAxes,
         fontsize=7,
-        va="bottom",
+        va="top",
         bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8, "lw": 0.5},
     )
 
@@ -292,7 +293,7 @@ def allan_figure(result: StaticResult) -> Figure:
     accels = [n for n in names if n.startswith("accel")]
     rows = [r for r in (gyros, accels) if r]
     ncols = max(len(r) for r in rows)
-    fig = Figure(figsize=(4.6 * ncols, 4.0 * len(rows)))
+    fig = Figure(figsize=(4.6 * ncols, 4.9 * len(rows)))
     axes = fig.subplots(len(rows), ncols, squeeze=False)
     for i, row in enumerate(rows):
         for j in range(ncols):
@@ -324,10 +325,10 @@ def allan_figure(result: StaticResult) -> Figure:
     fig.subplots_adjust(
         left=0.8 / width,
         right=1.0 - 0.15 / width,
-        bottom=(0.65 + 0.2 * legend_rows) / height,
+        bottom=(1.45 + 0.2 * legend_rows) / height,
         top=1.0 - 0.6 / height,
         wspace=0.3,
-        hspace=0.38,
+        hspace=0.75,
     )
     return fig
 
@@ -341,9 +342,9 @@ def _new_axes(ax: Any, size: tuple[float, float] = (5.5, 4.4)) -> tuple[Figure, 
 
 def channel_figure(ch: ChannelResult, ax: Any = None, terms_from: str = "fit") -> Figure:
     """One channel drawn by :func:`plot_channel` on ``ax`` or on a new Figure."""
-    fig, a = _new_axes(ax)
+    fig, a = _new_axes(ax, (5.5, 6.2))
     plot_channel(a, ch, terms_from)
-    a.legend(fontsize=7, loc="upper right")
+    a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     if ax is None:
         fig.tight_layout()
     return fig
@@ -450,7 +451,7 @@ def stationarity_figure(result: StaticResult) -> Figure:
     """Per channel: the block means with the fitted warm-up (top) and the Allan
     deviation of each window at three τ with its CI against time (bottom)."""
     names = [n for n, ch in result.channels.items() if ch.stationarity is not None]
-    fig = Figure(figsize=(3.4 * max(len(names), 1), 6.4))
+    fig = Figure(figsize=(3.4 * max(len(names), 1), 7.6))
     axes = fig.subplots(2, max(len(names), 1), squeeze=False)
     for j, name in enumerate(names):
         ch = result.channels[name]
@@ -463,7 +464,8 @@ def stationarity_figure(result: StaticResult) -> Figure:
         if w is not None:
             top.axvspan(w.start_s / 60.0, w.end_s / 60.0, color="tab:orange", alpha=0.2,
                         label=f"warm-up to {w.end_s / 60:.3g} min")  # fmt: skip
-            top.legend(fontsize=7, loc="upper right")
+            top.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.18),
+                       frameon=False)
         top.xaxis.set_major_locator(ViewAutoLocator())
         top.yaxis.set_major_locator(ViewAutoLocator())
         bottom.xaxis.set_major_locator(ViewAutoLocator())
@@ -481,10 +483,11 @@ def stationarity_figure(result: StaticResult) -> Figure:
         log_axes(bottom, x=False)
         bottom.set_xlabel("window centre (min)")
         bottom.set_ylabel(f"Allan deviation ({unit})")
-        bottom.legend(fontsize=7)
+        bottom.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=1,
+                      frameon=False)
         bottom.grid(True, which="major", alpha=0.3)
     first = result.channels[names[0]].stationarity if names else None
     win = f" (windows of {first.window_s / 60:.3g} min)" if first is not None else ""
     fig.suptitle(f"Stationarity — {Path(result.log.source).name}{win}")
-    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.09, top=0.9, wspace=0.35, hspace=0.45)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.17, top=0.9, wspace=0.35, hspace=0.75)
     return fig

@@ -20,6 +20,7 @@ from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
 from imubounds.stationary.allan import AllanResult, allan_channels
+from imubounds.stationary.allan_grammar import DEFAULT_TAU_POINTS, parse_tau_spec
 from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
 from imubounds.stationary.record_length import channel_record_length
 from imubounds.stationary.record_length import describe as describe_record_length
@@ -39,7 +40,8 @@ class StaticSettings:
     """Settings of a stationary analysis.
 
     ``taus`` is a grid spec understood by :func:`imubounds.stationary.allan.tau_grid`
-    ("octave", "decade", "all", an int for N log-spaced points, or τ values in s).
+    ("octave", "decade", "all", an int for N log-spaced points, or τ values in s; default
+    40 log-spaced points, :data:`~imubounds.stationary.allan_grammar.DEFAULT_TAU_GRID`).
     ``averaging_time_s`` is the t of σ_c (the log length when ``None``);
     ``run_hours`` is the T of the random-walk growth (the log length when ``None``).
     ``terms_from`` selects which estimate (fit or slope read-off) is preferred
@@ -49,7 +51,7 @@ class StaticSettings:
     detector; ``ar_max_order`` the largest AR order tried.
     """
 
-    taus: str | int | Sequence[float] = "octave"
+    taus: str | int | Sequence[float] = DEFAULT_TAU_POINTS
     estimator: str = "overlapping"
     confidence: float = 0.683
     k_sigma: float = bounds.DEFAULT_K
@@ -61,6 +63,11 @@ class StaticSettings:
     spike_threshold: float = DEFAULT_THRESHOLD
     ar_max_order: int = 20
     cut_warmup: bool = False
+
+    def __post_init__(self) -> None:
+        # one spelling per grid: "points:40" and 40 are the same settings (and noise.json)
+        if isinstance(self.taus, str):
+            object.__setattr__(self, "taus", parse_tau_spec(self.taus))
 
     def to_json(self) -> dict[str, Any]:
         taus = self.taus if isinstance(self.taus, str | int) else [float(t) for t in self.taus]
@@ -344,32 +351,14 @@ class StaticResult:
         out["notes"] = notes
         return out
 
-    def kalibr_yaml(self) -> str:
-        """Text of ``imu.yaml`` in Kalibr's format, with comments saying which axis was taken."""
-        k = self.kalibr()
-        lines = [
-            "# IMU noise model for Kalibr, written by imubounds "
-            f"{__version__} from {self.log.source}",
-            "# Each value is the worst (largest) axis of its sensor's selected terms "
-            "(noise.json: channels.<ch>.noise.selected); units as Kalibr expects.",
-        ]
-        units = {
-            "accelerometer_noise_density": "m/s^2/sqrt(Hz)",
-            "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
-            "gyroscope_noise_density": "rad/s/sqrt(Hz)",
-            "gyroscope_random_walk": "rad/s^2/sqrt(Hz)",
-        }
-        for key, unit in units.items():
-            if key in k:
-                lines.append(
-                    f"{key}: {k[key]:.6e}  # {unit}, axis {k[key + '_axis']}, "
-                    f"{k[key + '_status'].replace('_', ' ')}"
-                )
-        lines.append("rostopic: /imu0")
-        lines.append(f"update_rate: {k['update_rate']:.6g}  # Hz")
-        for note in k["notes"]:
-            lines.append(f"# note: {note}")
-        return "\n".join(lines) + "\n"
+    def kalibr_yaml(self, doc: Mapping[str, Any] | None = None) -> str:
+        """Text of ``imu.yaml`` in Kalibr's format (``imubounds export --format kalibr``'s
+        text; a key no channel gives is named in a comment). ``doc``: this result's
+        :meth:`to_json`, when already made."""
+        from imubounds.export import filter_noise, kalibr_text
+
+        return kalibr_text(filter_noise(doc if doc is not None else self.to_json()),
+                           strict=False)
 
 
 STATISTIC = {

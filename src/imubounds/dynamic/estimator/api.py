@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +23,7 @@ def dynamic_margins(
     noise: str | Path | dict[str, Any] | StaticResult | None = None,
     mode: str = "full",
     options: FullOptions | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
     **kwargs: Any,
 ) -> DynamicResult:
     """Dynamic error margins of a drive's IMU.
@@ -49,6 +51,9 @@ def dynamic_margins(
         ``imu_spec``, ``max_tilt_deg``, ``lateral_speed_bound_mps``, ...), checked here
         (:func:`~imubounds.dynamic.estimator.options.check_options`); for ``paper`` see
         :class:`imubounds.dynamic.estimator.paper.PaperConfig`.
+    progress:
+        Called as ``progress(stage, done, total)`` while mode full advances (its windows
+        channel by channel, then the smoother); the library never prints.
 
     Returns
     -------
@@ -92,7 +97,8 @@ def dynamic_margins(
             from imubounds.dynamic.estimator.result import full_summary
 
             # the keywords are checked into a FullOptions by build_context (check_options)
-            run = run_full(drive, noise, options if options is not None else kwargs)
+            run = run_full(drive, noise, options if options is not None else kwargs,
+                           progress=progress)
             return DynamicResult("full", full_summary(run, drive), full=run)
         from imubounds.dynamic.estimator.paper import run_paper
 

@@ -96,6 +96,16 @@ class Term:
         }
 
 
+
+def setting_source(settings: Any, key: str, option: bool = False) -> str:
+    """Where a setting of a budget row came from: ``option`` (given on the command line),
+    ``default (drive.yaml silent)`` (``key`` not in drive.yaml) or ``drive.yaml``."""
+    if option:
+        return "option"
+    return "default (drive.yaml silent)" if key in getattr(settings, "defaulted", []) \
+        else "drive.yaml"
+
+
 @dataclass
 class ChannelNoise:
     """Noise figures of one IMU channel in SI, with where each came from.

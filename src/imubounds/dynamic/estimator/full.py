@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -701,16 +701,23 @@ def _smooth(ctx: Context, links: dict[str, np.ndarray], beta0: np.ndarray) -> An
 
 
 def run_full(
-    drive: Any, noise: Any = None, options: FullOptions | Mapping[str, Any] | None = None
+    drive: Any,
+    noise: Any = None,
+    options: FullOptions | Mapping[str, Any] | None = None,
+    *,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> FullRun:
-    """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`)."""
+    """Mode full on a drive (see :func:`imubounds.dynamic.estimator.dynamic_margins`);
+    ``progress(stage, done, total)`` hears of each channel's windows and the smoother."""
     ctx = build_context(drive, noise, {} if options is None else options)
     mb = MarginBuilder(ctx)
     order = ["gyro_z"] + [ch for ch in ctx.plans if ch != "gyro_z"]
+    tell = progress if progress is not None else (lambda stage, done, total: None)
     margins: dict[str, ChannelMargins] = {}
     notes: list[str] = []
     fails: list[tuple[str, str, str, tuple[float, float] | None]] = []
-    for ch in order:
+    for i, ch in enumerate(order):
+        tell(f"windows of {ch}", i, len(order))
         margins[ch] = mb.evaluate(ctx.plans[ch])
         if ch == "gyro_z" and margins[ch].raw_verdict == "exceeds":
             mb.fine_r = False
@@ -733,6 +740,7 @@ def run_full(
         fails.append((bn.split(":", 1)[0], V.TEST_BIAS_WINDOWS, bn, None))
     links = _link_errors(ctx, beta0)
     CK.heading_clock_allowance(ctx, beta0)
+    tell("smoother", 0, 1)
     res = _smooth(ctx, links, beta0)
     if res.beta_note:
         notes.append(res.beta_note)

@@ -45,7 +45,13 @@ def _pct(x: np.ndarray, q: float) -> float | None:
 def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] | None) -> Any:
     """The drive's truth at absolute times ``t_abs`` in the estimator's ENU frame:
     dict of east, north (m), psi (model heading, rad, unwrapped), u, v (m/s) and the
-    extra series (bias_<ch>, ...); NaN outside the truth's span."""
+    extra series (bias_<ch>, ...); NaN outside the truth's span and between two truth
+    rows one of which has no value (an empty cell, a short row).
+
+    Positions go through the geodetic coordinates at the truth's own height (its
+    ``up_m`` over its origin, the origin's ``origin_alt_m``; the GNSS origin's altitude
+    where the truth does not give one), so that a trip at 1,600 m is not projected onto
+    the ellipsoid."""
     tr = drive.truth
     if tr is None:
         return None
@@ -55,14 +61,28 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
     def at(x: np.ndarray | None) -> np.ndarray | None:
         if x is None:
             return None
-        return np.where(inside, np.interp(t_abs, tt, np.asarray(x, dtype=float)), np.nan)
+        x = np.asarray(x, dtype=float)
+        fin = np.isfinite(x)
+        if not fin.any():
+            return np.full(t_abs.shape, np.nan)
+        y = np.interp(t_abs, tt[fin], x[fin])
+        both = np.interp(t_abs, tt, fin.astype(float)) >= 1.0 - 1e-12
+        return np.where(inside & both, y, np.nan)
 
     e, n = np.asarray(tr.east_m, float), np.asarray(tr.north_m, float)
     if origin is not None and all(math.isfinite(v) for v in tr.origin[:2]):
-        if tuple(origin[:2]) != tuple(tr.origin[:2]):
+        t_org = (tr.origin[0], tr.origin[1],
+                 tr.origin[2] if math.isfinite(tr.origin[2]) else origin[2])
+        if tuple(origin) != t_org:
             from imubounds.geodesy import enu_to_geodetic_3d, geodetic_to_enu
 
-            lat, lon, alt = enu_to_geodetic_3d(e, n, np.zeros_like(e), tuple(tr.origin))
+            up = tr.extra.get("up_m")
+            up = np.zeros_like(e) if up is None else np.asarray(up, float)
+            fin_up = np.isfinite(up)
+            if fin_up.any() and not fin_up.all():  # a row without a height (a short row):
+                up = np.interp(tt, tt[fin_up], up[fin_up])  # its neighbours' (mm horizontally)
+            up = np.nan_to_num(up)
+            lat, lon, alt = enu_to_geodetic_3d(e, n, up, t_org)
             e, n, _ = geodetic_to_enu(lat, lon, alt, origin=(origin[0], origin[1], origin[2]))
     elif origin is None:
         # no GNSS: positions relative to the state at the first requested time
@@ -70,7 +90,10 @@ def truth_at(drive: Any, t_abs: np.ndarray, origin: tuple[float, float, float] |
         n = n - np.interp(t_abs[0], tt, n)
     out: dict[str, Any] = {"east": at(e), "north": at(n)}
     if tr.heading_rad is not None:
-        psi = np.unwrap(0.5 * math.pi - np.asarray(tr.heading_rad, float))
+        h = np.asarray(tr.heading_rad, float)
+        psi = np.full(h.shape, np.nan)
+        fin = np.isfinite(h)  # unwrapped over the rows that have a heading (a NaN poisons
+        psi[fin] = np.unwrap(0.5 * math.pi - h[fin])  # everything after it otherwise)
         out["psi"] = at(psi)
     out["u"] = at(tr.u_mps)
     out["v"] = at(tr.v_mps)
@@ -302,6 +325,8 @@ def full_summary(run: Any, drive: Any) -> dict[str, Any]:
         ]
         out["verdict"][ch] = m.verdict
         out["verdict_detail"][ch] = m.to_dict()
+    # verdicts resting on a margin within 5 % of the band (verdicts.fragility): not decided
+    out["fragile_verdicts"] = [ch for ch, d in out["verdict_detail"].items() if d.get("fragile")]
     # bias intervals
     k_to = ctx.alpha.k("imu_turn_on")
     bias: dict[str, Any] = {}

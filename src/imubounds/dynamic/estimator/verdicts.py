@@ -3,12 +3,13 @@
 ``[E_W] = [y_W] - [x_W]`` per window. Verdict per channel: ``exceeds`` if some window's
 ``[E_W]`` (or some change ``[E_W2] - [E_W1]``) lies entirely outside its band;
 ``consistent`` if there is a decidable window (``[x_W]`` not wider than the band) and
-none exceeds; ``undecided`` otherwise.
+none exceeds; ``undecided`` otherwise. A verdict that another band within
+:data:`FRAGILE_SHARE` of the computed one would change is *fragile* (:func:`fragility`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,11 @@ HOW_TO_REFERENCE = (
     "static log of this IMU), --imu-spec PRESET or accel_nd=..,accel_bs=..,gyro_nd=..,"
     "gyro_bs=.., or imu: accel_nd/accel_bs/gyro_nd/gyro_bs (or preset:) in drive.yaml"
 )
+
+
+#: A verdict resting on a margin within this share of its band is fragile: the verdict
+#: against the band scaled by 1 -+ FRAGILE_SHARE differs (docs/dynamic-method.md, section 4).
+FRAGILE_SHARE = 0.05
 
 
 def _is_default(src: str) -> bool:
@@ -102,6 +108,20 @@ class LevelResult:
     def exceeds(self) -> np.ndarray:
         return (self.e_lo > self.band) | (self.e_hi < -self.band)
 
+    @property
+    def fragile(self) -> np.ndarray:
+        """Windows whose test turns with the band scaled by 1 -+ :data:`FRAGILE_SHARE`:
+        decidable or not, inside or outside, by a margin within that share of the band."""
+        lo, hi = self.band * (1.0 - FRAGILE_SHARE), self.band * (1.0 + FRAGILE_SHARE)
+        xw = 0.5 * (self.x_hi - self.x_lo)
+        gap = np.maximum(self.e_lo, -self.e_hi)  # outside the band exactly when gap > band
+        with np.errstate(invalid="ignore"):
+            return ((xw > lo) & (xw <= hi)) | ((gap > lo) & (gap <= hi))
+
+    def scaled(self, factor: float) -> LevelResult:
+        """The same windows against the band (and the change band) times ``factor``."""
+        return replace(self, band=self.band * factor, c_band=self.c_band * factor)
+
     def summary(self) -> dict[str, Any]:
         hw = self.halfwidth
         fin = np.isfinite(hw)
@@ -113,6 +133,7 @@ class LevelResult:
             "stationary_max": float(np.max(self.band)) if self.band.size else None,
             "exceeds_fraction": float(np.mean(self.exceeds)) if self.band.size else 0.0,
             "decidable_fraction": float(np.mean(self.decidable)) if self.band.size else 0.0,
+            "fragile_fraction": float(np.mean(self.fragile)) if self.band.size else 0.0,
             "n_windows": int(self.band.size),
             "k": self.k,
             "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
@@ -155,6 +176,9 @@ class ChannelMargins:
     #: the verdict against the band as computed (the same as ``verdict`` unless that is
     #: ``no reference``: then the verdict against the default preset's band, not a finding)
     raw_verdict: str = ""
+    #: the verdicts against the band scaled by 1 -+ FRAGILE_SHARE that differ from
+    #: ``verdict`` ({"0.95": "undecided"}): empty when the verdict is not fragile
+    fragile: dict[str, str] = field(default_factory=dict)
 
     def table(self) -> list[dict[str, Any]]:
         return [lv.summary() for lv in self.levels]
@@ -168,6 +192,9 @@ class ChannelMargins:
             "exceeding_windows": self.exceeding,
             "n_exceeding_windows": self.n_exceeding,
             "notes": self.notes,
+            "fragile": bool(self.fragile),
+            **({"fragile_detail": fragile_text(self.verdict, self.fragile),
+                "verdict_if_band_scaled": dict(self.fragile)} if self.fragile else {}),
             **(
                 {"verdict_against_default_band": self.raw_verdict}
                 if self.verdict == NO_REFERENCE
@@ -252,3 +279,25 @@ def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str,
         exc,
         0,
     )
+
+
+def fragility(levels: list[LevelResult], verdict: str) -> dict[str, str]:
+    """The verdicts against the band scaled by ``1 - FRAGILE_SHARE`` and ``1 +
+    FRAGILE_SHARE`` that differ from ``verdict`` (keys ``"0.95"``, ``"1.05"``): a verdict
+    that rests on a margin within 5 % of the band is fragile, not decided."""
+    out: dict[str, str] = {}
+    for factor in (1.0 - FRAGILE_SHARE, 1.0 + FRAGILE_SHARE):
+        other = verdict_of([lv.scaled(factor) for lv in levels])[0]
+        if other != verdict:
+            out[f"{factor:.2f}"] = other
+    return out
+
+
+def fragile_text(verdict: str, flips: dict[str, str]) -> str:
+    """One line saying why a verdict is fragile."""
+    parts = []
+    for key, other in sorted(flips.items()):
+        how = "narrower" if float(key) < 1 else "wider"
+        parts.append(f"{other} with the band {round(100 * FRAGILE_SHARE)} % {how}")
+    return (f"FRAGILE: '{verdict}' rests on a margin within {round(100 * FRAGILE_SHARE)} % of "
+            f"the stationary band ({'; '.join(parts)}): not decided")

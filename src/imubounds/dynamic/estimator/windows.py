@@ -44,6 +44,7 @@ from imubounds.dynamic.estimator.verdicts import (
     ChannelMargins,
     LevelResult,
     band_reference,
+    fragility,
     verdict_of,
 )
 from imubounds.dynamic.estimator.window_plan import ChannelPlan, LevelPlan, plan_channel, tau_grid
@@ -183,7 +184,8 @@ class MarginBuilder(WindowContext):
                 f"preset's, not a reference to judge against; {HOW_TO_REFERENCE}"
             )
         out = ChannelMargins(
-            ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc, raw_verdict=raw
+            ch, UNITS[ch], plan.source, levels, verdict, reason, exc, n_exc, raw_verdict=raw,
+            fragile=fragility(levels, verdict) if levels and verdict != NO_REFERENCE else {},
         )
         aided = [lv for lv in levels if lv.kind == "aided"]
         if aided:

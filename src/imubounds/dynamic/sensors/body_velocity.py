@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imubounds.constants import ROUND_REL
-from imubounds.dynamic.estimator.budget import Term
+from imubounds.dynamic.estimator.budget import Term, setting_source
 from imubounds.interval.rounding import up as _up
 
 if TYPE_CHECKING:
@@ -32,7 +32,7 @@ def body_velocity_boxes(
     if vel_s is not None and opts.use_velocity:
         bound = float(opts.velocity_bound or st.velocity.bound_mps)
         scale = float(st.velocity.scale)
-        scale_src = "drive.yaml"
+        scale_src = setting_source(st, "velocity.scale")
         if "velocity.scale" in drive.settings.defaulted and vel_s.kind in WHEEL_KINDS:
             # a wheel speed scales with the tyre's rolling radius (pressure, wear, load)
             scale = WHEEL_SCALE_DEFAULT
@@ -55,7 +55,7 @@ def body_velocity_boxes(
                 "bound",
                 bound,
                 "m/s",
-                "option" if opts.velocity_bound else "drive.yaml",
+                setting_source(st, "velocity.bound_mps", bool(opts.velocity_bound)),
                 f"{vel_s.kind} body-velocity error per component",
             ),
             Term("scale", scale, "fraction", scale_src, "plus this fraction of the speed"),

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imubounds.constants import ROUND_REL
-from imubounds.dynamic.estimator.budget import Term
+from imubounds.dynamic.estimator.budget import Term, setting_source
 from imubounds.errors import OptionError
 from imubounds.geodesy import geodetic_to_enu
 from imubounds.interval.rounding import up as _up
@@ -309,7 +309,7 @@ def gnss_position_boxes(
     ag.gnss_h = _up(drms * fac * (1 + ROUND_REL) + lev)
     ag.gnss_sig = drms_to_sigma(drms)
     ag.gnss_det = lev
-    src_cep = "option" if opts.gnss_cep_m else "drive.yaml"
+    src_cep = setting_source(st, "gnss.cep_m", bool(opts.gnss_cep_m))
     ag.budget["gnss_position"] = [
         Term("CEP at HDOP 1", cep, "m", src_cep, "circular error probable of the fix"),
         Term(
@@ -383,12 +383,21 @@ def gnss_velocity_boxes(
             ag.gvel_hi = _up(k * sig_i * (1 + ROUND_REL) + lv_v)
             ag.gvel_sig = sig_i
             ag.gvel_det = lv_v
+            # where each number came from: the receiver's per-fix accuracies where it gave
+            # them, else the option, drive.yaml or the default (drive.yaml silent)
+            src = setting_source(st, "gnss.vel_sigma_mps", bool(opts.gnss_vel_sigma))
+            n_rx = int(np.sum(good & (sig_i != sig))) if va is not None else 0
+            sig_shown = sig
+            if n_rx:
+                src = (f"receiver's vel_acc_mps at {n_rx} of {int(good.sum())} fixes (median)"
+                       + (f"; {src} {sig:g} m/s at the others" if n_rx < good.sum() else ""))
+                sig_shown = float(np.median(sig_i[good]))
             ag.budget["gnss_velocity"] = [
                 Term(
                     "velocity sigma per component",
-                    sig,
+                    sig_shown,
                     "m/s",
-                    "option" if opts.gnss_vel_sigma else "drive.yaml",
+                    src,
                     "Gaussian error of north and east velocity",
                 ),
                 Term(
@@ -401,9 +410,9 @@ def gnss_velocity_boxes(
                 ),
                 Term(
                     "radius",
-                    ag.gvel_h,
+                    float(np.median(ag.gvel_hi[good])) if n_rx else ag.gvel_h,
                     "m/s",
-                    "computed",
+                    "computed" + (" (median over the fixes)" if n_rx else ""),
                     "bounds the 2-D velocity error, hence each component, the speed "
                     "and (asin(radius / speed)) the course",
                 ),

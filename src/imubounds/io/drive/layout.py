@@ -550,25 +550,38 @@ def truth_from_table(df: pd.DataFrame, where: str) -> Truth:
     if "east_m" in df.columns:
         e, n = _req(df, "east_m", where), _req(df, "north_m", where)
         if "origin_lat_deg" in df.columns:
+            # origin_alt_m left out: NaN, not 0 (the truth check then takes the GNSS
+            # origin's altitude rather than the ellipsoid's surface)
             origin = (
                 float(_req(df, "origin_lat_deg", where)[0]),
                 float(_req(df, "origin_lon_deg", where)[0]),
                 float(_req(df, "origin_alt_m", where)[0]) if "origin_alt_m" in df.columns
-                else 0.0,
+                else math.nan,
             )
         else:
-            origin = (math.nan, math.nan, 0.0)
+            origin = (math.nan, math.nan, math.nan)
         used |= {"east_m", "north_m", "origin_lat_deg", "origin_lon_deg", "origin_alt_m"}
     elif "lat_deg" in df.columns:
         lat, lon = _req(df, "lat_deg", where), _req(df, "lon_deg", where)
-        e, n, org = geodetic_to_enu(lat, lon, None)
-        origin = (float(org[0]), float(org[1]), float(org[2]))
+        alt = _col(df, "alt_m", where)
+        first = int(np.argmax(np.isfinite(lat) & np.isfinite(lon)))
+        org0 = None
+        if alt is not None and np.isfinite(alt[first]):
+            org0 = (float(lat[first]), float(lon[first]), float(alt[first]))
+        e, n, org = geodetic_to_enu(lat, lon, alt if org0 is not None else None,
+                                    origin=org0 or (float(lat[first]), float(lon[first]), 0.0))
+        origin = (float(org[0]), float(org[1]), float(org[2]) if org0 else math.nan)
         used |= {"lat_deg", "lon_deg"}
+        if org0 is not None and alt is not None:
+            used.add("alt_m")
+            up = alt - org0[2]  # the truth's height over its origin (the truth check uses it)
     else:
         raise InputError(f"{where}: truth needs lat_deg, lon_deg or east_m, north_m")
     hd = _col(df, "heading_deg", where)
     used |= {"heading_deg", "u_mps", "v_mps"}
     extra = {c: _col(df, c, where) for c in df.columns if c not in used}
+    if "alt_m" in used and "up_m" not in extra:
+        extra["up_m"] = up
     return Truth(
         t=t,
         east_m=e,
@@ -579,6 +592,22 @@ def truth_from_table(df: pd.DataFrame, where: str) -> Truth:
         v_mps=_col(df, "v_mps", where),
         extra={k: v for k, v in extra.items() if v is not None},
     )
+
+
+def _warn_empty_columns(drive: Drive, df: pd.DataFrame, where: str) -> None:
+    """An IMU column that is there but holds no value (every row empty or NaN): the axis
+    is absent (not analysed), which the file does not say: a counted warning naming it."""
+    cols = [c for c in df.columns if c.lower().startswith(("gyro_", "accel_"))]
+    for c in cols:
+        v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
+        if v.size and not np.isfinite(v).any():
+            axis = "_".join(c.split("_")[:2])
+            drive.warn(
+                "imu_column_empty", 1,
+                f"{where}: column {c} holds no value in any of its {v.size} rows (empty or "
+                f"NaN): {axis} is treated as absent (not analysed: no samples); fill it or drop "
+                "the column",
+            )
 
 
 def drive_from_tables(
@@ -609,6 +638,7 @@ def drive_from_tables(
         files[name] = where
         if name == "imu":
             drive.imu = imu_from_table(df, where, rot)
+            _warn_empty_columns(drive, df, where)
         elif name == "gnss":
             drive.gnss = gnss_from_table(df, where)
         elif name == "velocity":
@@ -802,7 +832,8 @@ def write_layout(drive: Drive, directory: str | Path, fmt: str = "csv") -> Path:
             "north_m": tr.north_m,
             "origin_lat_deg": np.full(tr.t.size, tr.origin[0]),
             "origin_lon_deg": np.full(tr.t.size, tr.origin[1]),
-            "origin_alt_m": np.full(tr.t.size, tr.origin[2]),
+            **({"origin_alt_m": np.full(tr.t.size, tr.origin[2])}
+               if math.isfinite(tr.origin[2]) else {}),
             "heading_deg": None if tr.heading_rad is None else np.degrees(tr.heading_rad),
             "u_mps": tr.u_mps,
             "v_mps": tr.v_mps,

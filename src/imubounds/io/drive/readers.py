@@ -317,12 +317,12 @@ def read_vn100(
         drive.mag = MagStream(t=t, mag=m, unit="T")
     if "raw_vnymr" in imu.columns:
         ypr = [np.radians(_nmea_field(imu["raw_vnymr"], k)) for k in (1, 2, 3)]
-        ok = np.isfinite(ypr[0]) & np.isfinite(ypr[1]) & np.isfinite(ypr[2])
+        ok = np.isfinite(ypr[1]) & np.isfinite(ypr[2])
         lost = int((~ok).sum())
         if lost:
             drive.warn("attitude_nan", lost, f"{imu_path}: {lost} of {t.size} $VNYMR "
-                       "sentence(s) without a finite yaw, pitch and roll: no attitude there")
-        if ok.any():
+                       "sentence(s) without a finite pitch and roll: no attitude there")
+        if ok.any():  # a NaN yaw: validate_drive drops it (counted, named)
             drive.attitude = AttitudeStream(
                 t=t[ok], roll_rad=ypr[2][ok], pitch_rad=ypr[1][ok],
                 yaw_rad=np.mod(ypr[0][ok], 2 * math.pi), source="ahrs",

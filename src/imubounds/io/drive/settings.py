@@ -69,6 +69,15 @@ _RANGES: dict[str, tuple[float, bool, float | None]] = {
     "imu.bias_drift_window_s": (0.0, False, None),
 }
 _CHOICES["imu.sample_time"] = ("end", "centre", "start")
+
+
+def setting_range(key: str) -> tuple[float, bool, float | None]:
+    """(lower bound, lower bound inclusive, upper bound or None) of a numeric drive.yaml
+    setting (``"heading.deviation_deg"``): the one range a command-line option that
+    overrides it is checked against too."""
+    return _RANGES.get(key, (-math.inf, True, None))
+
+
 #: Settings that are texts: file names (resolved against drive.yaml's folder) and names.
 _PATH_KEYS = ("imu.noise_json", "heading.calibration")
 _TEXT_KEYS = ("imu.preset",)
@@ -381,8 +390,15 @@ def read_settings_with_info(d: Path) -> tuple[DriveSettings, dict[str, Any]]:
         for k in _INFO_KEYS:
             if k in data:
                 info[k] = data.pop(k)
-        if "notes" in info and not isinstance(info["notes"], list):
-            raise InputError(f"{p}: notes must be a list of texts")
+        notes = info.get("notes")
+        if isinstance(notes, str):  # one note written as a text
+            info["notes"] = [notes] if notes.strip() else []
+        elif notes is None:
+            info.pop("notes", None)
+        elif not isinstance(notes, list) or any(
+            isinstance(n, dict | list) for n in notes
+        ):
+            raise InputError(f"{p}: notes must be a text or a list of texts, got {notes!r:.60}")
     return parse_settings(data, str(p), base_dir=d), info
 
 

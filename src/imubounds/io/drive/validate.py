@@ -44,10 +44,19 @@ import numpy as np
 
 from imubounds.errors import InputError, UnitsError
 from imubounds.io.drive import Drive
+from imubounds.io.drive.validate_imu import (
+    GYRO_FULL_SCALE_RADS,
+    TIME_SCALES,
+    check_imu,
+    local_en,
+    position_course,
+    rate_slope,
+)
+from imubounds.io.drive.validate_imu import data_row as _where
+from imubounds.io.drive.validate_imu import file_label as _file
 from imubounds.io.validate import check_input_path
 
-#: Largest full-scale range of MEMS gyros (2000 deg/s), rad/s.
-GYRO_FULL_SCALE_RADS = 2000.0 * math.pi / 180.0
+__all__ = ["GYRO_FULL_SCALE_RADS", "existing_file", "validate_drive"]
 
 
 # ----------------------------------------------------------------------------- paths
@@ -65,299 +74,6 @@ def existing_file(d: Path, stem: str, suffixes: tuple[str, ...]) -> Path | None:
         if os.path.lexists(p):
             return check_input_path(p, what=f"the drive's {stem} table")
     return None
-
-
-# ----------------------------------------------------------------------------- helpers
-
-
-def _file(drive: Drive, name: str) -> str:
-    files = drive.meta.get("files", {})
-    return str(files.get(name, f"{drive.source} ({name})"))
-
-
-def _where(t: np.ndarray, i: int) -> str:
-    return f"data row {i + 1} (t={t[i]:.3f} s)"
-
-
-def _unwrapped_reference_heading(drive: Drive) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """A heading (t, unwrapped compass heading rad, label) to check the gyro against."""
-    if drive.heading is not None and drive.heading.t.size >= 3:
-        return drive.heading.t, np.unwrap(drive.heading.heading_rad), "heading"
-    a = drive.attitude
-    if a is not None and a.yaw_rad is not None and a.t.size >= 3:
-        return a.t, np.unwrap(a.yaw_rad), "attitude yaw"
-    g = drive.gnss
-    if g is not None:
-        course = _position_course(drive)
-        if course is not None and course[0].size >= 5:
-            return course[0], np.unwrap(course[1]), "GNSS course over ground"
-    return None
-
-
-def _position_course(drive: Drive, min_speed: float = 3.0) -> tuple[np.ndarray, ...] | None:
-    """(t_mid, course rad clockwise from north, speed m/s) between usable consecutive fixes
-    moving at least ``min_speed`` (from positions only)."""
-    g = drive.gnss
-    if g is None:
-        return None
-    ok = g.usable()
-    if ok.sum() < 3:
-        return None
-    lat, lon, t = g.lat_deg[ok], g.lon_deg[ok], g.t[ok]
-    if np.max(np.abs(lat)) > 90 or np.max(np.abs(lon)) > 180:
-        return None
-    e, n = _local_en(lat, lon)
-    de, dn, dt = np.diff(e), np.diff(n), np.diff(t)
-    speed = np.hypot(de, dn) / dt
-    keep = np.isfinite(speed) & (speed >= min_speed)
-    tm = 0.5 * (t[1:] + t[:-1])
-    return tm[keep], np.mod(np.arctan2(de, dn), 2 * math.pi)[keep], speed[keep]
-
-
-def _local_en(lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Equirectangular east/north metres about the first point (enough for checks)."""
-    r = 6_371_000.0
-    lat0 = math.radians(float(lat[0]))
-    e = np.radians(lon - lon[0]) * r * math.cos(lat0)
-    n = np.radians(lat - lat[0]) * r
-    return e, n
-
-
-# ----------------------------------------------------------------------------- IMU
-
-
-def _check_imu(drive: Drive) -> None:
-    imu = drive.imu
-    assert imu is not None
-    f = _file(drive, "imu")
-    t = imu.t
-    if t.size < 2:
-        raise InputError(f"{f}: the IMU has {t.size} sample(s); at least 2 are needed")
-    for kind, arr in (("gyro", imu.gyro), ("accel", imu.accel)):
-        for j, ax in enumerate("xyz"):
-            col = arr[:, j]
-            fin = np.isfinite(col)
-            if not fin.any() or fin.all():
-                continue  # an absent axis is all NaN; a present one must be finite
-            i = int(np.flatnonzero(~fin)[0])
-            n_bad = int((~fin).sum())
-            raise InputError(
-                f"{f}: {kind}_{ax} (body axes) is {col[i]} at {_where(t, i)}"
-                f"{f' and {n_bad - 1} more row(s)' if n_bad > 1 else ''}; "
-                "repair or remove these rows (an IMU sample cannot be skipped)"
-            )
-    dt = np.diff(t)
-    med = float(np.median(dt))
-    _check_imu_rate(f, t, med)
-    gaps = np.flatnonzero(dt > 5.0 * med)
-    if gaps.size:
-        k = int(gaps[np.argmax(dt[gaps])])
-        drive.warn(
-            "imu_gaps",
-            int(gaps.size),
-            f"{f}: {gaps.size} gap(s) in the IMU time stamps longer than 5 sample periods "
-            f"(largest {dt[k]:.3f} s after t={t[k]:.3f} s)",
-        )
-    _check_gyro_spikes(drive, f)
-    _check_gyro_units(drive, f)
-    _check_accel_units(drive, f)
-    _check_stuck(drive, f)
-
-
-#: IMU rates (Hz) a drive log can have; outside, time_s is in another unit than s.
-IMU_RATE_RANGE_HZ = (0.5, 1.0e5)
-_TIME_SCALES = (("ms", 1e3), ("us", 1e6), ("ns", 1e9))
-
-
-def _check_imu_rate(f: str, t: np.ndarray, med: float) -> None:
-    lo, hi = IMU_RATE_RANGE_HZ
-    if not med > 0:
-        return
-    rate = 1.0 / med
-    if lo <= rate <= hi:
-        return
-    fits = next((u for u, k in _TIME_SCALES if lo <= rate * k <= hi), None)
-    hint = (f"time_s looks like {fits} ({rate * dict(_TIME_SCALES)[fits]:.4g} Hz then); "
-            f"convert it to seconds" if fits else "check time_s (seconds on one clock)")
-    raise InputError(
-        f"{f}: the IMU's median time step {med:.4g} s means {rate:.4g} Hz, a rate no IMU log "
-        f"has ({lo:g}..{hi:g} Hz): {hint}"
-    )
-
-
-def _runs(mask: np.ndarray, min_len: int = 1) -> list[tuple[int, int]]:
-    """(first, last) indices of the runs of True in ``mask`` at least ``min_len`` long."""
-    m = np.concatenate(([False], mask, [False])).astype(np.int8)
-    d = np.diff(m)
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
-    long = ends - starts + 1 >= min_len
-    return list(zip(starts[long].tolist(), ends[long].tolist(), strict=True))
-
-
-def _check_gyro_spikes(drive: Drive, f: str) -> None:
-    """A few samples beyond any MEMS range (a 1e300 sample) while the rest is plausible:
-    a counted warning per axis naming the epochs (the units check handles whole logs)."""
-    imu = drive.imu
-    assert imu is not None
-    t = imu.t
-    for j, ax in enumerate("xyz"):
-        col = imu.gyro[:, j]
-        if not np.isfinite(col).all():
-            continue
-        big = np.abs(col) > GYRO_FULL_SCALE_RADS
-        nb = int(big.sum())
-        if nb == 0 or nb > max(1, col.size // 1000):
-            continue  # none, or too many for spikes: the unit check speaks
-        idx = np.flatnonzero(big)
-        peak = float(np.max(np.abs(col[idx])))
-        drive.warn(
-            "gyro_spikes",
-            nb,
-            f"{f}: gyro_{ax} (body axes) has {nb} sample(s) beyond the 2000 deg/s range of "
-            f"any MEMS gyro (up to {math.degrees(peak):.3g} deg/s) between t={t[idx[0]]:.3f} and "
-            f"t={t[idx[-1]]:.3f} s: corrupt samples; repair or remove them (every margin "
-            "and bound that spans them is inflated)",
-        )
-
-
-def _check_stuck(drive: Drive, f: str) -> None:
-    """A gyro axis that repeats one value for a long run (>= 5 s and 100 samples): counted
-    warning naming the axis, the value and the span (and how far the heading turned)."""
-    imu = drive.imu
-    assert imu is not None
-    t = imu.t
-    if t.size < 100:
-        return
-    ref = _unwrapped_reference_heading(drive)
-    for j, ax in enumerate("xyz"):
-        col = imu.gyro[:, j]
-        if not np.isfinite(col).all():
-            continue
-        same = np.diff(col) == 0
-        best = None
-        for a, b in _runs(same, min_len=99):
-            n = b - a + 2  # samples in the run
-            span = float(t[b + 1] - t[a])
-            if n >= 100 and span >= 5.0 and (best is None or span > best[2]):
-                best = (a, b + 1, span)
-        if best is None:
-            continue
-        a, b, span = best
-        turn = ""
-        if ref is not None:
-            psi = np.interp([t[a], t[b]], ref[0], ref[1])
-            turned = abs(math.degrees(float(psi[1] - psi[0])))
-            if turned >= 1.0:
-                turn = f" while the {ref[2]} turns {turned:.0f} deg"
-        drive.warn(
-            "gyro_stuck",
-            b - a + 1,
-            f"{f}: gyro_{ax} (body axes) repeats {math.degrees(float(col[a])):.6g} deg/s for "
-            f"{b - a + 1} samples from t={t[a]:.3f} to t={t[b]:.3f} s{turn}: the channel is "
-            "stuck or dropped out there; check the sensor",
-        )
-
-
-def _check_gyro_units(drive: Drive, f: str) -> None:
-    imu = drive.imu
-    assert imu is not None
-    g = imu.gyro
-    present = [j for j in range(3) if np.isfinite(g[:, j]).all()]
-    if not present:
-        return
-    mag = np.abs(g[:, present])
-    top = float(np.percentile(mag, 99.9))
-    unit = imu.input_units.get("gyro", "") or "rad/s"
-    if top > GYRO_FULL_SCALE_RADS:
-        raise UnitsError(
-            f"{f}: gyro values reach {top:.1f} rad/s ({math.degrees(top):.0f} deg/s), beyond "
-            f"any MEMS gyro's range (2000 deg/s): the columns (read as {unit}) are probably in "
-            "deg/s; name them gyro_*_dps"
-        )
-    if 2 not in present:
-        return
-    ref = _unwrapped_reference_heading(drive)
-    if ref is None:
-        return
-    slope, r2, turned = _rate_slope(imu.t, -g[:, 2], *ref[:2])
-    if slope is None or r2 < 0.5 or turned < math.radians(90.0):
-        return
-    deg = 180.0 / math.pi
-    if 0.6 * deg < slope < 1.5 * deg:
-        raise UnitsError(
-            f"{f}: gyro_z turns {slope:.0f}x faster than the {ref[2]} (about 57x): the gyro "
-            f"columns (read as {unit}) are in deg/s; name them gyro_*_dps"
-        )
-    if 0.6 / deg < slope < 1.5 / deg:
-        raise UnitsError(
-            f"{f}: gyro_z turns {1 / slope:.0f}x slower than the {ref[2]} (about 1/57): the gyro "
-            f"columns (read as {unit}) are in rad/s; name them gyro_*_rads"
-        )
-    if -1.5 < slope < -0.6:
-        also = (
-            " (or the GNSS file has latitude and longitude swapped, or a sign lost)"
-            if ref[2].startswith("GNSS") else ""
-        )
-        raise InputError(
-            f"{f}: gyro_z turns against the {ref[2]} (rate ratio {slope:.2f}): the body z axis "
-            f"points down; fix the mount with imu_axes (e.g. [x, -y, -z] for an FRD unit){also}"
-        )
-    drive.meta["gyro_heading_rate_ratio"] = slope
-
-
-def _rate_slope(
-    t_imu: np.ndarray, rate: np.ndarray, t_ref: np.ndarray, psi_ref: np.ndarray,
-    min_step: float = 0.5,
-) -> tuple[float | None, float, float]:
-    """Slope (through the origin) of the IMU's clockwise rate against a reference heading's
-    rate over intervals of at least 0.5 s, the fit's R^2, and the total turn (rad) of the
-    reference. A constant gyro bias only perturbs the slope."""
-    lo, hi = max(t_imu[0], t_ref[0]), min(t_imu[-1], t_ref[-1])
-    if hi - lo < 5.0:
-        return None, 0.0, 0.0
-    step = max(min_step, float(np.median(np.diff(t_ref))))
-    grid = np.arange(lo, hi, step)
-    if grid.size < 6:
-        return None, 0.0, 0.0
-    psi = np.interp(grid, t_ref, psi_ref)
-    ref_rate = np.diff(psi) / step
-    cum = np.concatenate(([0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t_imu))))
-    imu_rate = np.diff(np.interp(grid, t_imu, cum)) / step
-    turned = float(np.sum(np.abs(np.diff(psi))))
-    den = float(np.sum(ref_rate**2))
-    tot = float(np.sum(imu_rate**2))
-    if den == 0 or tot == 0:
-        return None, 0.0, turned
-    slope = float(np.sum(ref_rate * imu_rate) / den)
-    r2 = 1.0 - float(np.sum((imu_rate - slope * ref_rate) ** 2)) / tot
-    return slope, r2, turned
-
-
-def _check_accel_units(drive: Drive, f: str) -> None:
-    imu = drive.imu
-    assert imu is not None
-    a = imu.accel
-    if not np.isfinite(a).all():
-        return
-    norm = float(np.median(np.linalg.norm(a, axis=1)))
-    unit = imu.input_units.get("accel", "") or "m/s^2"
-    if 0.5 < norm < 2.0:
-        raise UnitsError(
-            f"{f}: the median |acceleration| is {norm:.2f} (read as {unit}) where gravity alone "
-            "gives 9.8 m/s^2: the columns are in g; name them accel_*_g"
-        )
-    if 50.0 < norm < 200.0:
-        raise UnitsError(
-            f"{f}: the median |acceleration| is {norm:.1f} m/s^2 (read as {unit}); the columns "
-            "are in m/s^2, not g: name them accel_*_mps2"
-        )
-    if not 4.0 < norm < 25.0:
-        drive.warn(
-            "accel_implausible",
-            1,
-            f"{f}: the median |acceleration| is {norm:.3g} m/s^2, far from gravity (9.8); "
-            "check the accelerometer unit",
-        )
 
 
 # ----------------------------------------------------------------------------- GNSS
@@ -466,7 +182,7 @@ def _track_fit(
         return None, 0.0, 0.0
     tm = (0.5 * (t[1:] + t[:-1]))[keep]
     course = np.unwrap(np.arctan2(de, dn)[keep])
-    return _rate_slope(imu_t, rate, tm, course, min_step=5.0)
+    return rate_slope(imu_t, rate, tm, course, min_step=5.0)
 
 
 def _check_track_turns(drive: Drive) -> None:
@@ -487,7 +203,7 @@ def _check_track_turns(drive: Drive) -> None:
     if np.max(np.abs(lat)) > 90 or np.max(np.abs(lon)) > 180:
         return
     rate = -imu.gyro[:, 2]
-    e, n = _local_en(lat, lon)
+    e, n = local_en(lat, lon)
     slope, r2, turned = _track_fit(imu.t, rate, t, e, n)
     if slope is None or turned < math.radians(90.0):
         return
@@ -496,7 +212,7 @@ def _check_track_turns(drive: Drive) -> None:
     f = _file(drive, "gnss")
     swapped_ok = False
     if np.max(np.abs(lon)) <= 90:
-        es, ns = _local_en(lon, lat)  # the other reading: lon_deg is the latitude
+        es, ns = local_en(lon, lat)  # the other reading: lon_deg is the latitude
         s2, r2s, _ = _track_fit(imu.t, rate, t, es, ns)
         swapped_ok = s2 is not None and 0.6 < s2 < 1.5 and r2s > 0.5
     mirrored = slope < -0.3 and r2 > 0.1
@@ -547,7 +263,7 @@ def _check_gnss_speed(drive: Drive, f: str, max_speed: float) -> None:
             g.vel_e_mps = np.where(bad, np.nan, g.vel_e_mps)
     ok = g.usable()
     if ok.sum() >= 2:
-        e, n = _local_en(g.lat_deg[ok], g.lon_deg[ok])
+        e, n = local_en(g.lat_deg[ok], g.lon_deg[ok])
         dt = np.diff(g.t[ok])
         dist = np.hypot(np.diff(e), np.diff(n))
         # the fixes' own errors move them too: allow 5 sigma of the difference of two
@@ -589,7 +305,7 @@ def _check_gnss_consistency(drive: Drive, f: str) -> None:
     ok = g.usable()
     if ok.sum() < 5:
         return
-    pc = _position_course(drive, min_speed=0.0)
+    pc = position_course(drive, min_speed=0.0)
     assert pc is not None
     t_mid, course_pos, speed_pos = pc
     # reported speed: GNSS speed/velocity, else the body-velocity sensor
@@ -623,7 +339,7 @@ def _check_gnss_consistency(drive: Drive, f: str) -> None:
     if g.course_rad is not None and g.speed_mps is not None:
         c = g.course_rad
         fin = np.isfinite(c) & np.isfinite(g.speed_mps) & (g.speed_mps > 3.0)
-        pc3 = _position_course(drive, min_speed=3.0)
+        pc3 = position_course(drive, min_speed=3.0)
         if fin.sum() >= 5 and pc3 is not None and pc3[0].size >= 5:
             span = float(np.ptp(np.unwrap(pc3[1])))
             if span > math.radians(60.0) and np.nanmax(np.abs(np.degrees(c[fin]))) <= 6.3:
@@ -690,7 +406,7 @@ def _check_heading(drive: Drive) -> None:
     f = _file(drive, "heading")
     if h.t.size == 0:
         raise InputError(f"{f}: heading_deg has no finite value")
-    ref = _position_course(drive, min_speed=3.0)
+    ref = position_course(drive, min_speed=3.0)
     if ref is not None and ref[0].size >= 5:
         span = float(np.ptp(np.unwrap(ref[1])))
         spread = float(np.max(np.abs(np.angle(np.exp(1j * h.heading_rad)))))
@@ -765,7 +481,7 @@ def _time_unit_hint(t: np.ndarray, lo: float, hi: float) -> str | None:
     span, ref = b - a, hi - lo
     if not step > 5.0:
         return None
-    for unit, k in _TIME_SCALES:
+    for unit, k in TIME_SCALES:
         if ref > 0 and 0.3 * k <= span / ref <= 3.0 * k:
             return unit
         mid, rmid = 0.5 * (a + b), 0.5 * (lo + hi)
@@ -775,10 +491,21 @@ def _time_unit_hint(t: np.ndarray, lo: float, hi: float) -> str | None:
 
 
 def _check_truth(drive: Drive) -> None:
-    """Truth rows without a finite position (a short, ragged row): dropped and counted."""
+    """Truth rows out of time order: error (the truth check interpolates in time). Rows
+    without a finite position (a short, ragged row): dropped and counted; rows with some
+    other value empty or NaN (a short row cut after its position): counted, named, those
+    values are left out of the truth check."""
     tr = drive.truth
     assert tr is not None
     f = _file(drive, "truth")
+    back = np.flatnonzero(np.diff(tr.t) <= 0)
+    if back.size:
+        k = int(back[0])
+        raise InputError(
+            f"{f}: time_s is not strictly increasing at data row {k + 2} (t={tr.t[k]:.6f} "
+            f"then {tr.t[k + 1]:.6f} s; {back.size} such row(s)): the rows are out of order or "
+            "repeated; sort the file by time_s and drop duplicate rows"
+        )
     keep = np.isfinite(tr.t) & np.isfinite(tr.east_m) & np.isfinite(tr.north_m)
     nb = int((~keep).sum())
     if nb == tr.t.size:
@@ -793,6 +520,19 @@ def _check_truth(drive: Drive) -> None:
             if v is not None:
                 setattr(tr, name, v[keep])
         tr.extra = {k: v[keep] for k, v in tr.extra.items()}
+    cols = {"heading_deg": tr.heading_rad, "u_mps": tr.u_mps, "v_mps": tr.v_mps, **tr.extra}
+    holes = {k: ~np.isfinite(v) for k, v in cols.items()
+             if v is not None and np.isfinite(v).any() and not np.isfinite(v).all()}
+    if holes:
+        rows = np.logical_or.reduce(list(holes.values()))
+        i = int(np.flatnonzero(rows)[0])
+        names = [k for k, v in holes.items() if v[i]]
+        drive.warn(
+            "truth_nan", int(rows.sum()),
+            f"{f}: {int(rows.sum())} row(s) with empty or NaN values (first at data row "
+            f"{i + 1}: {', '.join(names[:4])}{', ...' if len(names) > 4 else ''}; a short "
+            "row?): those values are left out of the truth check there",
+        )
 
 
 def _check_overlap(drive: Drive) -> None:
@@ -810,7 +550,7 @@ def _check_overlap(drive: Drive) -> None:
         if unit is not None:
             raise UnitsError(
                 f"{_file(drive, name)}: the {name} times ({a:.6g}..{b:.6g}) are about "
-                f"{dict(_TIME_SCALES)[unit]:.0e}x the IMU's ({lo:.6g}..{hi:.6g} s): time_s is "
+                f"{dict(TIME_SCALES)[unit]:.0e}x the IMU's ({lo:.6g}..{hi:.6g} s): time_s is "
                 f"in {unit}, not s; convert it to seconds"
             )
         inside = (st.t >= lo) & (st.t <= hi)
@@ -835,6 +575,7 @@ def _check_overlap(drive: Drive) -> None:
                 f"the {name} stream covers {100 * covered:.0f} % of the IMU's time range"
             )
     aiding = {k: v for k, v in epochs.items() if k != "attitude"}
+    _warn_single_epoch(drive, epochs, lo, hi)
     if aiding and max(aiding.values()) < 2:
         n = drive.imu.t.size if drive.imu is not None else 0
         raise InputError(
@@ -842,6 +583,33 @@ def _check_overlap(drive: Drive) -> None:
             f"which holds fewer than two epochs of any aiding stream "
             f"({', '.join(f'{k}: {v}' for k, v in aiding.items())}): the IMU log is too short "
             "or cut off; give the whole IMU log"
+        )
+
+
+_EPOCH_WORDS = {"gnss": "fix", "velocity": "velocity sample", "heading": "heading",
+                "mag": "magnetometer sample", "attitude": "attitude sample"}
+
+
+def _warn_single_epoch(drive: Drive, epochs: dict[str, int], lo: float, hi: float) -> None:
+    """A stream with one epoch inside the IMU's time range beside streams with more (a
+    single GNSS fix beside heading and velocity streams: a truncated or filtered file?)
+    constrains the trip at one instant only: a counted warning naming it."""
+    if max(epochs.values(), default=0) < 2:
+        return  # nothing has two epochs: the error below names the IMU's span
+    for name in epochs:
+        st = getattr(drive, name)
+        inside = (st.t >= lo) & (st.t <= hi)
+        if name == "gnss":
+            inside &= st.usable()
+        if int(inside.sum()) != 1:
+            continue
+        t = float(st.t[inside][0])
+        what = _EPOCH_WORDS[name]
+        drive.warn(
+            f"{name}_single_epoch", 1,
+            f"{_file(drive, name)}: only one {what} (t={t:.3f} s) inside the IMU's "
+            f"{hi - lo:.0f} s: the {name} stream constrains the trip at that instant only "
+            "(a truncated or filtered file?)",
         )
 
 
@@ -873,7 +641,7 @@ def validate_drive(drive: Drive, *, max_speed_mps: float | None = None) -> Drive
         _check_mag(drive)
     if drive.truth is not None:
         _check_truth(drive)
-    _check_imu(drive)
+    check_imu(drive)
     _check_overlap(drive)
     _check_track_turns(drive)
     if drive.settings.lever_arm_m is not None and any(drive.settings.lever_arm_m):

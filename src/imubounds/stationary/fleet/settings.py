@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from imubounds.errors import OptionError
+from imubounds.stationary.allan_grammar import DEFAULT_TAU_POINTS
 
 __all__ = ["TERMS", "FleetSettings", "Progress"]
 
@@ -25,7 +26,7 @@ class FleetSettings:
     log larger than it through the out-of-core path, as ``imubounds static``.
     """
 
-    taus: str | int | tuple[float, ...] = "octave"
+    taus: str | int | tuple[float, ...] = DEFAULT_TAU_POINTS
     estimator: str = "overlapping"
     confidence: float = 0.683
     terms_from: str = "fit"
