@@ -1,6 +1,6 @@
 """The compiled Gauss-Markov quadratic form of ``budget.kernel_variance``
-(``gm_quadratic_sum``) against its plain reference: two ``lfilter`` passes per
-component, ``c'Phi c = sum_k c_k (f_k + g_k - c_k)``."""
+(``series_kernels.gm_quadratic_sum``) against its plain reference: two ``lfilter``
+passes per component, ``c'Phi c = sum_k c_k (f_k + g_k - c_k)``."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from imubounds.dynamic.estimator.budget import gm_quadratic_sum
+from imubounds.dynamic.estimator.series_kernels import gm_quadratic_sum
 
 
 def reference(c: np.ndarray, phis: np.ndarray, s2: np.ndarray) -> float:

@@ -44,11 +44,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit
 from scipy.special import ndtri
 
 from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.options import FullOptions, check_options
+from imubounds.dynamic.estimator.series_kernels import gm_quadratic_sum
 from imubounds.errors import InputError, OptionError
 from imubounds.units import DEG
 
@@ -676,27 +676,6 @@ def kernel_variance(cn: ChannelNoise, c: np.ndarray, dt: float, with_turn_on: bo
     if with_turn_on:
         v += cn.turn_on_var() * float(np.sum(c)) ** 2
     return v * (1.0 + 1e-9)
-
-
-@njit(cache=True)
-def gm_quadratic_sum(c: np.ndarray, phis: np.ndarray, s2: np.ndarray) -> float:
-    """``sum_i s2_i c' Phi_i c`` with ``Phi_i[j, k] = phis_i^|j-k|``: per component one
-    pass of the one-sided filter ``f_k = c_k + phi f_(k-1)``, ``c' Phi c = 2 c.f - c.c``
-    (the two-sided filter's sum in one pass; the plain reference, two ``lfilter`` passes,
-    is tests/test_kernel_variance.py)."""
-    cc = 0.0
-    for k in range(c.size):
-        cc += c[k] * c[k]
-    v = 0.0
-    for i in range(phis.size):
-        phi = phis[i]
-        f = 0.0
-        acc = 0.0
-        for k in range(c.size):
-            f = c[k] + phi * f
-            acc += c[k] * f
-        v += s2[i] * (2.0 * acc - cc)
-    return v
 
 
 def _gm_row_excess(m: int, a: float) -> float:
