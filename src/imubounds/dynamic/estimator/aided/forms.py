@@ -184,7 +184,9 @@ def label_counts(labels: np.ndarray) -> str:
 
 
 #: set by the tools that study the forms (benchmarks/form_wins.py): called by
-#: :func:`combine` with ``(term, names, candidates, kind)``; None in normal runs
+#: :func:`combine` with ``(term, names, candidates, kind)``; None in normal runs. While
+#: it is set no form is screened (every candidate computed whole, so a form's wins are
+#: not hidden by the forms before it)
 OBSERVER: Callable[[str, tuple[str, ...], list[Any], str], None] | None = None
 
 
@@ -208,7 +210,7 @@ def combine(
     cands: list[Any] = []
     for f in forms:
         pf = form_probability(f, p, fam.get(f.family, 1))
-        if f.screened and kind == "enclosure" and cands:
+        if f.screened and kind == "enclosure" and cands and OBSERVER is None:
             within = IA(np.max(np.stack([c.lo for c in cands]), axis=0),
                         np.min(np.stack([c.hi for c in cands]), axis=0))
             cands.append(f.compute(inputs, pf, within))
