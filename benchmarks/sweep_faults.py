@@ -7,6 +7,13 @@ simulator's truth, independently of the estimator's enclosure code), the uncover
 (outside and still marked guaranteed: must be 0), the tests that failed and the clock
 offsets estimated (and those applied).
 
+The clock faults of docs/dynamic-method.md 5b ("Heading clock: tested, else bounded by
+the data, else withdrawn", "GNSS velocity against its positions"): ``positions_only``
+(the receiver's velocity dropped: the course from chords of fixes), with the compass
+0.2 / 0.3 s late, and the receiver's velocity 0.12 / 0.3 s late against its positions
+(``faults.gnss_velocity_lag``: the truth's velocity of that much earlier + the
+velocity's own error).
+
 Usage: ``python benchmarks/sweep_faults.py [CASES] [SEEDS]`` (comma-separated; default
 every case, seeds 1,2,3).
 

@@ -22,6 +22,7 @@ import pytest
 
 from imubounds.dynamic.estimator import dynamic_margins
 from imubounds.dynamic.estimator.budget import DEFAULT_MISALIGNMENT_RAD, resolve_noise
+from imubounds.dynamic.estimator.violations import TEST_HEADING_CLOCK
 from imubounds.dynamic.scenario import faults as F
 from imubounds.dynamic.scenario import make_trip
 from imubounds.io.drive import DriveSettings, ImuSettings
@@ -225,7 +226,8 @@ def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> No
     large at 1 Hz): the check passes on the clean trip, where the error model takes
     nothing off; at +-3 deg the offset is at the edge of what the chords resolve (its
     interval about +-3 deg): either the model takes it off (its interval holding the
-    injected offset, guaranteed, truth inside) or the check fails and says which way."""
+    injected offset, truth inside; guaranteed, or withdrawn because the heading clock is
+    not testable there) or the check fails and says which way."""
     drive = make_trip("gnss-pos", seed=5, aiding=("gnss", "compass"), **TRIP).drive
     r = dynamic_margins(drive)
     assert r.full.ctx.heading.course_check["passed"] is True
@@ -239,7 +241,12 @@ def test_course_check_is_silent_on_clean_positions_only_trips_and_signed() -> No
         o = d["heading_sensor"]["offset"]
         assert o["interval_deg"][0] <= off <= o["interval_deg"][1], o
         if o["applied"]:
-            assert d["guaranteed"] is True and not bad.any()
+            # enclosed; guaranteed unless the heading clock is untested (the chords' turn
+            # test is powerless) and the clock estimate, whose deterministic part grows
+            # with the applied offset's half-width (~3 deg here), does not bound it
+            assert not bad.any()
+            assert d["guaranteed"] is True or {v["test"] for v in d["violations"]} == {
+                TEST_HEADING_CLOCK}, d["violations"]
         else:
             cc = next(v for v in d["violations"] if v["stream"] == "heading")
             assert f"{off:+.0f}." in cc["detail"] or f"{off:+.1f}" in cc["detail"], cc

@@ -50,16 +50,23 @@ def test_a_noise_level_change_fails_the_stationarity_test() -> None:
     assert any("not stationary" in m for m in st.messages("rad/s"))
 
 
-def test_cut_warmup_drops_it_before_the_analysis() -> None:
+def test_cut_warmup_cuts_each_channel_at_its_own_warmup() -> None:
     t = np.arange(N) / RATE
     log = ImuLog(channels={"gyro_x": gyro(1, True), "gyro_y": gyro(2, False)}, rate_hz=RATE, t=t)
     kept = analyse_static(log, StaticSettings())
     cut = analyse_static(log, StaticSettings(cut_warmup=True))
     assert any("warm-up" in w for w in kept.channels["gyro_x"].warnings)
-    assert cut.log.n_samples < N and cut.log.duration_s == pytest.approx(
-        N / RATE - kept.channels["gyro_x"].stationarity.warmup.end_s, abs=1.0
-    )
-    assert any("were cut before the analysis" in n for n in cut.channels["gyro_y"].notes)
+    w = kept.channels["gyro_x"].stationarity.warmup
+    assert w.end_s <= w.cut_s <= N / RATE / 2
+    gx, gy = cut.channels["gyro_x"], cut.channels["gyro_y"]
+    assert gx.allan.n_samples == N - int(np.ceil(w.cut_s * RATE))
+    assert gx.start_s == pytest.approx(w.cut_s, abs=1.0 / RATE)
+    assert gy.allan.n_samples == N and gy.start_s == 0.0  # no warm-up there: nothing cut
+    assert gx.run_hours == pytest.approx((N / RATE - gx.start_s) / 3600.0)
+    assert any("were cut before the analysis of this channel" in n for n in gx.notes)
+    assert any("no warm-up found on this channel; nothing cut" in n for n in gy.notes)
     doc = cut.to_json()
     assert doc["settings"]["cut_warmup"] is True
-    assert doc["channels"]["gyro_x"]["stationarity"]["warmup"]["end_s"] > 0
+    assert doc["input"]["n_samples"] == N  # the log as read
+    assert doc["channels"]["gyro_x"]["analysed"]["start_s"] == gx.start_s
+    assert doc["channels"]["gyro_x"]["stationarity"]["warmup"]["cut_s"] == w.cut_s

@@ -44,8 +44,7 @@ from imubounds.errors import (
     OutputError,
     UnitsError,
 )
-
-__version__ = "0.1.0"
+from imubounds.version import __version__ as __version__
 
 #: Public name -> module that defines it (imported on first access).
 _LAZY: dict[str, str] = {

@@ -218,7 +218,7 @@ class _Doc:
 
 
 def _header(doc: _Doc, fn: FilterNoise, title: str, yaml_directive: bool = False) -> None:
-    from imubounds import __version__
+    from imubounds.version import __version__
 
     if yaml_directive:  # OpenCV's FileStorage wants its YAML files to say so
         doc.lines += ["%YAML 1.0", "---"]

@@ -35,8 +35,8 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, NoReturn
 
-from imubounds import __version__
 from imubounds.errors import ImuboundsError
+from imubounds.version import __version__
 
 # Command modules, in the order they appear in ``--help``.
 COMMAND_MODULES: tuple[str, ...] = (

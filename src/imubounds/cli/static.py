@@ -123,7 +123,8 @@ def register(sub: Any) -> None:
         "--cut-warmup",
         action="store_true",
         help="drop the warm-up (a bias settling exponentially after power-on, detected per "
-        "channel; the latest end over the channels) before the analysis",
+        "channel) before the analysis: each channel from the end of its own warm-up "
+        "(the upper end of its interval); channels without one are not cut",
     )
     p.add_argument("--channels", help="only these channels, e.g. gyro_z,accel_x")
     p.add_argument("--no-plot", action="store_true", help="skip the figures")

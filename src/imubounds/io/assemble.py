@@ -19,6 +19,8 @@ from imubounds.io.log import IMU_CHANNELS, ImuLog
 from imubounds.units import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
 
 from .columns import MAP_KEYS, normalise_unit
+from .rates import describe as describe_rate_change
+from .rates import find_rate_changes
 from .validate import (
     GAP_ADVICE,
     JITTER_GAP_FACTOR,
@@ -343,16 +345,87 @@ def assemble_logs(
     if dt.size == 0:
         rate = float(opts.rate_hz)  # type: ignore[arg-type]
         return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
-    med_dt, gap_factor = gap_threshold(dt, opts.gap_tolerance)
-    rate = rate_from_step(med_dt, opts.rate_hz, source=source, column=time.source)
+    changes = find_rate_changes(dt)
+    if changes and opts.on_gap != "split":
+        c = changes[0]
+        more = f" ({len(changes)} changes in all)" if len(changes) > 1 else ""
+        raise InputError(
+            describe_rate_change(source, c, label(c.row), float(t[c.row])) + more
+            + "; --on-gap split analyses each part at its own rate"
+            + ("" if opts.on_gap == "refuse" else " (--on-gap ignore does not apply to it)")
+        )  # fmt: skip
     warnings += spike_warnings(out, source=source, t=t, row_label=label)
-
-    # --- gaps and restarts ------------------------------------------------------
-    gaps = find_gaps(dt, med_dt, gap_factor)
-    restarts = order.restarts
-    if gaps.size == 0 and restarts.size == 0:
+    edges = [0, *[c.row for c in changes], n]
+    why = ""
+    if changes:
+        c = changes[0]
+        why = describe_rate_change(source, c, label(c.row), float(t[c.row])) + (
+            f" ({len(changes)} changes in all); split there (--on-gap split)"
+            if len(changes) > 1 else "; split there (--on-gap split)"
+        )  # fmt: skip
+    ranges: list[tuple[int, int, float, str]] = []
+    for a, b in zip(edges, edges[1:], strict=False):
+        part = _gap_ranges(source, time.source, (a, b), t, dt, order.restarts, opts, label,
+                           warnings, why)  # fmt: skip
+        if part is None:  # one contiguous part, gaps ignored: the log as it is
+            return [ImuLog(out, _part_rate(dt, opts, source, time.source), t, source,
+                           input_units, frame, warnings)]  # fmt: skip
+        ranges += part
+    if len(ranges) == 1:
+        a, b, rate, _ = ranges[0]
         return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
+    logs = []
+    for k, (a, b, rate, reason) in enumerate(ranges):
+        first, last = (a, b - 1) if kept is None else (int(kept[a]), int(kept[b - 1]))
+        seg_warn = [
+            *warnings,
+            f"segment {k + 1} of {len(ranges)} (data rows {first + 1}..{last + 1}); {reason}",
+        ]
+        logs.append(
+            ImuLog(
+                {c: v[a:b].copy() for c, v in out.items()},
+                rate,
+                t[a:b].copy(),
+                f"{source} [segment {k + 1}/{len(ranges)}]",
+                dict(input_units),
+                frame,
+                seg_warn,
+            )
+        )
+    return logs
 
+
+def _part_rate(dt: np.ndarray, opts: ReadOptions, source: str, column: str) -> float:
+    med, _ = gap_threshold(dt, opts.gap_tolerance)
+    return rate_from_step(med, opts.rate_hz, source=source, column=column)
+
+
+def _gap_ranges(
+    source: str,
+    column: str,
+    rows: tuple[int, int],
+    t: np.ndarray,
+    dt: np.ndarray,
+    restarts: np.ndarray,
+    opts: ReadOptions,
+    label: Callable[[int], str],
+    warnings: list[str],
+    why: str,
+) -> list[tuple[int, int, float, str]] | None:
+    """Rows [a, b) of one rate cut at its gaps and restarts: (start, end, rate, reason)
+    per contiguous range; None when the part is one range with its gaps ignored (the
+    caller keeps the log whole). Raises for a gap with ``on_gap="refuse"``."""
+    a, b = rows
+    d = dt[a : b - 1]
+    if d.size == 0:
+        rate = float(opts.rate_hz) if opts.rate_hz else 1.0 / float(np.median(dt[dt > 0]))
+        return [(a, b, rate, why)]
+    med_dt, gap_factor = gap_threshold(d, opts.gap_tolerance)
+    rate = rate_from_step(med_dt, opts.rate_hz, source=source, column=column)
+    gaps = find_gaps(d, med_dt, gap_factor) + a
+    rs = restarts[(restarts > a) & (restarts < b)]
+    if gaps.size == 0 and rs.size == 0:
+        return [(a, b, rate, why)]
     summary = ""
     if gaps.size:
         first = int(gaps[0])
@@ -360,32 +433,13 @@ def assemble_logs(
             source, count=int(gaps.size), factor=gap_factor, median_step=med_dt,
             first_row=first + 1, first_t=float(t[first + 1]), first_step=float(dt[first]),
             longest=float(dt[gaps].max()), row_label=label,
-        )
+        )  # fmt: skip
         if opts.on_gap == "refuse":
             raise InputError(summary + GAP_ADVICE)
         if opts.on_gap == "ignore":
             warnings.append(summary + "; ignored (--on-gap ignore): treated as contiguous")
-            return [ImuLog(out, rate, t, source, input_units, frame, warnings)]
-    cuts = np.union1d(gaps + 1, restarts)
-    bounds = np.concatenate(([0], cuts, [n])).astype(np.int64)
-    why = summary or "the time restarts"
-    logs = []
-    for k in range(bounds.size - 1):
-        a, b = int(bounds[k]), int(bounds[k + 1])
-        first, last = (a, b - 1) if kept is None else (int(kept[a]), int(kept[b - 1]))
-        seg_warn = [
-            *warnings,
-            f"segment {k + 1} of {bounds.size - 1} (data rows {first + 1}..{last + 1}); {why}",
-        ]
-        logs.append(
-            ImuLog(
-                {c: v[a:b].copy() for c, v in out.items()},
-                rate,
-                t[a:b].copy(),
-                f"{source} [segment {k + 1}/{bounds.size - 1}]",
-                dict(input_units),
-                frame,
-                seg_warn,
-            )
-        )
-    return logs
+            return None
+    cuts = np.union1d(gaps + 1, rs)
+    bounds = np.concatenate(([a], cuts, [b])).astype(np.int64)
+    reason = "; ".join(r for r in (why, summary or "the time restarts") if r)
+    return [(int(x), int(y), rate, reason) for x, y in zip(bounds, bounds[1:], strict=False)]

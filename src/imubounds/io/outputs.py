@@ -103,7 +103,7 @@ def write_run_record(outdir: str | os.PathLike[str], argv: list[str] | None, **e
     import sys
     from datetime import UTC, datetime
 
-    from imubounds import __version__
+    from imubounds.version import __version__
 
     record = {
         "command": "imubounds " + shlex.join(argv or []),

@@ -800,6 +800,7 @@ class StreamChecker:
         dt = np.diff(kept_t).astype(np.float64) * self.time_factor
         if self.median_step > 0:
             med = self.median_step * self.time_factor
+            self._rate_change(dt, med, rows, kept_t)
             gaps = find_gaps(dt, med, self.gap_factor)
             if gaps.size:
                 g = int(gaps[0])
@@ -824,6 +825,24 @@ class StreamChecker:
         if keep_all is None:
             return None
         return keep_all[1:] if has_prev else keep_all
+
+    def _rate_change(self, dt: np.ndarray, med: float, rows: np.ndarray, t: np.ndarray) -> None:
+        """Refuse a change of the sample rate (:mod:`imubounds.io.rates`): inside this
+        block, or between the first rows' step and this block's."""
+        from imubounds.io import rates
+
+        changes = rates.find_rate_changes(dt)
+        if not changes and dt.size >= rates.MIN_RUN_BLOCKS * 16:
+            nom = rates.nominal_step(dt)
+            if abs(nom / med - 1.0) > rates.RATE_CHANGE_REL:
+                changes = [rates.RateChange(0, med, nom)]
+        if changes:
+            c = changes[0]
+            raise InputError(
+                rates.describe(self.source, c, self.row_label(int(rows[c.row])),
+                               float(t[c.row]) * self.time_factor)  # fmt: skip
+                + "; a log read out of core cannot be split: split the file at the change"
+            )
 
     def _spike_block(
         self, values: Mapping[str, np.ndarray], keep: np.ndarray | None, row0: int

@@ -82,12 +82,20 @@ def _stationarity_rows(channels: dict[str, Any]) -> list[list[str]]:
             "<span class='ok'>stationary</span>" if ok
             else "<span class='bad'>not stationary</span>" if ok is False else "—"
         )
+        d = st.get("drift")
+        if isinstance(d, dict):
+            verdict += (
+                f" (drift {_num(d.get('change_over_log'), 3)} {_e((c or {}).get('unit', ''))}"
+                f" over the log, z = {_num(d.get('z'), 3)})"
+            )
         w = st.get("warmup")
         warm = "none found"
         if isinstance(w, dict):
             warm = (
                 f"<span class='warn'>{_num(w.get('start_s'), 3)} – {_num(w.get('end_s'), 4)} s"
-                f"</span> (T = {_num(w.get('time_constant_s'), 3)} s, amplitude "
+                f"</span> (T = {_num(w.get('time_constant_s'), 3)} s, 68 % "
+                f"{_num((w.get('time_constant_ci_s') or [None])[0], 3)} – "
+                f"{_num((w.get('time_constant_ci_s') or [None, None])[1], 3)} s; amplitude "
                 f"{_num(w.get('amplitude'), 3)} {_e((c or {}).get('unit', ''))} = "
                 f"{_num(w.get('amplitude_over_adev'), 3)} × the settled deviation)"
             )

@@ -19,11 +19,11 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from imubounds import __version__
 from imubounds.errors import InputError
 from imubounds.report._html_checks import checks_block, summary_line
 from imubounds.report._html_fleet import _fleet_section
 from imubounds.report._html_parts import _e, _img, _listed, _load_json, _num, _table, _term_cell
+from imubounds.version import __version__
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2433;

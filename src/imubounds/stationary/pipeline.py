@@ -15,7 +15,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imubounds import __version__
 from imubounds.errors import AnalysisError, InputError, OptionError
 from imubounds.io.log import ImuLog
 from imubounds.stationary import bounds
@@ -24,13 +23,17 @@ from imubounds.stationary.allan_grammar import DEFAULT_TAU_POINTS, parse_tau_spe
 from imubounds.stationary.contamination import DEFAULT_THRESHOLD, SpikeReport, detect_spikes
 from imubounds.stationary.record_length import channel_record_length
 from imubounds.stationary.record_length import describe as describe_record_length
-from imubounds.stationary.stationarity import Stationarity, cut_warmup, stationarity
+from imubounds.stationary.stationarity import Stationarity, stationarity, warmup_cuts
 from imubounds.stationary.terms import NoiseTerms, Selection, analyse_curve
 from imubounds.stationary.timing import stamp_stats, timing_check, timing_messages
 from imubounds.stationary.white_level import WhiteLevel, white_level
 from imubounds.units import DEG, SI_UNITS, SQRT_HOUR, SensorKind, sensor_kind, si_unit_of_signal
+from imubounds.version import __version__
 
 FORMAT = "imubounds.stationary.terms/1"
+#: Fewest samples a channel is characterised from (an Allan curve of five octaves and
+#: eight stationarity windows of eight samples); fewer: refused, naming file and channel.
+MIN_SAMPLES = 64
 TermSource = Literal["fit", "slope"]
 Progress = Callable[[str, int, int], None]
 
@@ -97,6 +100,8 @@ class ChannelResult:
     ``level_95`` is the paper's 95 % random-walk growth ``1.96·N·√T``, in rad
     (gyro) or m/s (accelerometer): the integrated quantity, not a rate.
     ``warnings`` are counted warnings for the user, ``notes`` remarks.
+    ``start_s`` and ``n_samples``: the part of the log analysed (``--cut-warmup`` cuts
+    each channel at its own warm-up).
     """
 
     name: str
@@ -120,6 +125,8 @@ class ChannelResult:
     stationarity: Stationarity | None = None
     timing: dict[str, Any] | None = None
     white_level: WhiteLevel | None = None
+    start_s: float = 0.0
+    n_samples: int | None = None
 
     @property
     def kind(self) -> SensorKind:
@@ -143,8 +150,14 @@ class ChannelResult:
         rw_unit, rw_ds_unit, rw_factor = (
             ("rad", "deg", 1.0 / DEG) if kind == "gyro" else ("m/s", "m/s", 1.0)
         )
+        n = self.n_samples if self.n_samples is not None else int(self.allan.n_samples)
         out: dict[str, Any] = {
             "unit": unit,
+            "analysed": {
+                "start_s": self.start_s,
+                "n_samples": n,
+                "duration_s": n / self.allan.rate_hz,
+            },
             "allan": allan_json(self.allan),
         }
         if self.allan_plain is not None:
@@ -414,6 +427,8 @@ def analyse_static(
         raise AnalysisError(f"{log.source} has no gyro or accelerometer channel to analyse")
     if curves is not None and settings.robust:
         raise OptionError("the robust Allan variance needs the samples in memory (not out-of-core)")
+    if curves is None:
+        _check_length(log, imu_names)
 
     def allan_progress(done: int, total: int) -> None:
         if progress is not None:
@@ -422,31 +437,19 @@ def analyse_static(
     spikes: dict[str, SpikeReport] = {}
     plain: Mapping[str, AllanResult] = {}
     stat: dict[str, Stationarity] = {}
-    cut_s = 0.0
+    cuts: dict[str, int] = {}
+    data: dict[str, Any] = {n: log.channels[n] for n in imu_names}
     if curves is None:
-        from imubounds.stationary.allan import check_magnitude
-
-        for name in imu_names:  # numeric edges named before any estimator meets them
-            check_magnitude(np.asarray(log.channels[name]), f"{log.source}: {name}")
-        stat = {n: stationarity(log.channels[n], log.rate_hz) for n in imu_names}
-        if settings.cut_warmup:
-            log, cut_s = cut_warmup(log, stat)
+        curves, plain, stat, cuts, data = _curves_in_memory(log, imu_names, settings,
+                                                            allan_progress)  # fmt: skip
         for name in imu_names:
             spikes[name] = detect_spikes(
-                np.asarray(log.channels[name]),
+                np.asarray(data[name]),
                 log.rate_hz,
                 threshold=settings.spike_threshold,
                 name=name,
-                t=np.asarray(log.t),
+                t=np.asarray(log.t)[cuts.get(name, 0) :],
             )
-        data = {n: log.channels[n] for n in imu_names}
-        kw = {"taus": settings.taus, "estimator": settings.estimator}
-        curves = allan_channels(
-            data, log.rate_hz, confidence=settings.confidence, progress=allan_progress,
-            robust=settings.robust, **kw,  # type: ignore[arg-type]
-        )  # fmt: skip
-        if settings.robust:
-            plain = allan_channels(data, log.rate_hz, confidence=settings.confidence, **kw)  # type: ignore[arg-type]
     for name in imu_names:  # a curve read out of core: its numeric edges, named
         dev = np.asarray(curves[name].dev, dtype=float)
         if dev.size and not np.isfinite(dev).all():
@@ -459,13 +462,15 @@ def analyse_static(
                 f"{log.source}: {name}: the Allan deviation is 0 at every tau: the channel is "
                 "constant (stuck or not recorded) or too small to square; check the channel"
             )
-    t_avg = settings.averaging_time_s or log.duration_s
-    run_hours = settings.run_hours or log.duration_s / 3600.0
     results: dict[str, ChannelResult] = {}
-    model_fits = _fit_models(log, imu_names, settings, progress, curves)
+    model_fits = _fit_models(data, log.rate_hz, imu_names, settings, progress, curves)
     stamps: dict[str, Any] | None = None
     for name in imu_names:
         curve = curves[name]
+        cut_s = cuts.get(name, 0) / log.rate_hz
+        duration_s = log.duration_s - cut_s
+        t_avg = settings.averaging_time_s or duration_s
+        run_hours = settings.run_hours or duration_s / 3600.0
         fit, slope, sel = analyse_curve(
             curve, prefer=settings.terms_from, confidence=settings.confidence
         )
@@ -482,8 +487,22 @@ def analyse_static(
         if st is not None:
             unit = si_unit_of_signal(sensor_kind(name))
             warnings.extend(f"{name}: {m}" for m in st.messages(unit, cut=cut_s > 0))
+            absorbed = [t for t in ("R", "K") if sel.status(t) == "resolved"]
+            trend = st.trend_message(absorbed, unit)
+            if trend:
+                warnings.append(f"{name}: {trend}")
         if cut_s > 0:
-            notes.append(f"the first {cut_s:.4g} s (warm-up) were cut before the analysis")
+            notes.append(
+                f"the first {cut_s:.4g} s (its warm-up) were cut before the analysis of this "
+                "channel (--cut-warmup: each channel at its own warm-up)"
+            )
+        elif settings.cut_warmup and st is not None:
+            notes.append("--cut-warmup: no warm-up found on this channel; nothing cut")
+        elif settings.cut_warmup:
+            warnings.append(
+                f"{name}: --cut-warmup: nothing cut: the warm-up and drift checks need the "
+                "samples in memory and are not run out of core (raise --max-memory)"
+            )
         timing = None
         if st is not None:  # the samples are in memory: so are their stamps
             stamps = stamps if stamps is not None else stamp_stats(log.t)
@@ -507,7 +526,7 @@ def analyse_static(
                 f"K is not resolved; imu.yaml and noise.selected carry its upper bound "
                 f"{sel.value('K'):.4g} {SI_UNITS[sensor_kind(name)]['K']}"
             )
-        rec = channel_record_length(curve, fit, sel, log.duration_s / 3600.0, settings.confidence)
+        rec = channel_record_length(curve, fit, sel, duration_s / 3600.0, settings.confidence)
         notes.append(describe_record_length("", rec))
         sc = bounds.sigma_c(used["N"], used["B"], log.dt, t_avg)
         results[name] = ChannelResult(
@@ -532,12 +551,60 @@ def analyse_static(
             stationarity=st,
             timing=timing,
             white_level=wl,
+            start_s=cut_s,
+            n_samples=int(np.size(data[name])) if name in data else log.n_samples,
         )
     return StaticResult(log=log, settings=settings, channels=results)
 
 
-def _fit_models(
+def _check_length(log: ImuLog, names: list[str]) -> None:
+    """Refuse channels with fewer than :data:`MIN_SAMPLES` samples, naming them."""
+    short = [n for n in names if np.size(log.channels[n]) < MIN_SAMPLES]
+    if short:
+        k = int(np.size(log.channels[short[0]]))
+        raise InputError(
+            f"{log.source}: {', '.join(short)}: {k} sample(s) ({k / log.rate_hz:.3g} s at "
+            f"{log.rate_hz:g} Hz) are too few for a static characterisation (at least "
+            f"{MIN_SAMPLES}: an Allan curve of five octaves and the stationarity windows); "
+            "record a longer log"
+        )
+
+
+def _curves_in_memory(
     log: ImuLog,
+    names: list[str],
+    settings: StaticSettings,
+    progress: Callable[[int, int], None],
+) -> tuple[dict[str, AllanResult], dict[str, AllanResult], dict[str, Stationarity],
+           dict[str, int], dict[str, Any]]:  # fmt: skip
+    """The Allan curves, the stationarity checks (with the curves as their noise model)
+    and, with ``settings.cut_warmup``, each channel cut at its own warm-up and its curve
+    computed again: (curves, plain curves, stationarity, samples cut, samples)."""
+    from imubounds.stationary.allan import check_magnitude
+
+    for name in names:  # numeric edges named before any estimator meets them
+        check_magnitude(np.asarray(log.channels[name]), f"{log.source}: {name}")
+    data: dict[str, Any] = {n: log.channels[n] for n in names}
+    kw: dict[str, Any] = {"taus": settings.taus, "estimator": settings.estimator,
+                          "confidence": settings.confidence}  # fmt: skip
+    curves = allan_channels(data, log.rate_hz, progress=progress, robust=settings.robust, **kw)
+    stat = {n: stationarity(data[n], log.rate_hz, curve=curves[n]) for n in names}
+    cuts = warmup_cuts(stat, log.rate_hz) if settings.cut_warmup else {}
+    again = [n for n in names if cuts.get(n, 0) > 0]
+    for n in again:
+        data[n] = np.asarray(data[n])[cuts[n] :]
+    if again:
+        curves.update(allan_channels({n: data[n] for n in again}, log.rate_hz,
+                                     robust=settings.robust, **kw))  # fmt: skip
+    plain: dict[str, AllanResult] = {}
+    if settings.robust:
+        plain = allan_channels(data, log.rate_hz, **kw)
+    return curves, plain, stat, cuts, data
+
+
+def _fit_models(
+    data: Mapping[str, Any],
+    rate_hz: float,
     names: list[str],
     settings: StaticSettings,
     progress: Progress | None,
@@ -553,8 +620,8 @@ def _fit_models(
         if progress is not None:
             progress("models", i, len(names))
         out[name] = fit_models(
-            np.asarray(log.channels[name]),
-            log.rate_hz,
+            np.asarray(data[name]),
+            rate_hz,
             settings.models,
             ar_order_max=settings.ar_max_order,
             name=name,

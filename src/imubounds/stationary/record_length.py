@@ -43,6 +43,9 @@ TARGET_REL_WIDTH = 0.2
 #: Power-law noise exponent α (S_y ~ f^α) of each term's rate noise.
 ALPHA: dict[str, int] = {"Q": 2, "N": 0, "B": -1, "K": -2, "R": -2}
 PREDICTED: tuple[str, ...] = ("N", "B", "K")
+#: Shortest log (s) a plan is predicted from: shorter, its fit has no τ where B or K
+#: shows, and the block says so instead of a length.
+MIN_PLAN_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -197,7 +200,20 @@ def channel_record_length(
     curve: AllanCurve, fit: NoiseTerms, sel: Selection, hours: float, confidence: float = 0.683
 ) -> dict[str, Any]:
     """The ``record_length`` block of one channel: N, B, K as selected (an upper bound
-    where not resolved), Q and R as fitted, this log's misfit η assumed to persist."""
+    where not resolved), Q and R as fitted, this log's misfit η assumed to persist.
+    A log shorter than :data:`MIN_PLAN_S` gets no plan: ``predicted`` false and the
+    reason (no length, never "0 min")."""
+    if not hours * 3600.0 >= MIN_PLAN_S:
+        return {
+            "predicted": False,
+            "reason": f"the log ({hours * 3600.0:.3g} s) is shorter than the "
+            f"{MIN_PLAN_S:.0f} s a plan is predicted from",
+            "recorded_hours": hours,
+            "target_rel_width": TARGET_REL_WIDTH,
+            "hours_needed": {t: None for t in PREDICTED},
+            "never_reached": [],
+            "term_status": {t: sel.status(t) for t in PREDICTED},
+        }
     values = {t: fit.value(t) for t in ("Q", "R")}
     values.update({t: sel.value(t) for t in PREDICTED})
     block = record_length(
@@ -215,6 +231,9 @@ def channel_record_length(
 def describe(name: str, block: Mapping[str, Any]) -> str:
     """One console line: the length each term needs for the target width."""
     target = float(block["target_rel_width"])
+    head = f"{name}: " if name else ""
+    if block.get("predicted") is False:
+        return f"{head}recording length: not predicted ({block.get('reason', '')})"
     parts = []
     for t in PREDICTED:
         h = block["hours_needed"].get(t)
@@ -224,7 +243,6 @@ def describe(name: str, block: Mapping[str, Any]) -> str:
             parts.append(f"{t} not resolvable")
         else:
             parts.append(f"{t} {_hours_text(h)}")
-    head = f"{name}: " if name else ""
     return (
         f"{head}recording length for a {target:.0%} CI width (predicted from the EDFs): "
         + ", ".join(parts)
@@ -233,4 +251,6 @@ def describe(name: str, block: Mapping[str, Any]) -> str:
 
 
 def _hours_text(h: float) -> str:
+    if h * 60 < 0.5:
+        return "under 1 min"
     return f"{h * 60:.0f} min" if h < 1 else f"{h:.3g} h"

@@ -277,6 +277,11 @@ def build_context(
                 "; ".join(n for n in heading.notes if n.startswith("check failed")) or str(cc),
             )
         )
+    clock_note = CK.untested_clock(aiding, timing)
+    if clock_note:
+        ctx.violations.append(V.Violation("heading", float(te[0] + imu.t0),
+                                          float(te[-1] + imu.t0), V.TEST_HEADING_CLOCK,
+                                          clock_note))
     if use_pitch:
         _pitch_from_gnss(ctx)
     ctx.tilt = build_tilt(ctx)

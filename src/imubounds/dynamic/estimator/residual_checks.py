@@ -45,8 +45,19 @@ TEST_RUNS = "residuals of runs of measurements against the smoothed states"
 TEST_TAILS = "tails of the residuals (Gaussian error model)"
 TEST_STEP = "GNSS position step against the integrated GNSS velocity"
 TEST_FIX = "GNSS fix against its neighbours and the integrated GNSS velocity"
+TEST_VEL_LAG = "GNSS velocity against its positions (latency)"
+VEL_LAG_RULE = (
+    "least squares of the pairs' dq = (p_l+1 - p_l) - (IMU-corrected trapezoid of v) on "
+    "dv = v_l+1 - v_l (east and north): a velocity L s late gives dq = L dv; the sum of "
+    "dv^2 less the velocity noise's share, sd exact for the stated Gaussian errors (+ the "
+    "second-order noise products), deterministic the trapezoid's bound x |dv| and "
+    "L^2/2 x jerk dt; interval +-(k sd + det), k of the step test's family (one test more)"
+)
 #: neighbours on each side of a fix in the single-fix test
 NB = 4
+#: the largest latency (s) of the GNSS velocity against its positions the lag estimate's
+#: second-order noise term allows for (:func:`velocity_lag`)
+MAX_VEL_LAG_S = 1.0
 
 
 @dataclass
@@ -343,6 +354,48 @@ def _pair_sums(i: np.ndarray, m: int, x: np.ndarray, power: int) -> np.ndarray:
     return np.asarray(np.sum(w[None, :] ** power * xl, axis=1))
 
 
+@dataclass
+class _LagSums:
+    """Sums of the GNSS velocity's lag against its positions (:func:`velocity_lag`)."""
+
+    s: float = 0.0  # sum x dq
+    d: float = 0.0  # sum x^2 less the noise's share (attenuation)
+    var: float = 0.0  # variance of s given x
+    var2: float = 0.0  # the noise products' variance (second order) and x's own noise
+    det: float = 0.0  # sum |x| x the pair's deterministic bound
+    ax: float = 0.0  # sum |x| x jerk dt (the second-order term's factor)
+    n: int = 0
+
+    def add(self, dq: np.ndarray, x: np.ndarray, d: np.ndarray, sp: np.ndarray,
+            sv: np.ndarray, pv: np.ndarray, pd: np.ndarray, jerk: float) -> None:
+        xe = np.r_[0.0, x, 0.0]
+        de = np.r_[0.0, d, 0.0]
+        nv = sv[:-1] ** 2 + sv[1:] ** 2  # the variance of x's own noise
+        self.s += float(np.sum(x * dq))
+        self.d += float(np.sum(x * x - nv))
+        self.var += float(np.sum(sp**2 * (xe[:-1] - xe[1:]) ** 2)
+                          + np.sum(sv**2 * (de[:-1] * xe[:-1] + de[1:] * xe[1:]) ** 2) / 4
+                          + np.sum(x * x * pv))
+        self.var2 += float(np.sum(nv * (sp[:-1] ** 2 + sp[1:] ** 2 + d * d * nv / 4 + pv))
+                           + np.sum(x * x * nv) * MAX_VEL_LAG_S**2)
+        self.det += float(np.sum(np.abs(x) * pd))
+        self.ax += float(np.sum(np.abs(x) * jerk * d))
+        self.n += int(x.size)
+
+    def estimate(self, k: float) -> dict[str, Any] | None:
+        """``{offset_s, interval_s, sd_s, deterministic_s, pairs}``: the velocity's lag L
+        (velocity stamp = true time of the velocity + L) or None without information."""
+        if self.n < 8 or self.d <= 0:
+            return None
+        lag = self.s / self.d
+        sd = math.sqrt(self.var + self.var2) / self.d
+        lb = abs(lag) + k * sd
+        det = (self.det + 0.5 * lb * lb * self.ax) / self.d
+        half = k * sd + det
+        return {"offset_s": lag, "interval_s": [lag - half, lag + half], "sd_s": sd,
+                "deterministic_s": det, "pairs": self.n, "k": k}
+
+
 def step_check(
     ctx: Any, a_fam: float, t_span: tuple[float, float], sm: Any = None
 ) -> tuple[list[Violation], dict[str, Any]]:
@@ -374,6 +427,7 @@ def step_check(
     steps: dict[str, list[float]] = {str(m): [] for m in STEP_LENGTHS}
     chat, cvar, cdet = imu_trapezoid(ctx, sm, t)
     cand = []
+    lag = _LagSums()
     single: list[tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray]] = []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         n = b - a
@@ -386,6 +440,8 @@ def step_check(
             pp, vv = p[a:b], v[a:b]
             P = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * d - chat[a:b - 1, ax])])
             q = pp - P
+            lag.add(np.diff(q), np.diff(vv), d, ag.gnss_sig[a:b], ag.gvel_sig[a:b], pv_, pd_,
+                    ctx.vehicle.max_jerk)
             cq = np.concatenate([[0.0], np.cumsum(q)])
             cs = np.concatenate([[0.0], np.cumsum(ag.gnss_sig[a:b] ** 2)])
             cv = np.concatenate([[0.0], np.cumsum((ag.gvel_sig[a:b] * np.r_[d, d[-1]]) ** 2)])
@@ -414,8 +470,9 @@ def step_check(
     n_tests = sum(c[3].size for c in cand)
     if not n_tests:
         return [], {}
-    a_fam = a_fam / 3  # steps, single fixes, tails
-    k = float(norm.isf(a_fam / (2 * n_tests)))
+    a_fam = a_fam / 3  # steps (+ the velocity's lag), single fixes, tails
+    k = float(norm.isf(a_fam / (2 * (n_tests + 1))))
+    vlag = lag.estimate(k)
     worst: tuple[float, int, int, int, float, float] | None = None
     for a, ax, m, i, D, var, det in cand:
         lim = det + k * np.sqrt(var)
@@ -435,6 +492,22 @@ def step_check(
         "goes unnoticed by this test",
     }
     viol = []
+    cause = "multipath or a position step"
+    if vlag is not None:
+        vlag["rule"] = VEL_LAG_RULE
+        summary["velocity_lag"] = vlag
+        lo, hi = vlag["interval_s"]
+        if lo > 0 or hi < 0:
+            cause = (f"or the GNSS velocity {vlag['offset_s']:+.3f} s late against its "
+                     "positions, found by the velocity lag test")
+            viol.append(Violation(
+                "gnss velocity", *t_span, TEST_VEL_LAG,
+                f"the receiver's velocity is {vlag['offset_s']:+.3f} s [{lo:+.3f}, {hi:+.3f}] "
+                "late against its own positions (a latency of the receiver's velocity "
+                "solution, or its stamps): the velocity intervals and the integrated "
+                "velocity of the step tests assume both at the same instant; the GNSS clock "
+                "offset from the receiver's course (timing.gnss) is the velocity's",
+                (float(t[0] + ctx.imu.t0), float(t[-1] + ctx.imu.t0))))
     if single:
         from scipy.stats import binom
 
@@ -486,7 +559,7 @@ def step_check(
                 f"at t = {t[i0] + t0:.2f} s the mean position of the {m} fixes after moves "
                 f"{D:+.3g} m {['east', 'north'][ax]} against the {m} before, relative to the "
                 f"integrated GNSS velocity, beyond the {lim:.3g} m the error model allows "
-                "(multipath or a position step)",
+                f"({cause})",
                 (ta, tb),
             )
         )

@@ -64,6 +64,7 @@ TEST_BIAS_LINKS = "one constant bias for every smoother link"
 TEST_VEHICLE = "vehicle bounds on the body velocity"
 TEST_VERDICT = "IMU error within the stated budget (window verdict)"
 TEST_FIXPOINT = "non-empty fixpoint"
+TEST_HEADING_CLOCK = "heading clock within its default allowance (tested by the data)"
 TEST_HEADING_COURSE = (
     "heading sensor against the GNSS course (signed mean, per heading bin, turns, harmonics)"
 )

@@ -46,6 +46,47 @@ def velocity_lag(drive: Any, lag_s: float) -> Any:
     return d
 
 
+def no_gnss_velocity(drive: Any) -> Any:
+    """A receiver that logs positions only (no velocity, speed or course)."""
+    d = _copy(drive)
+    g = d.gnss
+    g.vel_n_mps = g.vel_e_mps = g.vel_acc_mps = g.speed_mps = g.course_rad = None
+    return d
+
+
+def heading_lag_positions_only(drive: Any, lag_s: float) -> Any:
+    """Compass time stamps ``lag_s`` late on a trip with GNSS positions only: the course
+    comes from chords of fixes, too noisy for the turn test to see the lag."""
+    return heading_lag(no_gnss_velocity(drive), lag_s)
+
+
+def _true_velocity_ne(drive: Any, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The truth's (north, east) velocity (m/s) at ``t``, by central differences of its
+    positions (the simulator's truth at 10 Hz)."""
+    tr = drive.truth
+    tt = np.asarray(tr.t, float)
+    vn = np.gradient(np.asarray(tr.north_m, float), tt)
+    ve = np.gradient(np.asarray(tr.east_m, float), tt)
+    return np.interp(t, tt, vn), np.interp(t, tt, ve)
+
+
+def gnss_velocity_lag(drive: Any, lag_s: float) -> Any:
+    """The receiver's velocity ``lag_s`` late against its own positions (a velocity
+    filtered or computed over the past, stamped with the fix): each reported velocity
+    keeps its error but is the true velocity of ``lag_s`` earlier."""
+    d = _copy(drive)
+    g = d.gnss
+    ne = g.velocity_ne()
+    if ne is None:
+        raise ValueError("gnss_velocity_lag: the drive has no GNSS velocity")
+    vn0, ve0 = _true_velocity_ne(d, g.t)
+    vn1, ve1 = _true_velocity_ne(d, g.t - lag_s)
+    g.vel_n_mps = np.asarray(ne[0], float) + (vn1 - vn0)
+    g.vel_e_mps = np.asarray(ne[1], float) + (ve1 - ve0)
+    g.speed_mps = g.course_rad = None
+    return d
+
+
 def heading_offset(drive: Any, offset_deg: float) -> Any:
     """A constant compass offset (mount, declination) of ``offset_deg``."""
     d = _copy(drive)
@@ -148,4 +189,9 @@ FAULTS: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
     "student_t": (student_t, {"dof": 3.0}),
     "lever_arm_1.5": (lever_arm, {"length_m": 1.5}),
     "imu_stamp_start": (imu_stamp_start, {}),
+    "positions_only": (no_gnss_velocity, {}),
+    "positions_only_compass_lag_0.2": (heading_lag_positions_only, {"lag_s": 0.2}),
+    "positions_only_compass_lag_0.3": (heading_lag_positions_only, {"lag_s": 0.3}),
+    "gnss_velocity_lag_0.12": (gnss_velocity_lag, {"lag_s": 0.12}),
+    "gnss_velocity_lag_0.3": (gnss_velocity_lag, {"lag_s": 0.3}),
 }

@@ -92,6 +92,11 @@ class OffsetEstimate:
     #: not empty: the estimate rests on an assumption the data do not check, so it is
     #: reported, never applied, with this note
     report_why: str = ""
+    #: not empty: the stated allowance is not tested by any other check (the heading's
+    #: default clock bound where the turn test against the GNSS course lacks the power:
+    #: ``clocks.allowance_untested``), so an interval that holds it is applied as a bound
+    #: (its farthest end budgeted) instead of keeping the allowance
+    untested_why: str = ""
 
     @property
     def half_s(self) -> float:
@@ -153,12 +158,21 @@ class OffsetEstimate:
             self.reason = (f"applied: the data put the offset outside the stated allowance "
                            f"(+-{b:g} s); the interval's half-width (+-{half:.3f} s) is "
                            "budgeted")
+        elif self.untested_why and max(-self.lo, self.hi) <= MAX_OFFSET_S:
+            # the allowance is an assumption nothing else tests: the data's bound replaces it
+            self.applied, self.applied_s = True, 0.0
+            self.reason = (f"applied as a bound: the interval [{self.lo:+.3f}, {self.hi:+.3f}] s "
+                           f"holds the stated allowance (+-{b:g} s), which {self.untested_why}; "
+                           f"the stamps stay, +-{max(-self.lo, self.hi):.3f} s is budgeted")
         else:
             self.applied = False
             what = (f"the allowance (+-{b:g} s) stays" if b > 0
                     else "the stamps are taken as exact (an assumption)")
             self.reason = (f"not applied: the interval (+-{half:.3f} s) holds the stated "
                            f"allowance (+-{b:g} s); {what}")
+            if self.untested_why:
+                self.reason += (f", which {self.untested_why}, and the data do not bound the "
+                                f"offset within +-{MAX_OFFSET_S:g} s: the guarantee is withdrawn")
 
     @property
     def at_edge(self) -> bool:

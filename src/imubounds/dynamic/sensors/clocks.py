@@ -41,6 +41,9 @@ __all__ = [
     "ALPHA_FAMILY",
     "DEFAULT_HEADING_CLOCK_BOUND_S",
     "OffsetEstimate",
+    "TURN_TEST_POWER",
+    "allowance_untested",
+    "same_rows_as_imu",
     "apply_offsets",
     "budget_timing",
     "clock_bound_events",
@@ -56,6 +59,7 @@ __all__ = [
     "model_events",
     "relative_offset",
     "shifted",
+    "untested_clock",
 ]
 
 if TYPE_CHECKING:
@@ -87,6 +91,7 @@ def clock_offsets(
         if "heading" not in timing:
             est = TM.estimate_heading(drive, o.imu_stamp, heading, noise)
             if est is not None:
+                est.untested_why = allowance_untested(drive, heading)
                 timing["heading"] = est
         rel = relative_offset(heading)
         if rel is not None:
@@ -110,6 +115,66 @@ def heading_stated(drive: Any, o: FullOptions, timing: dict[str, Any]) -> Any:
             heading = TM.shifted(heading, None, est)
             timing["heading"] = est
     return heading
+
+
+#: the default heading clock allowance b counts as tested by the turn test of the check
+#: against the GNSS course when that test flags, at its limit, a lag of at most this many
+#: times b (its limit over the mean turn rate; with the receiver's velocity 0.15-0.18 s on
+#: the paper trip, where 0.2 s lags are withdrawn on 10 of 10 seeds; with a course from
+#: chords of fixes 0.50-0.59 s, or no turn test at all)
+TURN_TEST_POWER = 2.0
+
+
+def same_rows_as_imu(drive: Any, heading: HeadingInput) -> bool:
+    """A magnetometer heading logged in the IMU's own rows (its stamps are the IMU's: no
+    clock between them, as on a VN-100 log)."""
+    mag, imu = drive.mag, drive.imu
+    if heading.source != "magnetometer" or mag is None or imu is None:
+        return False
+    return bool(mag.t.size == imu.t.size and np.array_equal(mag.t, imu.t))
+
+
+def allowance_untested(drive: Any, heading: HeadingInput) -> str:
+    """Why the default heading clock allowance is not tested by the data ("" when the
+    turn test of the check against the GNSS course has the power: it flags a lag of
+    :data:`TURN_TEST_POWER` x the allowance at its limit; or when the heading shares the
+    IMU's rows). Untested, the heading clock estimate's interval bounds the offset
+    instead (``OffsetEstimate.finalize``)."""
+    b = DEFAULT_HEADING_CLOCK_BOUND_S
+    if same_rows_as_imu(drive, heading):
+        return ""
+    cc = heading.course_check or {}
+    tu = cc.get("turns")
+    why = ""
+    if not cc:
+        why = "no GNSS course fast enough for it"
+    elif cc.get("passed") is None:
+        why = "no lateral speed bound: vehicle.lateral_speed_bound_mps"
+    elif not tu or not tu.get("mean_rate_dps"):
+        why = "too few turns at the GNSS course's epochs"
+    if why or tu is None:
+        return f"the check against the GNSS course cannot test ({why})"
+    power = float(tu["limit_deg"]) / float(tu["mean_rate_dps"])
+    if power > TURN_TEST_POWER * b:
+        return (f"the check against the GNSS course cannot test (its turn test flags only "
+                f"lags beyond {power:.2f} s: {int(tu['n'])} turn epochs, course "
+                "noise)")
+    return ""
+
+
+def untested_clock(ag: Aiding, timing: dict[str, Any]) -> str:
+    """The violation's detail when the default heading clock allowance is budgeted
+    (:func:`heading_clock_default`) but neither tested by the check against the GNSS
+    course nor bounded by the heading clock estimate (:func:`allowance_untested`,
+    ``OffsetEstimate.finalize``); "" otherwise."""
+    h = timing.get("heading")
+    if h is None or not h.untested_why or h.applied or not heading_clock_default(ag, timing):
+        return ""
+    return (f"the heading stream's clock is assumed within +-{DEFAULT_HEADING_CLOCK_BOUND_S:g} s "
+            f"of the IMU's (default), which {h.untested_why}; the clock estimate from the "
+            f"data does not bound it (interval [{h.lo:+.2f}, {h.hi:+.2f}] s): a late compass "
+            "would move the heading by the offset x the yaw rate unseen. State "
+            "heading.time_offset_s / time_offset_bound_s in drive.yaml")
 
 
 def relative_offset(heading: HeadingInput) -> Any:

@@ -15,9 +15,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from imubounds import __version__
 from imubounds.stationary.fleet.settings import FleetSettings
 from imubounds.stationary.fleet.sources import check_regular_file, is_url, url_fs
+from imubounds.version import __version__
 
 __all__ = [
     "CACHE_ROWS",

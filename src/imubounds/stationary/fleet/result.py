@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from imubounds import __version__
 from imubounds.stationary.fleet.settings import TERMS, FleetSettings
 from imubounds.stationary.fleet.spec import FleetSpec
 from imubounds.stationary.fleet_stats import DEFAULT_DRIFT_Z
+from imubounds.version import __version__
 
 __all__ = ["FORMAT", "FleetResult", "rows_frame"]
 
