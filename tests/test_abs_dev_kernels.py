@@ -11,7 +11,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral, weighted_abs_dev
+from imubounds.dynamic.estimator.aided.transport_blocks import (
+    abs_dev_integral,
+    abs_dev_pair,
+    weighted_abs_dev,
+)
 from tests.abs_dev_reference import weighted_abs_dev_exact
 
 _F = st.floats(-50.0, 50.0, allow_nan=False, allow_subnormal=False)
@@ -66,6 +70,27 @@ def test_abs_dev_integral_against_the_exact_reference(case: tuple[np.ndarray, ..
     got = abs_dev_integral(bnd, y, unknown, xmax, a, b, c)
     _close_above(got, weighted_abs_dev_exact(bnd, y, unknown, xmax, ones, a, b, c,
                                              none_lo, zero, none_hi, zero), y.size)
+
+
+@settings(max_examples=100, deadline=None)
+@given(_case())
+def test_abs_dev_pair_is_the_unit_weight_kernel_at_both_centres(
+    case: tuple[np.ndarray, ...]
+) -> None:
+    """One pass at two centres: bit for bit the weighted kernel with unit weights (the
+    form the pair replaced) at each, and above the exact reference."""
+    bnd, y, unknown, _, a, b, c, *_ = case
+    ones = np.ones(y.size)
+    none_lo, none_hi = np.full(a.size, -np.inf), np.full(a.size, np.inf)
+    zero = np.zeros(a.size)
+    c2 = c + 0.75
+    lo, hi = abs_dev_pair(bnd, y, unknown, 7.0, a, b, c, c2)
+    for got, cc in ((lo, c), (hi, c2)):
+        ref = weighted_abs_dev(bnd, y, unknown, 7.0, ones, a, b, cc, none_lo, zero, none_hi,
+                               zero)
+        assert np.array_equal(got, ref)
+        _close_above(got, weighted_abs_dev_exact(bnd, y, unknown, 7.0, ones, a, b, cc,
+                                                 none_lo, zero, none_hi, zero), y.size)
 
 
 def test_products_that_underflow_still_give_an_upper_bound() -> None:

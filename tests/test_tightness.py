@@ -11,27 +11,26 @@ from typing import Any
 import numpy as np
 import pytest
 
-from imubounds.dynamic.estimator.aided.accel_y import (
-    SUP_SHARE,
-    W_SHARE,
-    _gap_rows,
-    gyro_deviation_bounds,
+from imubounds.dynamic.estimator.aided.form_tables import (
+    SUPPORT_MEAN_ABS_R,
+    TRANSPORT_Y,
+    mean_abs_q,
+    mean_abs_r,
+    shared_bounds,
+    transport_by_fixes,
+)
+from imubounds.dynamic.estimator.aided.forms import allot, share
+from imubounds.dynamic.estimator.aided.transport import support_plan
+from imubounds.dynamic.estimator.aided.transport_fixes import fix_block_form, psi_variation
+from imubounds.dynamic.estimator.aided.transport_gaps import (
+    gap_rows,
     transport_by_gaps,
     weighted_floors,
     window_gaps,
 )
-from imubounds.dynamic.estimator.aided.transport import r_abs
-from imubounds.dynamic.estimator.aided.transport_fixes import (
-    ACC_SHARE,
-    FIX_BLOCKS,
-    _psi_variation,
-    _transport_fix_blocks,
-    transport_by_fixes,
-)
 from imubounds.dynamic.estimator.aided.transport_gyro import mean_r_by_gaps, transport_by_gyro
 from imubounds.dynamic.estimator.aided.transport_weighted import weighted_speed
 from imubounds.dynamic.estimator.aided.velocity import body_velocity, ranges, speed_max
-from imubounds.dynamic.estimator.aided.yaw import q_window_mean
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.inputs import PiecewiseSignal
 from imubounds.dynamic.estimator.window_plan import LevelPlan
@@ -67,7 +66,7 @@ TARGET = 1.5
 #: signed integral, 4-10x before the fix blocks): up to 10 s the
 #: gyro-shape form, its width at 1.28 s the heading boxes' share of ``rbar`` (0.027 rad
 #: over 1 s) times u's range from the vehicle bound (14 m/s) plus the gyro flicker's ramp
-#: noise; from 20 s ``aided.transport_fixes.transport_by_fixes`` (the gyro form's u
+#: noise; from 20 s ``aided.form_tables.transport_by_fixes`` (the gyro form's u
 #: excursion grows as the accelerometer's bias bound, 0.23 m/s^2, x tau; the split takes
 #: out only the turn-on's 0.063 and the measured integral: the stated drift bound, 0.17,
 #: bounds window means, not a constant, and stays with k_o = 0.08 in the rest, whose
@@ -198,7 +197,7 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
     aiding: tuple, seed: int, kw: dict
 ) -> None:
     """accel_y's transport term cut at the heading epochs
-    (``aided.accel_y.transport_by_gaps``) contains the true kernel mean of r u (the
+    (``aided.transport_gaps.transport_by_gaps``) contains the true kernel mean of r u (the
     simulator's yaw rate and forward velocity on the IMU's stamps) at every window of
     every aided boxcar level."""
     with nearest():
@@ -207,7 +206,7 @@ def test_accel_y_transport_by_gaps_encloses_the_true_mean(
         bv = body_velocity(mb)
         n = 0
         for lp in _aided_levels(ctx, mb, "accel_y"):
-            box = transport_by_gaps(mb, lp, lp.tau, bv, r_abs(mb, lp, lp.tau))
+            box = transport_by_gaps(mb, lp, lp.tau, bv, mean_abs_r(mb, lp, lp.tau, mb.p_window))
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = (true.lo > box.hi) | (true.hi < box.lo)
             assert not bad.any(), (lp.tau_s, int(bad.sum()))
@@ -226,7 +225,7 @@ def _true_weighted_speed(
     for m, i in enumerate(idx):
         a, b = lp.a1[i], lp.b2[i]
         knots = np.concatenate([[a], ht[(ht > a) & (ht < b)], [b]])
-        du = _gap_rows(mb, bv, knots[:-1], knots[1:])[:, 2]
+        du = gap_rows(mb, bv, knots[:-1], knots[1:])[:, 2]
         lo, hi = r_abs_sig.integral(knots[:-1], knots[1:])
         out[m] = float(np.sum(du * hi)) / lp.tau[i]
     return out
@@ -268,8 +267,8 @@ def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw:
         for lp in _aided_levels(ctx, mb, "accel_y"):
             if np.any(lp.b1 > lp.a1):
                 continue  # boxcar levels only (the trapezoid ones have no heading gaps)
-            r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, W_SHARE)
-            p_w = W_SHARE * mb.p_window
+            r_mag, q_mean = shared_bounds(mb, lp, lp.tau, ["weighted_speed"], mb.p_window)
+            p_w = share("accel_y.transport", "weighted_speed") * mb.p_window
             box = transport_by_gaps(mb, lp, lp.tau, bv, r_mag, q_mean, p_w)
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = (true.lo > box.hi) | (true.hi < box.lo)
@@ -298,6 +297,9 @@ def test_accel_y_weighted_speed_encloses_the_truth(aiding: tuple, seed: int, kw:
         assert min(gain) < 0.97, gain
 
 
+#: the block lengths of the registry's fix-block forms
+FIX_BLOCKS = tuple(int(f.name.rsplit("_", 1)[1]) for f in TRANSPORT_Y if f.family == "fix_blocks")
+
 #: the positions-only trips the transport forms are checked on (seed offset, settings)
 POSITIONS_TRIPS = {
     "paper": (0, {}),
@@ -319,7 +321,7 @@ def _positions_trips(first_seed: int, **more: tuple[int, dict]) -> Any:
 @_positions_trips(50)
 def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) -> None:
     """Positions + compass: accel_y's transport term over blocks of fix gaps
-    (``aided.transport_fixes.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
+    (``aided.form_tables.transport_by_fixes``, each block length of ``FIX_BLOCKS`` on its
     own, u's block deviation also from accel_x's signed integral) contains the true
     trapezoid kernel mean of r u (the simulator's yaw rate and forward velocity on the
     IMU's stamps) at every window of every aided level, on the sharp-corners trip (the
@@ -335,16 +337,18 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
         n = 0
         gain = []
         for lp in _aided_levels(ctx, mb, "accel_y"):
-            r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
-            p_sup = SUP_SHARE * mb.p_window
+            r_mag, q_mean = shared_bounds(mb, lp, lp.tau, ["fix_blocks"], mb.p_window)
+            p_fix = share("accel_y.transport", "fix_blocks") * mb.p_window
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
-            psi_var = _psi_variation(mb, lp, (1 - ACC_SHARE) * p_sup)
-            p_acc = ACC_SHARE * p_sup / len(FIX_BLOCKS)
+            sup, L = support_plan(lp)
+            p_sup = allot(p_fix, "fix_blocks", ["accel_noise"])["psi_variation"]
+            psi_var = psi_variation(mb, lp, mean_abs_r(mb, sup, L, p_sup, table=SUPPORT_MEAN_ABS_R))
+            p_acc = share("fix_blocks", "accel_noise") * p_fix / len(FIX_BLOCKS)
             for blk in FIX_BLOCKS:
-                box = _transport_fix_blocks(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var, p_acc)
+                box = fix_block_form(mb, lp, lp.tau, blk, r_mag, q_mean, psi_var, p_acc)
                 bad = (true.lo > box.hi) | (true.hi < box.lo)
                 assert not bad.any(), (lp.tau_s, blk, int(bad.sum()))
-            box = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, p_sup)
+            box = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, mb.p_window)
             assert np.all(np.isfinite(box.lo) & np.isfinite(box.hi))
             old = speed_max(mb, lp.a1, lp.b2) * r_mag  # the chord-speed form's radius
             gain.append(float(np.median(0.5 * (box.hi - box.lo)) / np.median(old)))
@@ -366,10 +370,10 @@ def test_accel_y_transport_by_fixes_encloses_the_true_mean(seed: int, kw: dict) 
 def test_u_deviation_from_the_signed_accel_integral_encloses_the_truth(
     seed: int, kw: dict
 ) -> None:
-    """``transport_fixes._u_deviation`` with accel_x's signed integral (the white noise's
+    """``transport_fixes.u_deviation`` with accel_x's signed integral (the white noise's
     factor given) bounds the true ``max |u(t) - mean_B u|`` over blocks of 4-32 fix gaps
     (the vehicle slows in the corners), and is below the per-sample form on most blocks."""
-    from imubounds.dynamic.estimator.aided.transport_fixes import _u_deviation
+    from imubounds.dynamic.estimator.aided.transport_fixes import u_deviation
 
     with nearest():
         res, ctx, mb = _context(("gnss", "compass"), seed, truth_rate_hz=100.0, **kw)
@@ -381,8 +385,8 @@ def test_u_deviation_from_the_signed_accel_integral_encloses_the_truth(
         narrower = []
         for blk in FIX_BLOCKS:
             a, b = t[:-blk:blk], t[blk::blk]
-            new = _u_deviation(mb, a, b, 6.0)  # k of the white noise: p about 1e-9
-            old = _u_deviation(mb, a, b)
+            new = u_deviation(mb, a, b, 6.0)  # k of the white noise: p about 1e-9
+            old = u_deviation(mb, a, b)
             lo, hi = sig_u.integral(a, b)
             mean = 0.5 * (lo + hi) / (b - a)
             k0, k1 = np.searchsorted(mid, a), np.searchsorted(mid, b)
@@ -430,8 +434,8 @@ def test_accel_y_transport_by_gyro_encloses_the_true_mean(seed: int, kw: dict) -
             bad = (tr.lo - earth > rb.hi) | (tr.hi + earth < rb.lo)
             assert not bad.any(), (lp.tau_s, int(bad.sum()))
             if not ratios:
-                r_mag, q_mean = gyro_deviation_bounds(mb, lp, lp.tau, SUP_SHARE)
-                fx = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, SUP_SHARE * mb.p_window)
+                r_mag, q_mean = shared_bounds(mb, lp, lp.tau, ["fix_blocks"], mb.p_window)
+                fx = transport_by_fixes(mb, lp, lp.tau, r_mag, q_mean, mb.p_window)
                 ratios.append(float(np.median(box.radius()) / np.median(fx.radius())))
             n += lp.n
         assert n > 100
@@ -533,10 +537,10 @@ def test_u_split_known_shape_terms_bound_the_true_projections() -> None:
 )
 def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: dict) -> None:
     """The kernel mean of the true |r| (of its sample means) lies under the transport term's bound
-    (``aided.transport.r_abs``, whose per-heading-gap part counts the gyro noise once)
+    (``aided.form_tables.mean_abs_r``, whose per-heading-gap part counts the gyro noise once)
     at every window of every aided accel_x level, biased noise included; likewise the
     true |q| under gyro_y's window bound in gyro_z's tilt coupling
-    (``aided.yaw.q_window_mean``), which is tighter than the per-sample bound."""
+    (``aided.form_tables.mean_abs_q``), which is tighter than the per-sample bound."""
     with nearest():
         res, ctx, mb = _context(aiding, seed, truth_rate_hz=100.0, **kw)
         # the true yaw rate's means over the IMU samples (truth on the IMU's stamps)
@@ -545,7 +549,7 @@ def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: 
         sig = PiecewiseSignal(ctx.imu.bnd, np.abs(x))
         n = 0
         for lp in _aided_levels(ctx, mb, "accel_x"):
-            bound = r_abs(mb, lp, lp.tau)
+            bound = mean_abs_r(mb, lp, lp.tau, mb.p_window)
             true = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             bad = true.lo > bound
             assert not bad.any(), (lp.tau_s, float(np.max(true.lo[bad] - bound[bad])))
@@ -555,7 +559,7 @@ def test_transport_bound_encloses_true_mean_abs_r(aiding: tuple, seed: int, kw: 
         xq = np.asarray(res.drive.truth.extra["gyro_y"], dtype=float)
         sq = PiecewiseSignal(ctx.imu.bnd, np.abs(xq))
         for lp in _aided_levels(ctx, mb, "gyro_z"):
-            bound = q_window_mean(mb, lp, lp.tau, 0.5 * mb.p_window)
+            bound = mean_abs_q(mb, lp, lp.tau, 0.5 * mb.p_window)
             true = sq.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, lp.tau)
             assert not (true.lo > bound).any(), lp.tau_s
             assert np.median(bound) < np.median(mb.kernel_mag("gyro_y", lp, lp.tau))

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imubounds.dynamic.estimator.aided.accel_y import gyro_deviation_bounds, transport_by_gaps
+from imubounds.dynamic.estimator.aided.form_tables import shared_bounds
+from imubounds.dynamic.estimator.aided.transport_gaps import transport_by_gaps
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
 from imubounds.dynamic.estimator.full import build_context
 from imubounds.dynamic.estimator.windows import MarginBuilder
@@ -47,7 +48,7 @@ def test_compiled_sums_equal_the_reference(aiding: tuple[str, ...], seed: int,
                 continue
             tau = lp.tau
             w.p_window = 1e-6
-            r_mag, q_mean = gyro_deviation_bounds(w, lp, tau)
+            r_mag, q_mean = shared_bounds(w, lp, tau, [], w.p_window)
             got = transport_by_gaps(w, lp, tau, bv, r_mag, q_mean)
             want = reference(w, lp, tau, bv, r_mag, q_mean)
             for g, r in ((got.lo, want.lo), (got.hi, want.hi)):

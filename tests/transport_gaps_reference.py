@@ -1,5 +1,5 @@
 """Plain reference of accel_y's transport term cut at the heading epochs
-(:func:`imubounds.dynamic.estimator.aided.accel_y.transport_by_gaps`): the vectorised
+(:func:`imubounds.dynamic.estimator.aided.transport_gaps.transport_by_gaps`): the vectorised
 form that materialises every window's knots (O(windows x knots) memory), kept to test
 the compiled per-window sums (:mod:`imubounds.dynamic.estimator.aided.gap_sums`) bit for
 bit against."""
@@ -10,10 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from imubounds.dynamic.estimator.aided.accel_y import _rate_terms
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.heading import heading_at
-from imubounds.dynamic.estimator.aided.transport_fixes import _speed_part
+from imubounds.dynamic.estimator.aided.transport_terms import rate_terms, speed_part
 from imubounds.dynamic.estimator.aided.velocity import vel_range
 from imubounds.interval import IntervalArray as IA
 
@@ -44,7 +43,7 @@ def transport_by_gaps(
     r_mag: np.ndarray,
     q_mean: np.ndarray | None = None,
 ) -> IA:
-    """The vectorised form of ``accel_y.transport_by_gaps`` (same arguments, same
+    """The vectorised form of ``transport_gaps.transport_by_gaps`` (same arguments, same
     equations): every window's knots materialised."""
     a, b = lp.a1, lp.b2
     t, win, pos, start, nk = _knots(w.ag.head_t, a, b)
@@ -75,8 +74,8 @@ def transport_by_gaps(
     gwin = win[gap]
     umax = np.zeros(a.size)
     np.maximum.at(umax, gwin, np.maximum(np.abs(ulo), np.abs(uhi)))
-    c0, ext, earth = _rate_terms(w, lp, tau, q_mean)
-    speed = _speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag, earth)
+    c0, ext, earth = rate_terms(w, lp, tau, q_mean)
+    speed = speed_part(w, gwin, ga, gb, du, a.size, tau, r_mag, earth)
     head = (IA(cen) + pm(np.where(ok, rad, 0.0))) / IA(tau) * IA(c0)
     x = head + pm(up(umax * ext)) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))

@@ -44,11 +44,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.signal import lfilter
 from scipy.special import ndtri
 
 from imubounds.constants import ROUND_REL
 from imubounds.dynamic.estimator.options import FullOptions, check_options
+from imubounds.dynamic.estimator.series_kernels import gm_quadratic_sum
 from imubounds.errors import InputError, OptionError
 from imubounds.units import DEG
 
@@ -668,11 +668,11 @@ def kernel_variance(cn: ChannelNoise, c: np.ndarray, dt: float, with_turn_on: bo
     if cn.Q > 0:
         d = np.diff(np.concatenate([[0.0], c, [0.0]]))
         v += cn.Q * cn.Q * float(np.dot(d, d)) / (dt * dt)
-    for s, b in cn.gm_terms():
-        phi = math.exp(-b * dt)
-        f = lfilter([1.0], [1.0, -phi], c)
-        g = lfilter([1.0], [1.0, -phi], c[::-1])[::-1]
-        v += s * s * float(np.dot(c, f + g - c))
+    gm = cn.gm_terms()
+    if gm:
+        s2 = np.array([s * s for s, _ in gm])
+        phis = np.array([math.exp(-b * dt) for _, b in gm])
+        v += gm_quadratic_sum(np.ascontiguousarray(c), phis, s2)
     if with_turn_on:
         v += cn.turn_on_var() * float(np.sum(c)) ** 2
     return v * (1.0 + 1e-9)

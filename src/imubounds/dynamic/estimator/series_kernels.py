@@ -208,3 +208,25 @@ def range_query(
             e = _mn(e, y) if is_min else _mx(e, y)
         out[r] = e
     return out
+
+
+@njit(cache=True)
+def gm_quadratic_sum(c: np.ndarray, phis: np.ndarray, s2: np.ndarray) -> float:
+    """``sum_i s2_i c' Phi_i c`` with ``Phi_i[j, k] = phis_i^|j-k|``: per component one
+    pass of the one-sided filter ``f_k = c_k + phi f_(k-1)``, ``c' Phi c = 2 c.f - c.c``
+    (the two-sided filter's sum in one pass; the plain reference, two ``lfilter`` passes,
+    is tests/test_kernel_variance.py; used by
+    :func:`~imubounds.dynamic.estimator.budget.kernel_variance`)."""
+    cc = 0.0
+    for k in range(c.size):
+        cc += c[k] * c[k]
+    v = 0.0
+    for i in range(phis.size):
+        phi = phis[i]
+        f = 0.0
+        acc = 0.0
+        for k in range(c.size):
+            f = c[k] + phi * f
+            acc += c[k] * f
+        v += s2[i] * (2.0 * acc - cc)
+    return v

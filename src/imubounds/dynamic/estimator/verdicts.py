@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from imubounds.dynamic.estimator.aided.forms import label_counts
+
 #: the verdict of a channel whose noise figures (N, B) were given nowhere: its band would
 #: be a default preset's, so the margins are given but not judged
 NO_REFERENCE = "no reference"
@@ -68,6 +70,9 @@ class LevelResult:
     #: docs/dynamic-method.md section 3b, (3b.9)); empty: the difference of the windows'
     dx_lo: np.ndarray = field(default_factory=lambda: np.zeros(0))
     dx_hi: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: per window, the bound forms giving its two ends (``name`` or ``lo_name|hi_name``;
+    #: docs/dynamic-method.md, section 3, "Bound forms and their shares")
+    bound_by: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
 
     @property
     def d_lo(self) -> np.ndarray:
@@ -159,8 +164,16 @@ class LevelResult:
             "n_windows": int(self.band.size),
             "k": self.k,
             "aided_from": "vehicle bounds" if self.kind == "vehicle" else "aiding",
+            "bound_by": label_counts(self.bound_by),
+            "bound_by_max": self._bound_by_max(hw, fin),
             **self._change_summary(),
         }
+
+    def _bound_by_max(self, hw: np.ndarray, fin: np.ndarray) -> str:
+        """The forms giving the bound of the window of ``halfwidth_max``."""
+        if not fin.any() or self.bound_by.size != hw.size:
+            return ""
+        return str(self.bound_by[int(np.argmax(np.where(fin, hw, -np.inf)))])
 
     def _change_summary(self) -> dict[str, Any]:
         if self.p1.size == 0:
@@ -236,6 +249,7 @@ def verdict_of(levels: list[LevelResult], max_list: int = 50) -> tuple[str, str,
                         "tau_s": float(lv.tau[w]),
                         "interval": [float(lv.e_lo[w]), float(lv.e_hi[w])],
                         "stationary": float(lv.band[w]),
+                        "bound_by": str(lv.bound_by[w]) if lv.bound_by.size else "",
                     }
                 )
     for lv in levels:

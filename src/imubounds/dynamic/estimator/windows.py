@@ -26,6 +26,7 @@ from imubounds.dynamic.estimator.aided.accel_x import accel_x
 from imubounds.dynamic.estimator.aided.accel_y import accel_y
 from imubounds.dynamic.estimator.aided.attitude import accel_z, gyro_x, gyro_y
 from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.forms import FormRecord, side_labels
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals, build_tilt
 from imubounds.dynamic.estimator.aided.vehicle import GRAVITY_OF, vehicle_only
 from imubounds.dynamic.estimator.aided.velocity import body_velocity
@@ -62,6 +63,31 @@ CONSTRAINTS: dict[str, Constraint] = {
     "gyro_z": gyro_z,
 }
 
+#: the term whose forms name each window's bound (margins.csv ``bound_by``), per channel
+#: (the others have one form: ``AIDED``)
+BOUND_TERM = {
+    "accel_x": "accel_x.mean_abs_r",
+    "accel_y": "accel_y.transport",
+    "gyro_z": "gyro_z.mean_abs_q",
+}
+#: ``bound_by`` of an end from the vehicle-only enclosure, and of a channel's one form
+VEHICLE, AIDED = "vehicle", "aided"
+
+
+def bound_labels(
+    forms: FormRecord, ch: str, n: int, veh_lo: np.ndarray, veh_hi: np.ndarray
+) -> np.ndarray:
+    """Per window the forms giving its two ends (:func:`~.aided.forms.side_labels`): those
+    of the channel's :data:`BOUND_TERM`, ``VEHICLE`` where the vehicle-only enclosure was
+    narrower on that side."""
+    lo, hi = forms.sides(BOUND_TERM.get(ch, ""))
+    if lo.size != n:
+        lo, hi = np.full(n, AIDED, dtype=object), np.full(n, AIDED, dtype=object)
+    lo = np.where(veh_lo, VEHICLE, lo)
+    hi = np.where(veh_hi, VEHICLE, hi)
+    return side_labels(lo, hi)
+
+
 __all__ = [
     "CONSTRAINTS",
     "ChannelMargins",
@@ -77,15 +103,20 @@ __all__ = [
 class MarginBuilder(WindowContext):
     """Evaluates the windows of every channel (see the module docstring)."""
 
+    bound_by: np.ndarray = np.zeros(0, dtype=object)
+
     def body_velocity(self) -> Any:
         """Body velocity at the velocity epochs (:func:`~imubounds.dynamic.estimator.aided.
         velocity.body_velocity`)."""
         return body_velocity(self)
 
     def aided(self, ch: str, plan: ChannelPlan, lp: LevelPlan, tau: np.ndarray) -> IA:
-        """``[x_W]`` of the level's windows."""
+        """``[x_W]`` of the level's windows; which forms gave each window's ends in
+        ``self.bound_by`` (:func:`bound_labels`)."""
+        self.forms.clear()
         veh = vehicle_only(self, ch, lp, tau)
         if lp.kind == "vehicle":
+            self.bound_by = np.full(lp.n, VEHICLE, dtype=object)
             return veh
         # both enclose the same kernel mean: the tighter of the two at every window (the
         # aided one where they contradict each other)
@@ -99,6 +130,8 @@ class MarginBuilder(WindowContext):
             x = CONSTRAINTS[ch](self, plan, lp, tau)
         lo, hi = np.maximum(x.lo, veh.lo), np.minimum(x.hi, veh.hi)
         ok = lo <= hi
+        self.bound_by = bound_labels(self.forms, ch, lp.n, ok & (veh.lo > x.lo),
+                                     ok & (veh.hi < x.hi))
         return IA(np.where(ok, lo, x.lo), np.where(ok, hi, x.hi))
 
     def evaluate(self, plan: ChannelPlan) -> ChannelMargins:
@@ -160,6 +193,7 @@ class MarginBuilder(WindowContext):
                     c_band=c_band,
                     c_k=c_k,
                     **({} if dx is None else {"dx_lo": dx.lo, "dx_hi": dx.hi}),
+                    bound_by=self.bound_by,
                 )
             )
         verdict, reason, exc, n_exc = verdict_of(levels)

@@ -1,7 +1,7 @@
 """How the body forward velocity u moves within a span, from the SIGNED running integral
 of accel_x (docs/dynamic-method.md, section 3, **accel_y**, positions only): shared by
 the transport term's gyro-shape form (:mod:`.transport_gyro`) and its fix blocks
-(:func:`~imubounds.dynamic.estimator.aided.transport_fixes._u_deviation`).
+(:func:`~imubounds.dynamic.estimator.aided.transport_fixes.u_deviation`).
 
 ``u' = f_x + r v - q w - g sin(theta)`` + the Earth's Coriolis and transport terms (their
 magnitude ``k_o``, :func:`other_rate`), and ``y_x = (1 + s) f_x + m (f_y, f_z) + b + n``,

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from imubounds.dynamic.estimator.aided.base import up
+from imubounds.dynamic.estimator.aided.forms import FormRecord
 from imubounds.dynamic.estimator.aided.tilt import TiltSignals
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -33,6 +34,7 @@ class WindowContext:
         #: accel_x's and accel_y's kinematic parts per (channel, id(level)) from the
         #: attitude pass (``attitude.gravity``); the margins add the gravity term
         self.kin_cache: dict[tuple[str, int], IA] = {}
+        self.forms = FormRecord()  # which forms gave each window's bound, per term
 
     def mag_mean(self, ch: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Upper bound of the mean of |true signal| of channel ``ch`` over ``[a, b]``

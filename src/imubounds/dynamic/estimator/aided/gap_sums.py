@@ -1,5 +1,5 @@
 """The per-window sums of accel_y's transport term cut at the heading epochs
-(:func:`~imubounds.dynamic.estimator.aided.accel_y.transport_by_gaps`), compiled.
+(:func:`~imubounds.dynamic.estimator.aided.transport_gaps.transport_by_gaps`), compiled.
 
 A window ``[a, b]`` holds the heading epochs ``ht[k0 .. k1-1]`` (``k1 - k0 = ni``); its
 knots are ``a``, those epochs and ``b``, and its gaps the ``ni + 1`` spans between them:

@@ -164,6 +164,34 @@ def heading_at(w: WindowContext, t: np.ndarray, own_q: bool = True) -> IA:
     return IA(lo, hi)
 
 
+def heading_at_fixes(w: WindowContext, k: np.ndarray) -> IA:
+    """:func:`heading_at` at the GNSS fixes ``gnss_t[k]``: computed once per run for every
+    fix (elementwise, so the same values as at the fixes asked for alone)."""
+    key = "heading_at_fixes"
+    if key not in w.cache:
+        w.cache[key] = heading_at(w, w.ag.gnss_t)
+    h = w.cache[key]
+    return IA(h.lo[k], h.hi[k])
+
+
+def heading_at_epochs(w: WindowContext, t: np.ndarray) -> IA:
+    """:func:`heading_at` at ``t``, from :func:`heading_at_fixes` where ``t`` is a GNSS fix
+    (exactly), computed elsewhere."""
+    ft = w.ag.gnss_t
+    t = np.asarray(t, dtype=float)
+    if ft.size == 0:
+        return heading_at(w, t)
+    k = np.clip(np.searchsorted(ft, t), 0, ft.size - 1)
+    on = ft[k] == t
+    if np.all(on):
+        return heading_at_fixes(w, k)
+    out = heading_at_fixes(w, k)
+    off = heading_at(w, t[~on])
+    lo, hi = out.lo.copy(), out.hi.copy()
+    lo[~on], hi[~on] = off.lo, off.hi
+    return IA(lo, hi)
+
+
 def heading_mean(w: WindowContext, a: np.ndarray, b: np.ndarray) -> IA:
     """Interval containing the mean heading over [a, b] (hull of the heading there)."""
     ag = w.ag

@@ -1,7 +1,9 @@
-"""The bound of the kernel mean of |r| in the accelerometers' transport terms (docs/dynamic-
-method.md, section 3, **accel_x**: ``mean_W|r|``, ``r_abs``).
+"""The forms of the bound of the kernel mean of |r| in the accelerometers' transport terms
+(docs/dynamic-method.md, section 3, **accel_x**: ``mean_W|r|``; the registry's
+``mean_abs_r`` table, :mod:`.form_tables`).
 
-The smaller of two bounds, each at half the window's probability:
+Besides the gyro's magnitude (the per-sample bound), two forms, each at its share of
+the window's probability:
 
 * the gyro's magnitude centred on its own mean error over the window (known from the
   heading): ``mean|y_r - c| + |e - c| + sqrt(S^2) + 2D + 2s mean|x|``, ``S^2`` a bound of
@@ -18,12 +20,12 @@ import numpy as np
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.heading import heading_at, r_from_psidot
-from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral, block_r_abs
+from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
 from imubounds.dynamic.estimator.budget import centered_ms_bound
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
 
-__all__ = ["abs_dev_integral", "det_mean", "r_abs"]
+__all__ = ["abs_dev_integral", "centred_applies", "centred_window", "det_mean", "support_plan"]
 
 
 def det_mean(w: WindowContext, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
@@ -37,18 +39,30 @@ def det_mean(w: WindowContext, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
     return det
 
 
-def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
-    """Bound of the kernel mean of |r| (true yaw rate) over each window: the gyro's
-    magnitude centred on its own mean error over the window's support (known from
-    the heading), plus a bound of the noise's deviation from its mean (Gaussian
-    quadratic form); the per-sample bound if the gyro is judged faulty or there is
-    no heading. Used only in second-order (transport) terms of the accelerometers."""
-    coarse = w.kernel_mag("gyro_z", lp, tau)
-    if not w.fine_r or not w.ag.has_heading or not w.imu.available["gyro_z"]:
-        return coarse
+def centred_applies(w: WindowContext) -> bool:
+    """Whether the gyro-centred forms of mean |r| apply: a heading, gyro_z recorded and
+    not judged faulty (``w.fine_r``)."""
+    return bool(w.fine_r and w.ag.has_heading and w.imu.available["gyro_z"])
+
+
+def support_plan(lp: LevelPlan) -> tuple[LevelPlan, np.ndarray]:
+    """A boxcar over each window's support ``[a1, b2]`` and its length."""
     s0, s1 = lp.a1, lp.b2
     L = s1 - s0
-    sup = LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j)
+    return LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j), L
+
+
+def centred_window(
+    w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float, det: np.ndarray
+) -> np.ndarray:
+    """Bound of the kernel mean of |r| (true yaw rate) over each window (docs/dynamic-
+    method.md, (3.8)), holding with probability ``>= 1 - p``: the gyro's magnitude
+    centred on its own mean error over the window's support (known from the heading),
+    plus a bound of the noise's deviation from its mean (Gaussian quadratic form) and
+    the deterministic deviation ``det`` (:func:`det_mean` over the support); +inf where
+    not finite."""
+    s0, s1 = lp.a1, lp.b2
+    sup, L = support_plan(lp)
     sig = w.imu.sig["gyro_z"]
     ylo, yhi = sig.integral(s0, s1)
     ybox = IA(ylo, yhi) / IA(L)
@@ -64,14 +78,8 @@ def r_abs(w: WindowContext, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
     cn = w.ctx.noise["gyro_z"]
     m = w.imu.count(s0, s1)
     uc, inv = np.unique(m, return_inverse=True)
-    p = w.p_window
-    # half the window's probability here, half for the per-gap bound (the smaller of the
-    # two is used)
-    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.5 * p) for mm in uc])[inv]
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, p) for mm in uc])[inv]
     ratio = max(1.0, w.imu.max_len / w.imu.dt)
-    det = det_mean(w, s0, s1)
     fine = dev + rad + np.sqrt(ms) * ratio + det
     fine = up(fine * L / tau)
-    out = np.minimum(coarse, np.where(np.isfinite(fine), fine, coarse))
-    blk = block_r_abs(w, lp, tau, 0.5 * p, det)
-    return np.minimum(out, np.where(np.isfinite(blk), blk, out))
+    return np.where(np.isfinite(fine), fine, np.inf)

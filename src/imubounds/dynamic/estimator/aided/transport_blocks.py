@@ -28,9 +28,9 @@ two combined in the frequency domain. The kernel weights:
 
 Used only where the IMU samples are regular (every segment one period, no gap) and the
 window lies inside the heading epochs; elsewhere +inf (the caller keeps its other bound).
-Blocks of 1, 2, 4, 8 and 16 heading gaps are tried (:data:`BLOCK_GAPS`, the probability
-split over them): short blocks know their mean error only to ``2 h_psi / length``, long
-ones keep more of the slow flicker in ``P C P``.
+Blocks of a few lengths are tried (the registry's ``heading_blocks_<k>`` forms,
+:mod:`.form_tables`, the probability split over them): short blocks know their mean
+error only to ``2 h_psi / length``, long ones keep more of the slow flicker in ``P C P``.
 """
 
 from __future__ import annotations
@@ -97,6 +97,51 @@ def weighted_abs_dev(  # noqa: PLR0913 (the kernel takes its arrays one by one)
 
 
 @njit(cache=True)
+def abs_dev_pair(
+    bnd: np.ndarray,
+    y: np.ndarray,
+    unknown: np.ndarray,
+    xmax: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`abs_dev_integral` at two centres per window in one pass (the same sums:
+    :func:`weighted_abs_dev` with unit weights and no floors, whose ``1 x v x len`` is
+    ``v x len`` exactly)."""
+    out_lo = np.empty(a.size)
+    out_hi = np.empty(a.size)
+    nseg = bnd.size - 1
+    for w in range(a.size):
+        lo = np.searchsorted(bnd, a[w], side="right") - 1
+        if lo < 0:
+            lo = 0
+        acc_lo = 0.0
+        acc_hi = 0.0
+        cnt = 0
+        k = lo
+        while k < nseg and bnd[k] < b[w]:
+            s0 = bnd[k] if bnd[k] > a[w] else a[w]
+            s1 = bnd[k + 1] if bnd[k + 1] < b[w] else b[w]
+            if s1 > s0:
+                if unknown[k]:
+                    v_lo = xmax + abs(c_lo[w])
+                    v_hi = xmax + abs(c_hi[w])
+                else:
+                    v_lo = abs(y[k] - c_lo[w])
+                    v_hi = abs(y[k] - c_hi[w])
+                acc_lo += v_lo * (s1 - s0)
+                acc_hi += v_hi * (s1 - s0)
+                cnt += 1
+            k += 1
+        g = 1.0 + (cnt + 8) * 2.3e-16
+        out_lo[w] = acc_lo * g + 1e-300  # (+ underflow)
+        out_hi[w] = acc_hi * g + 1e-300
+    return out_lo, out_hi
+
+
+@njit(cache=True)
 def abs_dev_integral(
     bnd: np.ndarray,
     y: np.ndarray,
@@ -108,10 +153,8 @@ def abs_dev_integral(
 ) -> np.ndarray:
     """Upper bounds of ``int_a^b |y - c| dt`` per window (piecewise-constant ``y`` on the
     segments ``bnd``; an unknown segment counts ``xmax + |c|``): :func:`weighted_abs_dev`
-    with unit weights and no floors."""
-    n = a.size
-    return weighted_abs_dev(bnd, y, unknown, xmax, np.ones(bnd.size - 1), a, b, c,
-                            np.full(n, -np.inf), np.zeros(n), np.full(n, np.inf), np.zeros(n))
+    with unit weights and no floors (:func:`abs_dev_pair` at one centre)."""
+    return abs_dev_pair(bnd, y, unknown, xmax, a, b, c, c)[0]
 
 
 def centred_distance_norm(m: int) -> float:
@@ -214,11 +257,6 @@ def block_norm(cn: ChannelNoise, m: int, dt: float) -> float:
     return lam * (1 + 1e-9)
 
 
-#: blocks of this many heading gaps (gyro_z) or seconds (gyro_y) are tried (the smallest
-#: bound per window is used)
-BLOCK_GAPS = (1, 2, 4, 8, 16)
-
-
 def _block_edges(w: WindowContext, ch: str, k: int) -> np.ndarray | None:
     """Sample-boundary indices of the blocks: every ``k``-th heading epoch (gyro_z), every
     ``k`` seconds (gyro_y); None where the samples are not regular or have gaps."""
@@ -278,12 +316,11 @@ def _dev_over_box(
     r = np.where(fin, rad, 0.0)
     lo = np.ascontiguousarray(np.nextafter(c - r, -np.inf))
     hi = np.ascontiguousarray(np.nextafter(c + r, np.inf))
-    g_lo = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, a, b, lo)
-    g_hi = abs_dev_integral(sig.bnd, sig.y, sig.unknown, sig.xmax, a, b, hi)
+    g_lo, g_hi = abs_dev_pair(sig.bnd, sig.y, sig.unknown, sig.xmax, a, b, lo, hi)
     return np.where(fin, up(np.maximum(g_lo, g_hi)), np.inf)
 
 
-def _tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
+def block_tables(w: WindowContext, ch: str, k: int) -> dict[str, Any] | None:
     """Per block: start, end, ``G' = max over e in c_g +- rad_g of int |y - e|``
     (:func:`_dev_over_box`) and its prefix sums (also
     weighted by the block's end and start times); computed once per channel and ``k``."""
@@ -341,24 +378,25 @@ def _sum_blocks(tab: dict[str, Any], i: np.ndarray, j: np.ndarray, key: str) -> 
     return tab[key][jj] - tab[key][i]
 
 
-def block_r_abs(
+def block_bound(
     w: WindowContext,
     lp: LevelPlan,
     tau: np.ndarray,
     p: float,
     det_mean: np.ndarray,
+    k: int,
     ch: str = "gyro_z",
 ) -> np.ndarray:
-    """Bound of the kernel mean of |r| over each window (+inf where not applicable),
-    holding with probability ``>= 1 - p`` per window (``p`` split over the block lengths
-    of :data:`BLOCK_GAPS`); ``det_mean`` bounds the mean of the deterministic deviation
-    over the support."""
-    out = np.full(lp.a1.size, np.inf)
-    for k in BLOCK_GAPS:
-        tab = _tables(w, ch, k)
-        if tab is not None and lp.a1.size:
-            out = np.minimum(out, _bound(w, tab, lp, tau, p / len(BLOCK_GAPS), det_mean))
-    return out
+    """Bound of the kernel mean of |r| (``ch`` gyro_z; |q| for gyro_y) over each window
+    with the gyro centred on blocks of ``k`` heading gaps (gyro_y: ``k`` seconds), holding
+    with probability ``>= 1 - p`` per window (docs/dynamic-method.md, (3.9)); +inf where
+    not applicable. ``det_mean`` bounds the mean of the deterministic deviation over the
+    support."""
+    tab = block_tables(w, ch, k)
+    if tab is None or lp.a1.size == 0:
+        return np.full(lp.a1.size, np.inf)
+    out = _bound(w, tab, lp, tau, p, det_mean)
+    return np.where(np.isfinite(out), out, np.inf)
 
 
 def _bound(
@@ -369,7 +407,7 @@ def _bound(
     p: float,
     det_mean: np.ndarray,
 ) -> np.ndarray:
-    """:func:`block_r_abs` with the blocks of one table."""
+    """:func:`block_bound` with the blocks of one table."""
     ts, te = tab["ts"], tab["te"]
     s0, s1 = lp.a1, lp.b2
     inside = (s0 >= ts[0]) & (s1 <= te[-1])

@@ -1,7 +1,23 @@
-"""accel_y's transport term ``mean(r u)`` (docs/dynamic-method.md, section 3,
-**accel_y**): the tilt and rate terms of r and the speed part shared by the per-heading-gap
-form (:func:`~imubounds.dynamic.estimator.aided.accel_y.transport_by_gaps`), and the
-positions-only form over blocks of fix gaps (:func:`transport_by_fixes`)."""
+"""accel_y's transport term ``mean(r u)`` over trapezoid (positions-only) windows, the
+window cut into blocks B of a few fix gaps (docs/dynamic-method.md, section 3,
+**accel_y**, (3.20)): :func:`fix_block_form`, one block length each (the registry's
+``fix_blocks_<n>`` forms, :mod:`.form_tables`).
+
+I1 and I2 are cut separately. On B, u's mean ``u_B`` is known from the fixes
+(:func:`~imubounds.dynamic.estimator.aided.positions.body_u_mean_parts`: ``u_B = c_B +
+sum_{k in B} (eps_k+1 - eps_k).e_k/len_B +- rest_B``, c_B the chords projected on the gap
+headings, eps the fixes' errors), and u stays within ``u_B +- D_B`` (:func:`u_deviation`).
+So ``int K r u = int C K r + sum_B (u_B - c_B) int_B K r + sum_B int_B K r (u - u_B)``
+(C = c_B on B). The third with the rest is within ``sum_B (D_B + rest_B) int_B K|r|``
+(:func:`~.transport_terms.speed_part`, K <= 1/tau); the second's position errors, ``sum_B
+rho_B sum_{k in B} (eps_k+1 - eps_k).e_k`` (``rho_B`` the block mean of K r from the
+heading), by parts (:func:`_position_error_share`). In the first ``r = psi' c - q
+tan(phi)`` (:func:`~.transport_terms.rate_terms`): ``c0 int C K psi' +- max|c_B| ext``,
+and by parts (C K vanishes at the window's ends) ``int C K psi' = -sum_B c_B K'_B int_B
+psi - sum_j K(t_j) (c_j - c_j-1) psi(t_j)`` over the inner block starts t_j, with ``int_B
+psi`` from the heading hull of each fix gap and psi(t_j) from the heading boxes (all
+relative to the heading at a1, as the weights sum to zero).
+"""
 
 from __future__ import annotations
 
@@ -9,8 +25,7 @@ import math
 
 import numpy as np
 
-from imubounds.constants import EARTH_RATE, R_EARTH
-from imubounds.constants import EPS_UP as _EPS
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     c_extremes,
     error_rates,
@@ -19,78 +34,14 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
     other_rate,
     sample_model,
 )
-from imubounds.dynamic.estimator.aided.base import pm, up
+from imubounds.dynamic.estimator.aided.base import earth_rates, pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
-from imubounds.dynamic.estimator.aided.heading import heading_at
+from imubounds.dynamic.estimator.aided.forms import share
+from imubounds.dynamic.estimator.aided.heading import heading_at_epochs, heading_at_fixes
 from imubounds.dynamic.estimator.aided.positions import body_u_mean_parts, gap_units
-from imubounds.dynamic.estimator.aided.transport import r_abs
+from imubounds.dynamic.estimator.aided.transport_terms import by_parts, rate_terms, speed_part
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
-
-#: the levels d0 of the speed part: quantiles of the gaps' half-ranges of u
-SPEED_LEVELS = (0.25, 0.5, 0.65, 0.75, 0.85, 0.9, 0.95, 0.97, 0.99)
-#: block lengths (in fix gaps) of the positions-only transport bound (:func:`transport_by_fixes`)
-FIX_BLOCKS = (4, 6, 8, 10, 12, 16, 24, 32)
-#: the share of :func:`transport_by_fixes`'s probability for accel_x's noise in
-#: :func:`_u_deviation` (the rest for the support's mean |r|, :func:`_psi_variation`)
-ACC_SHARE = 0.2
-
-
-def _rate_terms(
-    w: WindowContext, lp: LevelPlan, tau: np.ndarray, q_mean: np.ndarray | None
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """``c0``, the radius of ``r - c0 psi'`` and the Earth's share of the gyro's rate.
-
-    In ``f_y = v' + r u + ...`` r is the body's rate relative to the navigation frame,
-    ``psi' c - q_nb tan(phi)`` (c = cos(theta)/cos(phi) within ``c0 +- cdev``); the
-    Earth's rotation and the transport rate enter through the Coriolis term of
-    :func:`~imubounds.dynamic.estimator.aided.horizontal.horizontal_terms`, so unlike
-    gyro_z's :func:`~imubounds.dynamic.estimator.aided.heading.r_from_psidot` no Earth
-    rate is added to r here. The gyros measure the inertial rates: ``|q_nb| <= |q| +
-    earth`` and ``|r_nb| <= |r| + earth``, ``earth = Omega + max_speed/R_E``."""
-    veh = w.veh
-    c = w.tilt.hull("cosp_over_cosr", lp.a1, lp.b2)
-    c0 = c.mid()
-    cdev = up(np.maximum(c.hi - c0, c0 - c.lo))
-    rate = veh.max_rate / math.cos(veh.max_tilt)
-    q = w.kernel_mag("gyro_y", lp, tau) if q_mean is None else q_mean
-    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
-    tr = w.tilt.hull("abs_tanr", lp.a1, lp.b2).hi
-    ext = up(up(rate * cdev) + up(up(q + earth) * tr))
-    return c0, ext, earth
-
-
-def _speed_part(
-    w: WindowContext,
-    gwin: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    du: np.ndarray,
-    n: int,
-    tau: np.ndarray,
-    r_mag: np.ndarray,
-    earth: float,
-) -> np.ndarray:
-    """Bound of ``(1/tau) sum_k du_k int_k |r|`` over each window's gaps (``du_k`` the
-    half-range of u on gap k, ``gwin`` each gap's window): for a level ``d0``,
-    ``du_k <= d0 + (du_k - d0)+``, so the sum is at most ``d0 mean|r| + (1/tau) sum_k
-    (du_k - d0)+ int_k |r|``, ``mean|r| <= r_mag`` and ``int_k |r|`` by the gyro's
-    magnitude on the gap; the smallest over a few levels ``d0`` (quantiles of ``du``,
-    its maximum included, which gives ``max du x r_mag``). r is relative to the
-    navigation frame: the gyro's bounds plus ``earth`` (:func:`_rate_terms`)."""
-    r_mag = up(r_mag + earth)
-    dmax = np.zeros(n)
-    np.maximum.at(dmax, gwin, du)
-    best = up(dmax * r_mag)
-    if du.size == 0:
-        return best
-    coarse = up(up(w.gyro_abs_mean("gyro_z", ga, gb) + earth) * (gb - ga))
-    for d0 in np.quantile(du, SPEED_LEVELS):
-        ex = np.zeros(n)
-        np.add.at(ex, gwin, up(np.maximum(du - d0, 0.0) * coarse))
-        cand = up((d0 * r_mag + up(ex * (1 + 1e-12)) / tau) * (1 + 1e-12))
-        best = np.minimum(best, cand)
-    return best
 
 
 def _fix_blocks(t: np.ndarray, lp: LevelPlan, mb: int) -> tuple[np.ndarray, ...]:
@@ -99,20 +50,21 @@ def _fix_blocks(t: np.ndarray, lp: LevelPlan, mb: int) -> tuple[np.ndarray, ...]
     p = np.searchsorted(t, lp.a1)
     m = np.searchsorted(t, lp.b1)
     q = np.searchsorted(t, lp.b2)
-    s_l: list[np.ndarray] = []
-    w_l: list[np.ndarray] = []
-    for k in range(p.size):
-        bnd = np.concatenate([np.arange(p[k], m[k], mb), np.arange(m[k], q[k], mb), [q[k]]])
-        s_l.append(bnd)
-        w_l.append(np.full(bnd.size, k))
-    bnd_all = np.concatenate(s_l)
-    win_all = np.concatenate(w_l)
+    # per window the block starts p, p + mb, .. (< m), m, m + mb, .. (< q), then q
+    c1 = -(-(m - p) // mb)
+    c2 = -(-(q - m) // mb)
+    cnt = c1 + c2 + 1
+    win_all = np.repeat(np.arange(p.size), cnt)
+    pos = np.arange(int(np.sum(cnt))) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    r1, r2 = np.repeat(c1, cnt), np.repeat(c1 + c2, cnt)
+    bnd_all = np.where(pos < r1, p[win_all] + mb * pos,
+                       np.where(pos < r2, m[win_all] + mb * (pos - r1), q[win_all]))
     last = np.r_[win_all[1:] != win_all[:-1], True]
     s, e, win = bnd_all[~last], bnd_all[1:][~last[:-1]], win_all[~last]
     return s, e, win, e <= m[win]
 
 
-def _u_deviation(
+def u_deviation(
     w: WindowContext, a: np.ndarray, b: np.ndarray, kw: float | None = None,
     kq: float = 0.0,
 ) -> np.ndarray:
@@ -152,27 +104,6 @@ def _u_deviation(
     return up(np.minimum(dev, veh.max_accel * ln * 0.5) * (1 + 1e-12))
 
 
-def _by_parts(
-    coef: np.ndarray, gw: np.ndarray, gk: np.ndarray, psi_start: IA, psi_end: IA,
-    group: np.ndarray,
-) -> IA:
-    """``sum_k coef_k (psi_k+1 - psi_k)`` per group of consecutive gaps (``group`` the
-    gap's group, ascending), each heading box once: ``sum_j psi_j (coef_j-1 - coef_j)``
-    plus the group's last fix with ``coef_last``. ``psi_start`` the heading at each gap's
-    first fix, ``psi_end`` at each gap's last."""
-    same = np.r_[False, group[1:] == group[:-1]]
-    prev = np.where(same, np.r_[0.0, coef[:-1]], 0.0)
-    term = IA(prev - coef) * psi_start
-    last = np.r_[group[1:] != group[:-1], True]
-    term = term + IA(np.where(last, coef, 0.0)) * psi_end
-    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    lo = np.add.reduceat(term.lo, start)
-    hi = np.add.reduceat(term.hi, start)
-    mag = np.add.reduceat(np.maximum(np.abs(term.lo), np.abs(term.hi)), start)
-    cnt = np.add.reduceat(np.ones(group.size), start)
-    guard = up((cnt + 4) * _EPS * 4 * mag + 1e-300)
-    return IA(lo - guard, hi + guard)
-
 
 def _position_error_share(
     w: WindowContext, s: np.ndarray, e: np.ndarray, win: np.ndarray, rho: IA, n: int
@@ -207,26 +138,18 @@ def _position_error_share(
     last = np.r_[gw[1:] != gw[:-1], True]
     lm = up(absmax(ax) + absmax(ay))
     np.add.at(out, gw[last], up(h[gk[last] + 1] * lm[last]))
-    return up(out * (1 + 1e-9) * (1 + 4 * _EPS * (gk.size + 4)) + 1e-300)
+    return up(out * (1 + 1e-9) * (1 + 4 * EPS * (gk.size + 4)) + 1e-300)
 
 
-def _psi_variation(w: WindowContext, lp: LevelPlan, p_sup: float) -> np.ndarray:
+def psi_variation(w: WindowContext, lp: LevelPlan, r_sup: np.ndarray) -> np.ndarray:
     """Bound of ``int |psi'|`` over each window's support: ``psi' = (r + q sin(phi))/
-    cos(theta)``, with the mean |r| over the support from
-    :func:`~imubounds.dynamic.estimator.aided.transport.r_abs` (a boxcar over the
-    support, at probability ``p_sup``) plus the Earth's rates, gyro_y's magnitude for
-    |q|; at most the rate bound times the support."""
+    cos(theta)``, with ``r_sup`` a bound of the mean |r| over the support (a boxcar over
+    it, :func:`~imubounds.dynamic.estimator.aided.form_tables.mean_abs_r`) plus the
+    Earth's rates, gyro_y's magnitude for |q|; at most the rate bound times the support."""
     veh = w.veh
     s0, s1 = lp.a1, lp.b2
     L = s1 - s0
-    sup = LevelPlan(float(np.median(L)), "aided", s0, s0, s1, s1, lp.i, lp.j)
-    pw = w.p_window
-    try:
-        w.p_window = p_sup
-        r_sup = r_abs(w, sup, L)
-    finally:
-        w.p_window = pw
-    earth = float(up(np.asarray(EARTH_RATE + veh.max_speed / R_EARTH)))
+    earth = earth_rates(veh)
     sr = w.tilt.hull("abs_sinr", s0, s1).hi
     sec = 1.0 + w.tilt.hull("sec_p_minus_1", s0, s1).hi
     q = w.gyro_abs_mean("gyro_y", s0, s1)
@@ -235,15 +158,87 @@ def _psi_variation(w: WindowContext, lp: LevelPlan, p_sup: float) -> np.ndarray:
     return up(m * L * (1 + 1e-12))
 
 
-def _transport_fix_blocks(
+def _gap_rows(
+    t: np.ndarray, lp: LevelPlan, tau: np.ndarray, s: np.ndarray, e: np.ndarray,
+    win: np.ndarray, in1: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per fix gap of the blocks: its block, first fix, window and the kernel's mean on it
+    (K linear on the gap: its value at the gap's midpoint)."""
+    L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
+    cnt = e - s
+    gb = np.repeat(np.arange(s.size), cnt)
+    bstart = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    gk = s[gb] + (np.arange(int(np.sum(cnt))) - bstart[gb])
+    gw = win[gb]
+    mid = 0.5 * (t[gk] + t[gk + 1])
+    kbar = np.where(in1[gb], (mid - lp.a1[gw]) / (L1[gw] * tau[gw]),
+                    (lp.b2[gw] - mid) / (L2[gw] * tau[gw]))
+    return gb, gk, gw, kbar
+
+
+def _kernel_on_fixes(t: np.ndarray, lp: LevelPlan, tau: np.ndarray) -> np.ndarray:
+    """Windows whose kernel integrates to 1 and has its corners on fix epochs."""
+    kint = 0.5 * ((lp.b1 - lp.a1) + (lp.b2 - lp.b1)) / tau  # int K (1 for the trapezoid)
+    ok = np.abs(kint - 1.0) < 1e-9
+    for x_t in (lp.a1, lp.b1, lp.b2):
+        k = np.clip(np.searchsorted(t, x_t), 0, t.size - 1)
+        ok &= np.abs(t[k] - x_t) <= 1e-9
+    return ok
+
+
+def _accel_noise_k(
+    w: WindowContext, win: np.ndarray, ta: np.ndarray, tb: np.ndarray, p_acc: float
+) -> tuple[float | None, float]:
+    """The k of accel_x's white noise (Levy, 4 tails per block, over the most blocks of a
+    window) and of its quantization (a union bound over the samples of the longest
+    block) at ``p_acc`` (``SHARES["accel_noise"]`` where it has a quantization part)."""
+    if not (p_acc > 0 and ta.size):
+        return None, 0.0
+    nb = int(np.max(np.bincount(win)))
+    q = w.ctx.noise["accel_x"].Q > 0
+    pw = share("accel_noise", "white") * p_acc if q else p_acc
+    kw = k_two(pw / (2.0 * nb))
+    kq = 0.0
+    if q:
+        mm = int(np.max(w.imu.count(ta, tb)))
+        kq = k_two(share("accel_noise", "quantization") * p_acc / (nb * (mm + 1.0)))
+    return kw, kq
+
+
+def _turn_factor(w: WindowContext, s: np.ndarray, win: np.ndarray, gb: np.ndarray,
+                 gk: np.ndarray, ell: np.ndarray, n: int) -> np.ndarray:
+    """Per window ``max_B (2 sqrt 2 + turn_B)/len_B``: where the unknown part of rho meets
+    the position boxes (the blocks' ends, ``|e|_1 <= sqrt 2`` each side, and the turns
+    inside a block)."""
+    ce, sn = gap_units(w)
+    first_g = np.r_[True, gb[1:] != gb[:-1]]
+    de = np.where(first_g, 0.0, np.abs(ce[gk] - ce[np.maximum(gk - 1, 0)])
+                  + np.abs(sn[gk] - sn[np.maximum(gk - 1, 0)]))
+    turn = np.zeros(s.size)
+    np.add.at(turn, gb, de)
+    fac = np.zeros(n)
+    np.maximum.at(fac, win, up((2 * math.sqrt(2) + turn) / ell))
+    return fac
+
+
+def fix_block_form(
     w: WindowContext, lp: LevelPlan, tau: np.ndarray, mb: int, r_mag: np.ndarray,
     q_mean: np.ndarray | None, psi_var: np.ndarray, p_acc: float = 0.0,
+    within: IA | None = None,
 ) -> IA:
-    """:func:`transport_by_fixes` for blocks of ``mb`` fix gaps (``psi_var`` from
-    :func:`_psi_variation`; ``p_acc`` > 0: u's deviation also from accel_x's signed
+    """``mean(r u)`` over trapezoid (positions-only) windows, the window cut into blocks
+    B of ``mb`` fix gaps (docs/dynamic-method.md, (3.20); ``psi_var`` from
+    :func:`psi_variation`; ``p_acc`` > 0: u's deviation also from accel_x's signed
     integral, one event at that probability per window over its blocks: Levy's
     inequality for the white noise, 4 tails per block, and the quantization over the
-    samples of the longest block, a union bound)."""
+    samples of the longest block, a union bound).
+
+    ``within`` (the intersection of the forms before it, :func:`~.forms.combine`): the
+    form is ``head + [-R, R]`` with ``R >= max|c_B| Delta + h_max max_B((2 sqrt 2 +
+    turn_B)/len_B) Delta``; where ``head +-`` that already contains ``within`` at every
+    window of the level (or the window has no bound), the form cannot narrow the
+    intersection and its costly parts (u's deviation, the position errors, the speed
+    part) are skipped: ``(-inf, inf)``."""
     t = w.ag.gnss_t
     h = w.ag.gnss_h
     n = lp.a1.size
@@ -253,110 +248,45 @@ def _transport_fix_blocks(
     cb, rest = body_u_mean_parts(w, s, e)
     fin = np.isfinite(cb) & np.isfinite(rest)
     cb = np.where(fin, cb, 0.0)
-    kw, kq = None, 0.0
-    if p_acc > 0 and s.size:
-        nb = int(np.max(np.bincount(win)))
-        q = w.ctx.noise["accel_x"].Q > 0
-        kw = k_two((0.5 if q else 1.0) * p_acc / (2.0 * nb))
-        if q:
-            mm = int(np.max(w.imu.count(ta, tb)))
-            kq = k_two(0.5 * p_acc / (nb * (mm + 1.0)))
-    du = np.where(fin, up(rest + _u_deviation(w, ta, tb, kw, kq)), np.inf)
-    L1, L2 = lp.b1 - lp.a1, lp.b2 - lp.b1
-    # per fix gap: its block, window, first fix, the kernel at its midpoint and slope
-    cnt = e - s
-    gb = np.repeat(np.arange(s.size), cnt)
-    bstart = np.concatenate([[0], np.cumsum(cnt)[:-1]])
-    gk = s[gb] + (np.arange(int(np.sum(cnt))) - bstart[gb])
-    gw = win[gb]
-    mid = 0.5 * (t[gk] + t[gk + 1])
-    kbar = np.where(in1[gb], (mid - lp.a1[gw]) / (L1[gw] * tau[gw]),
-                    (lp.b2[gw] - mid) / (L2[gw] * tau[gw]))
-    ref = heading_at(w, lp.a1).mid()
+    gb, gk, gw, kbar = _gap_rows(t, lp, tau, s, e, win, in1)
+    ref = heading_at_epochs(w, lp.a1).mid()
     ref = np.where(np.isfinite(ref), ref, 0.0)
-    ps = heading_at(w, t[gk]) - IA(ref[gw])
-    pe = heading_at(w, t[gk + 1]) - IA(ref[gw])
-    c0, ext, _ = _rate_terms(w, lp, tau, q_mean)
+    ps = heading_at_fixes(w, gk) - IA(ref[gw])
+    pe = heading_at_fixes(w, gk + 1) - IA(ref[gw])
+    c0, ext, _ = rate_terms(w, lp, tau, q_mean)
     # the first sum: c0 sum_g c_B Kbar_g dpsi_g by parts over the window's fixes
-    head = _by_parts(cb[gb] * kbar, gw, gk, ps, pe, gw) * IA(c0)
-    # rho_B's known part: (c0/len_B) sum_{g in B} Kbar_g dpsi_g, by parts in the block
-    rho0 = _by_parts(kbar, gw, gk, ps, pe, gb) * IA(c0[win]) / IA(ell)
+    head = by_parts(cb[gb] * kbar, gw, gk, ps, pe, gw) * IA(c0)
     # what the gaps leave: c0 K' int_g (t - t_mid) psi' and int K |r - c0 psi'|
     gmax = np.zeros(n)
     np.maximum.at(gmax, gw, t[gk + 1] - t[gk])
-    kslope = np.maximum(1.0 / (L1 * tau), 1.0 / (L2 * tau))
+    kslope = np.maximum(1.0 / ((lp.b1 - lp.a1) * tau), 1.0 / ((lp.b2 - lp.b1) * tau))
     delta = up(up(c0 * kslope * 0.5 * gmax * psi_var) + ext)
     delta = up(delta * (1 + 1e-9))
-    ok_b = fin & np.isfinite(rho0.lo) & np.isfinite(rho0.hi)
     ok = np.ones(n, dtype=bool)
-    np.logical_and.at(ok, win, ok_b)
-    ok &= np.isfinite(head.lo) & np.isfinite(head.hi)
-    kint = 0.5 * (L1 + L2) / tau  # int K (1 for the trapezoid)
-    ok &= np.abs(kint - 1.0) < 1e-9
-    for x_t in (lp.a1, lp.b1, lp.b2):  # the kernel's corners on fix epochs
-        k = np.clip(np.searchsorted(t, x_t), 0, t.size - 1)
-        ok &= np.abs(t[k] - x_t) <= 1e-9
+    np.logical_and.at(ok, win, fin)
+    ok &= np.isfinite(head.lo) & np.isfinite(head.hi) & _kernel_on_fixes(t, lp, tau)
     umax = np.zeros(n)
     np.maximum.at(umax, win, np.abs(cb))
-    rho0 = IA(np.where(ok_b, rho0.lo, 0.0), np.where(ok_b, rho0.hi, 0.0))
-    perr = _position_error_share(w, s, e, win, rho0, n)
-    # the unknown part of rho: sum_B len_B |delta_B| <= delta; it meets the boxes at the
-    # blocks' ends (|e|_1 <= sqrt 2 each side) and at the turns inside a block
-    ce, sn = gap_units(w)
-    first_g = np.r_[True, gb[1:] != gb[:-1]]
-    de = np.where(first_g, 0.0, np.abs(ce[gk] - ce[np.maximum(gk - 1, 0)])
-                  + np.abs(sn[gk] - sn[np.maximum(gk - 1, 0)]))
-    turn = np.zeros(s.size)
-    np.add.at(turn, gb, de)
-    fac = np.zeros(n)
-    np.maximum.at(fac, win, up((2 * math.sqrt(2) + turn) / ell))
+    inner = head + pm(up(umax * delta))
+    fac = _turn_factor(w, s, win, gb, gk, ell, n)
     hmax = np.zeros(n)
     np.maximum.at(hmax, gw, np.maximum(h[gk], h[gk + 1]))
-    perr = up(perr + up(hmax * fac * delta) * (1 + 1e-9))
-    speed = _speed_part(w, win, ta, tb, np.where(fin, du, 0.0), n, tau, r_mag, _earth(w))
-    x = head + pm(up(umax * delta)) + pm(perr) + pm(speed)
+    pturn = up(hmax * fac * delta) * (1 + 1e-9)
+    none = IA(np.full(n, -np.inf), np.full(n, np.inf))
+    if within is not None:
+        g2 = inner + pm(pturn)
+        if np.all(~ok | ((g2.lo <= within.lo) & (g2.hi >= within.hi))):
+            return none
+    kw, kq = _accel_noise_k(w, win, ta, tb, p_acc)
+    du = np.where(fin, up(rest + u_deviation(w, ta, tb, kw, kq)), np.inf)
+    # rho_B's known part: (c0/len_B) sum_{g in B} Kbar_g dpsi_g, by parts in the block
+    rho0 = by_parts(kbar, gw, gk, ps, pe, gb) * IA(c0[win]) / IA(ell)
+    ok_b = np.isfinite(rho0.lo) & np.isfinite(rho0.hi)
+    np.logical_and.at(ok, win, ok_b)
+    rho0 = IA(np.where(fin & ok_b, rho0.lo, 0.0), np.where(fin & ok_b, rho0.hi, 0.0))
+    perr = _position_error_share(w, s, e, win, rho0, n)
+    # the unknown part of rho: sum_B len_B |delta_B| <= delta
+    perr = up(perr + pturn)
+    speed = speed_part(w, win, ta, tb, np.where(fin, du, 0.0), n, tau, r_mag, earth_rates(w.veh))
+    x = inner + pm(perr) + pm(speed)
     return IA(np.where(ok, x.lo, -np.inf), np.where(ok, x.hi, np.inf))
-
-
-def _earth(w: WindowContext) -> float:
-    return float(up(np.asarray(EARTH_RATE + w.veh.max_speed / R_EARTH)))
-
-
-def transport_by_fixes(
-    w: WindowContext,
-    lp: LevelPlan,
-    tau: np.ndarray,
-    r_mag: np.ndarray,
-    q_mean: np.ndarray | None,
-    p_sup: float,
-) -> IA:
-    """``mean(r u)`` over trapezoid (positions-only) windows, the window cut into blocks
-    B of a few fix gaps (I1's and I2's separately; the narrowest over
-    :data:`FIX_BLOCKS`, each an enclosure). On B, u's mean ``u_B`` is known from the
-    fixes (:func:`~imubounds.dynamic.estimator.aided.positions.body_u_mean_parts`:
-    ``u_B = c_B + sum_{k in B} (eps_k+1 - eps_k).e_k/len_B +- rest_B``, c_B the chords
-    projected on the gap headings, eps the fixes' errors), and u stays within ``u_B +-
-    D_B`` (:func:`_u_deviation`). So ``int K r u = int C K r + sum_B (u_B - c_B) int_B K r
-    + sum_B int_B K r (u - u_B)`` (C = c_B on B). The third with the rest is within
-    ``sum_B (D_B + rest_B) int_B K|r|`` (:func:`_speed_part`, K <= 1/tau); the second's
-    position errors, ``sum_B rho_B sum_{k in B} (eps_k+1 - eps_k).e_k`` (``rho_B`` the
-    block mean of K r from the heading, :func:`_block_rate_means`), by parts
-    (:func:`_position_error_share`). In the first
-    ``r = psi' c - q tan(phi)`` (:func:`_rate_terms`): ``c0 int C K psi' +- max|c_B|
-    ext``, and by parts (C K vanishes at the window's ends) ``int C K psi' = -sum_B c_B
-    K'_B int_B psi - sum_j K(t_j) (c_j - c_j-1) psi(t_j)`` over the inner block starts
-    t_j, with ``int_B psi`` from the heading hull of each fix gap and psi(t_j) from the
-    heading boxes (:func:`~imubounds.dynamic.estimator.aided.heading.heading_at`; all
-    relative to the heading at a1, as the weights sum to zero)."""
-    psi_var = _psi_variation(w, lp, (1.0 - ACC_SHARE) * p_sup)
-    p_acc = ACC_SHARE * p_sup / len(FIX_BLOCKS)
-    best: IA | None = None
-    for mb in FIX_BLOCKS:
-        x = _transport_fix_blocks(w, lp, tau, mb, r_mag, q_mean, psi_var, p_acc)
-        if best is None:
-            best = x
-        else:
-            use = (x.hi - x.lo) < (best.hi - best.lo)
-            best = IA(np.where(use, x.lo, best.lo), np.where(use, x.hi, best.hi))
-    assert best is not None
-    return best

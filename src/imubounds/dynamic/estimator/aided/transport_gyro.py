@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from imubounds.constants import EARTH_RATE, R_EARTH
-from imubounds.constants import EPS_UP as _EPS
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import (
     accel_error,
     c_extremes,
@@ -35,10 +35,11 @@ from imubounds.dynamic.estimator.aided.accel_integral import (
 )
 from imubounds.dynamic.estimator.aided.base import pm, up
 from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.forms import share
 from imubounds.dynamic.estimator.aided.heading import heading_at
 from imubounds.dynamic.estimator.aided.transport_blocks import abs_dev_integral
-from imubounds.dynamic.estimator.aided.transport_fixes import _by_parts, _rate_terms
 from imubounds.dynamic.estimator.aided.transport_split import known_shape_terms
+from imubounds.dynamic.estimator.aided.transport_terms import by_parts, rate_terms
 from imubounds.dynamic.estimator.budget import ChannelNoise, centered_ms_bound, kernel_variance
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 from imubounds.interval import IntervalArray as IA
@@ -120,10 +121,11 @@ def _u_excursion(
     absint = sig.abs_integral(lp.a1, lp.b2)
     # the white noise: Levy's inequality on each side of t_c, PIECES nested spans per side
     # (a union bound); the quantization at the support's m samples
-    pw = 0.5 * p if w.ctx.noise["accel_x"].Q > 0 else p
+    pw = share("accel_noise", "white") * p if w.ctx.noise["accel_x"].Q > 0 else p
     kw = k_two(pw / (4.0 * PIECES))
     m = w.imu.count(lp.a1, lp.b2)
-    kq = (np.array([k_two(0.5 * p / (k + 1.0)) for k in m])[:, None]
+    pq = share("accel_noise", "quantization") * p
+    kq = (np.array([k_two(pq / (k + 1.0)) for k in m])[:, None]
           if w.ctx.noise["accel_x"].Q > 0 else 0.0)
     err = accel_error(w, x, absint[:, None], kw, kq)
     ko = up(other_rate(w, lp.a1, lp.b2)[:, None] * x)
@@ -239,9 +241,9 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     """``rbar = int K r`` (r the yaw rate relative to the navigation frame, K the
     trapezoid kernel) cut at the heading epochs (and at b1): on each gap j, with ``Kbar_j``
     K's mean there and K linear, ``int_j K r = Kbar_j int_j r + slope_j int_j (t - m_j)
-    r``. The first: ``r = c0 psi' + (r - c0 psi')`` (:func:`.transport_fixes._rate_terms`:
+    r``. The first: ``r = c0 psi' + (r - c0 psi')`` (:func:`.transport_fixes.rate_terms`:
     ``int K |r - c0 psi'| <= ext``), so ``c0 sum_j Kbar_j (psi_j+1 - psi_j)``, by parts
-    (each heading box once, weighted by the change of Kbar: ``_by_parts``). The second:
+    (each heading box once, weighted by the change of Kbar: ``by_parts``). The second:
     ``r = y - e``; the y part exact from the samples' running integrals (``int_j (t -
     m_j) y = g_j (Y_0 + Y_1)/2 - (Z_1 - Z_0)``, Y, Z the first and second integrals, their
     rounding bounds added); the e part: its turn-on constant drops out (``int_j (t - m_j)
@@ -272,8 +274,8 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     hk = IA(hu.lo[kinv], hu.hi[kinv])
     ps = IA(hk.lo[:-1][same], hk.hi[:-1][same]) - IA(ref[gw])
     pe = IA(hk.lo[1:][same], hk.hi[1:][same]) - IA(ref[gw])
-    c0, ext, earth = _rate_terms(w, lp, tau, None)
-    head = _by_parts(kbar, gw, gw, ps, pe, gw)
+    c0, ext, earth = rate_terms(w, lp, tau, None)
+    head = by_parts(kbar, gw, gw, ps, pe, gw)
     # the known part of the y ramps: sum_j slope_j (g_j (Y0 + Y1)/2 - (Z1 - Z0))
     sig = w.imu.sig["gyro_z"]
     y0, ey0, _ = sig.cum(s0)
@@ -282,10 +284,10 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     z1, ez1 = sig.zcum(s1)
     ramp = 0.5 * g * (y0 + y1) - (z1 - z0)
     rerr = (0.5 * g * (ey0 + ey1) + ez0 + ez1
-            + 4 * _EPS * (np.abs(0.5 * g * (y0 + y1)) + np.abs(z1) + np.abs(z0))
+            + 4 * EPS * (np.abs(0.5 * g * (y0 + y1)) + np.abs(z1) + np.abs(z0))
             + sig.unknown_len(s0, s1) * sig.xmax * 0.5 * g)
     term = slope * ramp
-    terr = up(np.abs(slope) * up(rerr) + 4 * _EPS * np.abs(term))
+    terr = up(np.abs(slope) * up(rerr) + 4 * EPS * np.abs(term))
     yk = np.zeros(n)
     np.add.at(yk, gw, term)
     yk_err = np.zeros(n)
@@ -293,7 +295,7 @@ def mean_r_by_gaps(w: WindowContext, lp: LevelPlan, tau: np.ndarray, p: float) -
     tmag = np.zeros(n)
     np.add.at(tmag, gw, np.abs(term))
     cnt = np.bincount(gw, minlength=n)
-    yk_err = up(yk_err + (cnt + 4) * _EPS * tmag + 1e-300)
+    yk_err = up(yk_err + (cnt + 4) * EPS * tmag + 1e-300)
     # the gyro's Gaussian noise on the ramps: one Gaussian per window, its weights on
     # the samples exact (the samples' pieces between the knots)
     cn = ctx.noise["gyro_z"]
@@ -339,7 +341,7 @@ def transport_by_gyro(
     equal-weight mean of the support's m samples, ``<= K_max max_len m MS`` with ``MS``
     the bound of the noise's mean square deviation from its mean
     (:func:`~imubounds.dynamic.estimator.budget.centered_ms_bound`, the noise's white,
-    quantization and flicker parts, as ``aided.transport.r_abs``; ``K_max = 1/tau``),
+    quantization and flicker parts, as ``aided.transport.centred_window``; ``K_max = 1/tau``),
     plus the deterministic part (Minkowski); each sample is the true rate's mean over it
     plus the error, the rest inside a sample (its rate-of-change bound times the sample)
     added against ``K (u - U0)``'s slope. Also ``U0`` the centre of ``[u_lo, u_hi]``:
@@ -348,18 +350,18 @@ def transport_by_gyro(
     the known shapes' terms, ``b_TO``'s bound times its term, plus the first form with the
     rest's bound ``D'`` for ``D``; computed where the known terms being 0 would narrow the
     form by at least :data:`SPLIT_GAIN` of its width); the narrowest. The probability
-    ``p`` of the window's event is split over the ramp noise of ``rbar`` (0.4), accel_x's
-    white noise (0.2, one event for D and D'), ``MS`` (0.2) and the split's two Gaussians
-    (0.1 each)."""
+    ``p`` of the window's event is split over the ramp noise of ``rbar``, accel_x's
+    white noise (one event for D and D'), ``MS`` and the split's two Gaussians as
+    :data:`~.forms.SHARES` ``["gyro_shape"]`` says."""
     n = lp.a1.size
     bad = IA(np.full(n, -np.inf), np.full(n, np.inf))
     if n == 0 or not w.ag.has_heading or not w.imu.available["gyro_z"] or not w.fine_r:
         return bad
     ctx = w.ctx
-    rbar = mean_r_by_gaps(w, lp, tau, 0.4 * p)
+    rbar = mean_r_by_gaps(w, lp, tau, share("gyro_shape", "mean_r") * p)
     first = rbar * IA(u_lo, u_hi)
     s0, s1, kmax, kint = _pieces(lp, tau)
-    D, Dr = _u_excursion(w, lp, s0, s1, 0.2 * p)
+    D, Dr = _u_excursion(w, lp, s0, s1, share("gyro_shape", "accel_noise") * p)
     sig = w.imu.sig["gyro_z"]
     yb = sig.kernel_mean(lp.a1, lp.b1, lp.a2, lp.b2, tau)
     fin = np.isfinite(yb.lo) & np.isfinite(yb.hi)
@@ -375,7 +377,8 @@ def transport_by_gyro(
     cn = ctx.noise["gyro_z"]
     m = w.imu.count(lp.a1, lp.b2)
     uc, inv = np.unique(m, return_inverse=True)
-    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, 0.2 * p) for mm in uc])[inv]
+    p_ms = share("gyro_shape", "gyro_ms") * p
+    ms = np.array([centered_ms_bound(cn, int(mm), w.imu.dt, p_ms) for mm in uc])[inv]
     sig_n = np.sqrt(up(w.imu.max_len * m * ms / tau * (1 + 1e-9)))
     earth = EARTH_RATE + w.veh.max_speed / R_EARTH
     R = w.veh.max_rate + earth
@@ -411,7 +414,8 @@ def transport_by_gyro(
         lb = np.sum(dr * kmax * ad, axis=1) + enorm * np.sqrt(np.sum(kint * dr * dr, axis=1))
         width = np.where(want, rbar.hi - rbar.lo, 0.0) * np.maximum(np.abs(u_lo), np.abs(u_hi))
         want &= second - (lb + samp) > SPLIT_GAIN * (width + second)
-    known, tb, aerr = known_shape_terms(w, lp, tau, want, c, rho, ed, 0.2 * p)
+    known, tb, aerr = known_shape_terms(w, lp, tau, want, c, rho, ed,
+                                         share("gyro_shape", "split") * p)
     want &= np.isfinite(known) & np.isfinite(tb) & np.isfinite(aerr)
     if np.any(want):
         turn_on = ctx.noise["accel_x"].turn_on_bound(ctx.alpha.k("imu_turn_on"))

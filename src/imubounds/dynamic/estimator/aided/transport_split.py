@@ -48,10 +48,11 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from imubounds.constants import EPS_UP as _EPS
+from imubounds.constants import EPS_UP as EPS
 from imubounds.dynamic.estimator.aided.accel_integral import c_extremes, k_two
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
+from imubounds.dynamic.estimator.aided.forms import share
 from imubounds.dynamic.estimator.budget import ChannelNoise
 from imubounds.dynamic.estimator.window_plan import LevelPlan
 
@@ -133,7 +134,8 @@ def _terms(
     cn = w.ctx.noise["gyro_z"]
     dt = w.imu.dt
     ratio = max(1.0, w.imu.max_len / dt)
-    kg = k_two(0.5 * p)
+    k_wa = k_two(share("split", "accel_weights") * p)
+    k_wt = k_two(share("split", "clock_weights") * p)
     bnd = gy.bnd
     a1, b1, b2 = la1[:, None], lb1[:, None], lb2[:, None]
     r1, r2 = 1.0 / ((b1 - a1) * tau[:, None]), 1.0 / ((b2 - b1) * tau[:, None])
@@ -200,7 +202,7 @@ def _terms(
     # ulp of |C| + |C(t_c)| + |y_x| max_len)
     cmax = float(np.max(np.abs(cval))) + float(np.max(np.abs(ax.y))) * w.imu.max_len
     aerr = up(_err_max(w)[np.minimum(i1 + 1, bnd.size - 1)] + ec
-              + 8 * _EPS * (cmax + np.abs(cc)))
+              + 8 * EPS * (cmax + np.abs(cc)))
     yv = gy.y[k] - c[:, None]
     nz = k.shape[1] + 8
     m_a = np.sum(yv * wka, axis=1)
@@ -209,22 +211,22 @@ def _terms(
     # c| <= max|y| + |c|, sum |wka| <= max|A| sum wk, sum |wkt| <= half sum wk; each
     # piece's Simpson sum within a few ulps of those
     ymax = float(np.max(np.abs(gy.y))) + np.abs(c)
-    e_a = 8 * nz * _EPS * (ymax + 1) * 2 * abs_ka
-    e_t = 8 * nz * _EPS * (ymax + 1) * 2 * abs_kt
+    e_a = 8 * nz * EPS * (ymax + 1) * 2 * abs_ka
+    e_t = 8 * nz * EPS * (ymax + 1) * 2 * abs_kt
     ca = wka - abar[:, None] * wk
     ct = wkt - tbar[:, None] * wk
     # the centred weights' rounding: |dc| <= 8 n eps (|wka| + |abar| wk) per weight, its
     # sd at most sum |dc| x one sample's sd
     one = math.sqrt(cn.N**2 / dt + 2 * cn.Q**2 / dt**2 + cn.flicker_sigma() ** 2)
-    rnd_a = 8 * nz * _EPS * (abs_ka + np.abs(abar)) * one * ratio
-    rnd_t = 8 * nz * _EPS * (abs_kt + np.abs(tbar)) * one * ratio
+    rnd_a = 8 * nz * EPS * (abs_ka + np.abs(abar)) * one * ratio
+    rnd_t = 8 * nz * EPS * (abs_kt + np.abs(tbar)) * one * ratio
     sd = batch_sd(cn, np.concatenate([ca, ct]), dt) * ratio
     # the gyro's constant error: int K (e0 - e0 int K) f = e0 (1 - int K) int K f, int K
     # = (L1 + L2) / (2 tau) up to two roundings
-    norm = np.abs((lb2 - la1) / (2 * tau) - 1) + 4 * _EPS
+    norm = np.abs((lb2 - la1) / (2 * tau) - 1) + 4 * EPS
     e0 = w.ctx.E0["gyro_z"] * norm
-    known = (np.abs(m_a) + e_a + (rho + e0) * abs_ka + kg * (sd[:n] + rnd_a) + ed * dev_a)
-    tb = (np.abs(m_t) + e_t + (rho + e0) * abs_kt + kg * (sd[n:] + rnd_t) + ed * dev_t)
+    known = (np.abs(m_a) + e_a + (rho + e0) * abs_ka + k_wa * (sd[:n] + rnd_a) + ed * dev_a)
+    tb = (np.abs(m_t) + e_t + (rho + e0) * abs_kt + k_wt * (sd[n:] + rnd_t) + ed * dev_t)
     known = np.where(ok, up(known * (1 + 1e-9)), np.inf)
     tb = np.where(ok, up(tb * (1 + 1e-9)), np.inf)
     return known, tb, np.where(ok, aerr, np.inf)

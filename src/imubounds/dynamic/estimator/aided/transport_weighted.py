@@ -1,13 +1,13 @@
 """The speed part of accel_y's transport term over the heading gaps, with the gyro centred
 on blocks of heading gaps (docs/dynamic-method.md, section 3, **accel_y**).
 
-:func:`~imubounds.dynamic.estimator.aided.accel_y.transport_by_gaps` bounds ``(1/tau)
+:func:`~imubounds.dynamic.estimator.aided.transport_gaps.transport_by_gaps` bounds ``(1/tau)
 sum_k int_k (u - u0_k) r`` by ``(1/tau) sum_k du_k int_k |r|`` (``du_k`` u's half-range
 on heading gap k). Bounding ``int_k |r|`` by the window's mean |r| times the largest
 ``du_k`` loses where the half-ranges differ; here the sum is bounded as one weighted
 mean: with per-sample weights ``om_i >= du_k`` of every gap k that sample i meets, it is
 at most ``(1/tau) sum_i om_i int_i |r|``, bounded as in
-:func:`~imubounds.dynamic.estimator.aided.transport_blocks.block_r_abs` with the kernel
+:func:`~imubounds.dynamic.estimator.aided.transport_blocks.block_bound` with the kernel
 weights ``w_i`` multiplied by ``om_i``:
 
 With ``y_i - e_g = z_i + n_i`` on block g (``e_g`` the block's true mean error, ``z =
@@ -48,7 +48,7 @@ import numpy as np
 from imubounds.dynamic.estimator.aided.base import up
 from imubounds.dynamic.estimator.aided.common import WindowContext
 from imubounds.dynamic.estimator.aided.transport import det_mean
-from imubounds.dynamic.estimator.aided.transport_blocks import _tables, weighted_abs_dev
+from imubounds.dynamic.estimator.aided.transport_blocks import block_tables, weighted_abs_dev
 from imubounds.dynamic.estimator.aided.velocity import gyro_free_u, vel_range
 from imubounds.dynamic.estimator.inputs import RangeExt
 from imubounds.dynamic.estimator.window_plan import LevelPlan
@@ -106,12 +106,12 @@ def _sample_weights(w: WindowContext, bv: Any) -> tuple[np.ndarray, Any, np.ndar
 
 
 def _weighted_table(w: WindowContext, om: np.ndarray, k: int) -> dict[str, Any] | None:
-    """Per block of ``k`` heading gaps (:func:`.transport_blocks._tables`): the larger of
+    """Per block of ``k`` heading gaps (:func:`.transport_blocks.block_tables`): the larger of
     ``int om |y - e|`` at the ends of its mean-error box, and prefix sums. Once per run."""
     key = f"wblocks_{k}"
     if key in w.cache:
         return w.cache[key]
-    tab = _tables(w, "gyro_z", k)
+    tab = block_tables(w, "gyro_z", k)
     out = None
     if tab is not None:
         ts, te = tab["ts"], tab["te"]
