@@ -653,11 +653,18 @@ def _margins_truth(run: Any, drive: Any) -> dict[str, Any]:
 
 def applied_corrections(s: dict[str, Any]) -> list[str]:
     """One line per correction mode ``full`` estimated from the data and applied: a
-    stream's clock offset (``timing``) and the compass error model (``heading_sensor``)."""
+    stream's clock offset (``timing``; ``bounded:`` where the stamps stay and the data's
+    interval is budgeted instead) and the compass error model (``heading_sensor``)."""
     out: list[str] = []
     for stream, tm in (s.get("timing") or {}).items():
         if isinstance(tm, dict) and tm.get("applied"):
             lo, hi = tm.get("interval_s") or (float("nan"), float("nan"))
+            if tm.get("offset_s") == 0.0:  # the stamps stay, the data's interval is budgeted
+                out.append(
+                    f"bounded: {stream} clock offset within [{lo:+.3f}, {hi:+.3f}] s from the "
+                    f"data, budgeted (stamps kept; timing.{stream}.note in dynamic.json)"
+                )
+                continue
             out.append(
                 f"applied: {stream} clock offset {tm['offset_s']:+.3f} s [{lo:+.3f}, {hi:+.3f}] "
                 f"estimated from the data (true time = stamp - offset; timing in dynamic.json)"
