@@ -29,14 +29,17 @@ TRIPS_PER_VARIANT = 25  # 8 x 25 = 200 trips
 #: budget: about half the default 13-minute trip's time (gnss10's 25 trips 159 -> 77 s)
 TRIP_S = 300.0
 SPEED_MPS = 9400.0 / 792.0
+#: (the sharp corners' trip keeps the default 13 minutes: its slow corners and speed
+#: ramps leave too little time for a shorter plan, which the simulator refuses)
 
 
 def run_trip(variant: str, seed: int) -> tuple[bool, list[str], str, bool]:
     """(record clean, quantities whose truth left the intervals, record summary,
     guaranteed)."""
     extra = {"scale_error": 0.002, "misalignment_deg": 0.1} if seed % 3 == 0 else {}
-    res = make_trip(variant, seed=seed, rate_hz=50.0, truth_rate_hz=50.0,
-                    duration_s=TRIP_S, distance_m=TRIP_S * SPEED_MPS, **extra)
+    if variant != "corners":
+        extra |= {"duration_s": TRIP_S, "distance_m": TRIP_S * SPEED_MPS}
+    res = make_trip(variant, seed=seed, rate_hz=50.0, truth_rate_hz=50.0, **extra)
     d = dynamic_margins(res.drive).to_dict()
     assert d["guaranteed"] is (not d["violations"])
     # the window means are checked against the true signal, for every analysed channel
